@@ -1,0 +1,27 @@
+"""The PettingZoo environment: options, observations, the env class and the robot view.
+
+Imports are lazy so that ``mrexplore.env.view`` (used by policies) does not pull in the
+simulator.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["EnvConfig", "MultiRobotExplorationEnv", "RobotView"]
+
+
+def __getattr__(name: str) -> Any:
+    if name == "EnvConfig":
+        from mrexplore.env.config import EnvConfig
+
+        return EnvConfig
+    if name == "MultiRobotExplorationEnv":
+        from mrexplore.env.parallel_env import MultiRobotExplorationEnv
+
+        return MultiRobotExplorationEnv
+    if name == "RobotView":
+        from mrexplore.env.view import RobotView
+
+        return RobotView
+    raise AttributeError(f"module 'mrexplore.env' has no attribute {name!r}")

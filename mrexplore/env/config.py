@@ -1,0 +1,146 @@
+"""Typed, validated options of the multi-robot exploration environment.
+
+Every keyword argument of :func:`mrexplore.parallel_env` lands in :class:`EnvConfig`; a keyword
+that is not a field is an error (a typo must never be silently ignored), and every value is
+checked when the env is built, not deep inside a step.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from mrexplore.errors import ConfigError
+
+RewardMode = Literal["time", "coverage"]
+Task = Literal["explore", "navigate"]
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """Options of :class:`mrexplore.env.MultiRobotExplorationEnv` (units in the names).
+
+    World and team:
+        world: a shipped world name (``"symmetric_office"``), a path to a map_server YAML, a
+            :class:`~mrexplore.world.World`, or ``"random:<generator>"`` for a new world drawn from
+            the episode's seed at every reset (training on many maps).
+        n_robots: team size; ``1`` is the single-robot baseline (same world, same start of
+            ``robot_0`` as the team runs for the same seed).
+        task: ``"explore"`` (cover ``target_coverage`` of the reachable free space) or
+            ``"navigate"`` (``robot_0`` must reach a goal given in its own frame).
+    Robots and sensing:
+        radius_m, speed_mps, turn_rate_rps, dt_s: robot body and motion (defaults: 0.15 m,
+            0.5 m/s, pi/2 rad/s, 0.25 s per step: 0.125 m forward or 22.5 deg per step).
+        n_beams, fov_deg, max_range_m, range_noise_m: the lidar.
+        aligned_headings: all robots start with heading 0 in the world (the paper's setting);
+            ``False`` draws start headings uniformly, so the maps are rotated w.r.t. each other.
+        odom_noise_trans, odom_noise_rot: odometry drift (fraction of distance; rad per rad).
+        min_start_separation_m: minimum distance between start positions.
+    Merging:
+        merger: merge method name for :func:`mrexplore.merge.merge_maps` (``"semantic"``,
+            ``"paper"``, ``"orb"``), an object with ``merge(a, b)``, or ``None`` (never merge).
+        merge_every: steps between merge attempts before the first success.
+        recheck_every: steps between re-checks of an accepted transform.
+        comm_range_m: maps are exchanged only while robots are within this distance (None = always).
+    Episode and reward:
+        target_coverage: exploration ends when the team has observed this share of the
+            reachable free cells.
+        max_time_s: truncation time; ``max_cycles`` (steps) truncates too when given.
+        reward_mode: ``"time"`` (``-dt_s`` per step: return = -task time) or ``"coverage"``
+            (``coverage_reward_per_m2`` per newly observed m^2 minus ``time_penalty_per_s * dt_s``).
+        goal_min_distance_m, goal_radius_m: navigation goal placement and arrival radius.
+    Observation:
+        global_view_m: side of the coarse, robot-centred view of the known map, metres.
+        local_view_m: side of the fine, robot-centred view, metres.
+        obs_size_px: each view is ``obs_size_px`` x ``obs_size_px`` pixels.
+    """
+
+    world: Any = "symmetric_office"
+    n_robots: int = 2
+    task: Task = "explore"
+    radius_m: float = 0.15
+    speed_mps: float = 0.5
+    turn_rate_rps: float = math.pi / 2
+    dt_s: float = 0.25
+    n_beams: int = 360
+    fov_deg: float = 360.0
+    max_range_m: float = 4.0
+    range_noise_m: float = 0.01
+    aligned_headings: bool = True
+    odom_noise_trans: float = 0.0
+    odom_noise_rot: float = 0.0
+    min_start_separation_m: float = 0.0
+    merger: Any = "semantic"
+    merge_every: int = 10
+    recheck_every: int = 100
+    comm_range_m: float | None = None
+    target_coverage: float = 0.95
+    max_time_s: float = 600.0
+    max_cycles: int | None = None
+    reward_mode: RewardMode = "time"
+    coverage_reward_per_m2: float = 0.1
+    time_penalty_per_s: float = 0.04
+    goal_min_distance_m: float = 6.0
+    goal_radius_m: float = 0.4
+    global_view_m: float = 25.6
+    local_view_m: float = 6.4
+    obs_size_px: int = 64
+    merge_options: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        def positive(name: str) -> None:
+            v = getattr(self, name)
+            if not isinstance(v, (int, float)) or isinstance(v, bool) or not v > 0 or not math.isfinite(v):
+                raise ConfigError(f"option {name} must be a positive number, got {v!r}")
+
+        def non_negative(name: str) -> None:
+            v = getattr(self, name)
+            if not isinstance(v, (int, float)) or isinstance(v, bool) or not v >= 0 or not math.isfinite(v):
+                raise ConfigError(f"option {name} must be a non-negative number, got {v!r}")
+
+        if not isinstance(self.n_robots, int) or isinstance(self.n_robots, bool) or self.n_robots < 1:
+            raise ConfigError(f"option n_robots must be an integer >= 1, got {self.n_robots!r}")
+        if self.task not in ("explore", "navigate"):
+            raise ConfigError(f"option task must be 'explore' or 'navigate', got {self.task!r}")
+        if self.reward_mode not in ("time", "coverage"):
+            raise ConfigError(f"option reward_mode must be 'time' or 'coverage', got {self.reward_mode!r}")
+        for name in ("radius_m", "speed_mps", "turn_rate_rps", "dt_s", "fov_deg", "max_range_m",
+                     "max_time_s", "goal_radius_m", "global_view_m", "local_view_m"):
+            positive(name)
+        for name in ("range_noise_m", "odom_noise_trans", "odom_noise_rot", "min_start_separation_m",
+                     "coverage_reward_per_m2", "time_penalty_per_s", "goal_min_distance_m"):
+            non_negative(name)
+        if self.fov_deg > 360.0:
+            raise ConfigError(f"option fov_deg must be at most 360, got {self.fov_deg}")
+        for name in ("n_beams", "merge_every", "recheck_every", "obs_size_px"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+                raise ConfigError(f"option {name} must be an integer >= 1, got {v!r}")
+        if self.obs_size_px < 36:
+            # SB3's NatureCNN (CnnPolicy) needs at least 36x36 inputs.
+            raise ConfigError(f"option obs_size_px must be at least 36 (CnnPolicy), got {self.obs_size_px}")
+        if not 0.0 < self.target_coverage <= 1.0:
+            raise ConfigError(f"option target_coverage must be in (0, 1], got {self.target_coverage!r}")
+        if self.max_cycles is not None and (not isinstance(self.max_cycles, int) or self.max_cycles < 1):
+            raise ConfigError(f"option max_cycles must be an integer >= 1 or None, got {self.max_cycles!r}")
+        if self.comm_range_m is not None:
+            positive("comm_range_m")
+        if not isinstance(self.merge_options, dict):
+            raise ConfigError(f"option merge_options must be a dict, got {type(self.merge_options).__name__}")
+
+    @classmethod
+    def from_kwargs(cls, **kwargs: Any) -> EnvConfig:
+        """Build a config from keyword arguments; an unknown keyword is a :class:`ConfigError`."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(kwargs) - names)
+        if unknown:
+            raise ConfigError(
+                f"unknown option(s) {', '.join(unknown)}; known options: {', '.join(sorted(names))}"
+            )
+        return cls(**kwargs)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain dict of the options (the world as given, e.g. its name)."""
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}

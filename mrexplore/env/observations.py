@@ -1,0 +1,169 @@
+"""Each robot's observation: a uint8 image stack in the robot's own map frame.
+
+Everything drawn here comes from a :class:`~mrexplore.env.view.RobotView`, i.e. from what the
+robot knows (its own map or the fused map, its own pose estimate, teammates only after a merge).
+Nothing is read from the ground truth.
+
+Layout, shape ``(8, S, S)`` with ``S = obs_size_px`` (channel-first, so SB3's ``CnnPolicy`` takes
+it as is); every channel is 0..255. Both views are centred on the robot and axis-aligned with its
+own map frame (+col to the right, +row "up" = increasing array row):
+
+=====  ==========================================================================================
+ ch    meaning
+=====  ==========================================================================================
+  0    global view (``global_view_m`` wide): share of free cells per pixel
+  1    global view: share of occupied cells per pixel
+  2    global view: own trail (255 where the robot has been)
+  3    global view: teammates' positions (disks), only once their maps are merged
+  4    local view (``local_view_m`` wide, fine): share of free cells
+  5    local view: share of occupied cells
+  6    local view: the robot itself, a disk and a heading line
+  7    local view: navigation goal direction (a line towards the goal, clipped) and the goal if
+       inside the view; zeros in the exploration task
+=====  ==========================================================================================
+Unknown space is where channels 0/1 (or 4/5) are both 0.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from mrexplore.env.view import RobotView
+from mrexplore.grid import FREE, FREE_THRESHOLD, OCCUPIED_THRESHOLD
+
+N_CHANNELS = 8
+
+
+def _window(
+    grid: NDArray[np.int8], centre: tuple[float, float], side_cells: int
+) -> NDArray[np.int8]:
+    """Square ``side_cells`` crop of ``grid`` centred on ``centre`` (col, row); outside = unknown.
+
+    Returns a view when the window lies inside the grid (the common case), else a padded copy.
+    """
+    half = side_cells // 2
+    c0 = int(round(centre[0])) - half
+    r0 = int(round(centre[1])) - half
+    h, w = grid.shape
+    if c0 >= 0 and r0 >= 0 and c0 + side_cells <= w and r0 + side_cells <= h:
+        return grid[r0 : r0 + side_cells, c0 : c0 + side_cells]
+    out = np.full((side_cells, side_cells), -1, dtype=np.int8)
+    rs, cs = max(r0, 0), max(c0, 0)
+    re, ce = min(r0 + side_cells, h), min(c0 + side_cells, w)
+    if rs < re and cs < ce:
+        out[rs - r0 : re - r0, cs - c0 : ce - c0] = grid[rs:re, cs:ce]
+    return out
+
+
+def _shares(window: NDArray[np.int8], size: int) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+    """Free and occupied shares of ``window`` resampled to ``size`` x ``size`` (0..255 each)."""
+    free = ((window >= FREE) & (window <= FREE_THRESHOLD)).view(np.uint8) * np.uint8(255)
+    occ = (window >= OCCUPIED_THRESHOLD).view(np.uint8) * np.uint8(255)
+    # INTER_AREA averages the cells under each pixel: a pixel's value is the share of that class.
+    interp = cv2.INTER_AREA if window.shape[0] >= size else cv2.INTER_NEAREST
+    return (
+        cv2.resize(free, (size, size), interpolation=interp),
+        cv2.resize(occ, (size, size), interpolation=interp),
+    )
+
+
+class ObservationBuilder:
+    """Builds the ``(8, S, S)`` uint8 observation of one robot from its :class:`RobotView`.
+
+    Args:
+        resolution_m: map resolution, metres per cell.
+        global_view_m: side of the coarse view, metres.
+        local_view_m: side of the fine view, metres.
+        size_px: pixels per side of each view (S).
+    """
+
+    def __init__(
+        self, resolution_m: float, global_view_m: float, local_view_m: float, size_px: int
+    ) -> None:
+        self.size = int(size_px)
+        self.global_cells = max(self.size, int(round(global_view_m / resolution_m)))
+        self.local_cells = max(2, int(round(local_view_m / resolution_m)))
+        self.shape = (N_CHANNELS, self.size, self.size)
+
+    def build(self, view: RobotView, trail_cells: NDArray[np.float64]) -> NDArray[np.uint8]:
+        """Observation of one robot. ``trail_cells`` (T, 2): the robot's past (col, row) cells."""
+        s = self.size
+        obs = np.zeros(self.shape, dtype=np.uint8)
+        col, row, theta = view.pose_cell
+        g = _window(view.map, (col, row), self.global_cells)
+        obs[0], obs[1] = _shares(g, s)
+        scale_g = s / self.global_cells
+        half_g = self.global_cells // 2
+        self._dots(obs[2], trail_cells, (col, row), half_g, scale_g, radius=0)
+        if view.teammates:
+            mates = np.array(list(view.teammates.values()), dtype=np.float64)
+            self._dots(obs[3], mates, (col, row), half_g, scale_g, radius=2)
+
+        loc = _window(view.map, (col, row), self.local_cells)
+        obs[4], obs[5] = _shares(loc, s)
+        scale_l = s / self.local_cells
+        centre = (s // 2, s // 2)
+        radius_px = max(1, int(round(view.robot_radius_m / view.resolution_m * scale_l)))
+        cv2.circle(obs[6], centre, radius_px, 255, -1)
+        tip = (
+            int(round(centre[0] + math.cos(theta) * 2.5 * radius_px)),
+            int(round(centre[1] + math.sin(theta) * 2.5 * radius_px)),
+        )
+        cv2.line(obs[6], centre, tip, 255, 1)
+        if view.goal_cell is not None:
+            self._goal(obs[7], view.goal_cell, (col, row), scale_l)
+        return obs
+
+    def _dots(
+        self,
+        channel: NDArray[np.uint8],
+        cells: NDArray[np.float64],
+        centre: tuple[float, float],
+        half: int,
+        scale: float,
+        radius: int,
+    ) -> None:
+        """Mark ``cells`` (N, 2) on a robot-centred channel; points outside the view are dropped."""
+        if len(cells) == 0:
+            return
+        rel = (np.asarray(cells, dtype=np.float64).reshape(-1, 2) - np.asarray(centre)) + half
+        px = np.floor(rel * scale).astype(np.int64)
+        s = channel.shape[0]
+        ok = (px[:, 0] >= 0) & (px[:, 0] < s) & (px[:, 1] >= 0) & (px[:, 1] < s)
+        px = px[ok]
+        if radius == 0:
+            channel[px[:, 1], px[:, 0]] = 255
+        else:
+            for x, y in px:
+                cv2.circle(channel, (int(x), int(y)), radius, 255, -1)
+
+    def _goal(
+        self,
+        channel: NDArray[np.uint8],
+        goal: tuple[float, float],
+        centre: tuple[float, float],
+        scale: float,
+    ) -> None:
+        """A line from the robot towards the goal (clipped to the view) and a disk at the goal."""
+        s = channel.shape[0]
+        c = s // 2
+        dx, dy = (goal[0] - centre[0]) * scale, (goal[1] - centre[1]) * scale
+        dist = math.hypot(dx, dy)
+        limit = c - 1
+        if dist > limit and dist > 0:
+            dx, dy = dx * limit / dist, dy * limit / dist
+        end = (int(round(c + dx)), int(round(c + dy)))
+        cv2.line(channel, (c, c), end, 128, 1)
+        if dist <= limit:
+            cv2.circle(channel, end, 2, 255, -1)
+
+
+def is_unknown_everywhere(obs: NDArray[np.uint8]) -> bool:
+    """True when the observation shows no known cell at all (used by tests)."""
+    return bool(obs[0].max() == 0 and obs[1].max() == 0)
+
+

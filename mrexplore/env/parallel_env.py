@@ -1,0 +1,440 @@
+"""The multi-robot exploration environment (PettingZoo ``ParallelEnv``).
+
+Robots with 2-D lidars map a world with symmetric parts, each on its own occupancy grid in its
+own frame; a map merger fuses their maps every step into the shared observation; the reward
+measures coverage time.
+
+===================  ==========================================================================
+Agents               ``robot_0`` ... ``robot_{n-1}`` (``n_robots=1`` is the single-robot baseline)
+Action space         ``Discrete(4)``: 0 forward (0.125 m), 1 turn left (22.5 deg), 2 turn right,
+                     3 stay (:class:`mrexplore.robot.Action`; defaults 0.5 m/s, pi/2 rad/s, 0.25 s)
+Observation space    ``Box(0, 255, (8, 64, 64), uint8)``, robot-centred, own frame; see
+                     :mod:`mrexplore.env.observations`. Built from the fused map once the robot's
+                     map is merged, else from its own map. Never from the ground truth.
+State space          ``Box(0, 255, (8 * n, 64, 64), uint8)``: all observations stacked.
+Reward               team reward (same for all): ``"time"``: ``-dt_s`` per step, so the return
+                     is minus the task time; ``"coverage"``: ``coverage_reward_per_m2`` x newly
+                     observed m^2 minus ``time_penalty_per_s * dt_s``.
+Termination          explore: team coverage >= ``target_coverage`` (0.95);
+                     navigate: ``robot_0`` within ``goal_radius_m`` of its goal.
+Truncation           simulated time >= ``max_time_s`` (600 s) or steps >= ``max_cycles``; infos
+                     then carry ``TimeLimit.truncated = True``.
+===================  ==========================================================================
+
+``infos[agent]``: ``coverage`` (team share of reachable free cells observed), ``task_time_s``,
+``merged``, ``merge_error`` (``{"translation_cells", "rotation_deg"}`` of the worst merged
+teammate against the truth, or None; evaluation only, policies must not read it), ``score``,
+``collisions`` (this robot's count), ``first_merge_time_s``, ``step``, and on the last step
+``TimeLimit.truncated``. For navigation also ``goal_reached``.
+
+Policies read what a robot knows through :meth:`MultiRobotExplorationEnv.robot_view`.
+
+Version history: v0 (this): first release.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import warnings
+from typing import Any
+
+import gymnasium
+import numpy as np
+from numpy.typing import NDArray
+from pettingzoo import ParallelEnv
+
+from mrexplore.env.config import EnvConfig
+from mrexplore.env.observations import ObservationBuilder
+from mrexplore.env.view import RobotView
+from mrexplore.errors import ConfigError
+from mrexplore.fusion import FusionStage
+from mrexplore.grid import apply_transform, transform_angle
+from mrexplore.robot import Action, RobotConfig
+from mrexplore.sensors import LidarConfig
+from mrexplore.sim import SimConfig, Simulation
+from mrexplore.world import World, load_world
+
+AgentID = str
+
+
+class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
+    """PettingZoo parallel env; build it with :func:`mrexplore.parallel_env` (options: :class:`EnvConfig`)."""
+
+    metadata = {
+        "name": "mrexplore_v0",
+        "render_modes": ["human", "rgb_array"],
+        "is_parallelizable": True,
+        "render_fps": 8,
+    }
+
+    def __init__(self, render_mode: str | None = None, **options: Any) -> None:
+        self.config = EnvConfig.from_kwargs(**options)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ConfigError(
+                f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}"
+            )
+        self.render_mode = render_mode
+        cfg = self.config
+        self.possible_agents: list[AgentID] = [f"robot_{i}" for i in range(cfg.n_robots)]
+        self.agents: list[AgentID] = []
+        self._random_world = isinstance(cfg.world, str) and cfg.world.startswith("random:")
+        # A fixed world is loaded once, here, so a bad name or file fails at construction.
+        self._fixed_world: World | None = None if self._random_world else load_world(cfg.world)
+        probe = self._fixed_world or load_world(cfg.world, rng=np.random.default_rng(0))
+        self._resolution_m = probe.resolution_m
+        self._obs_builder = ObservationBuilder(
+            self._resolution_m, cfg.global_view_m, cfg.local_view_m, cfg.obs_size_px
+        )
+        self._obs_space = gymnasium.spaces.Box(0, 255, self._obs_builder.shape, dtype=np.uint8)
+        self._act_space = gymnasium.spaces.Discrete(len(Action))
+        n, s = cfg.n_robots, cfg.obs_size_px
+        self.state_space = gymnasium.spaces.Box(
+            0, 255, (self._obs_builder.shape[0] * n, s, s), dtype=np.uint8
+        )
+        self._sim_config = SimConfig(
+            robot=RobotConfig(
+                radius_m=cfg.radius_m,
+                speed_mps=cfg.speed_mps,
+                turn_rate_rps=cfg.turn_rate_rps,
+                dt_s=cfg.dt_s,
+            ),
+            lidar=LidarConfig(
+                n_beams=cfg.n_beams,
+                fov_rad=math.radians(cfg.fov_deg),
+                max_range_m=cfg.max_range_m,
+                noise_std_m=cfg.range_noise_m,
+            ),
+            aligned_headings=cfg.aligned_headings,
+            odom_noise_trans=cfg.odom_noise_trans,
+            odom_noise_rot=cfg.odom_noise_rot,
+            min_start_separation_m=cfg.min_start_separation_m,
+        )
+        self.fusion = FusionStage(
+            self.possible_agents,
+            merger=cfg.merger,
+            merge_every=cfg.merge_every,
+            recheck_every=cfg.recheck_every,
+            merge_options=cfg.merge_options,
+        )
+        self._rng: np.random.Generator | None = None
+        self.sim: Simulation | None = None
+        self.world: World | None = None
+        self._obs: dict[AgentID, NDArray[np.uint8]] = {}
+        self._collisions = np.zeros(cfg.n_robots, dtype=np.int64)
+        self._goal_world: NDArray[np.float64] | None = None
+        self._goal_cell: tuple[float, float] | None = None
+        self._done = True
+        self._renderer: Any = None
+
+    # ------------------------------------------------------------------ spaces
+    @functools.lru_cache(maxsize=None)  # noqa: B019 - PettingZoo wants the same object each call
+    def observation_space(self, agent: AgentID) -> gymnasium.spaces.Box:
+        """``Box(0, 255, (8, S, S), uint8)``; the same object for every call."""
+        self._check_agent(agent)
+        return self._obs_space
+
+    @functools.lru_cache(maxsize=None)  # noqa: B019
+    def action_space(self, agent: AgentID) -> gymnasium.spaces.Discrete:
+        """``Discrete(4)`` (see :class:`mrexplore.robot.Action`); the same object for every call."""
+        self._check_agent(agent)
+        return self._act_space
+
+    # ------------------------------------------------------------------ API
+    def reset(
+        self, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[AgentID, NDArray[np.uint8]], dict[AgentID, dict[str, Any]]]:
+        """Start an episode. ``seed`` re-seeds the env's one Generator; ``options`` is accepted for
+        API compatibility and currently has no recognised keys."""
+        if seed is not None or self._rng is None:
+            self._rng = np.random.default_rng(seed)
+        rng = self._rng
+        self.world = self._fixed_world if self._fixed_world is not None else load_world(self.config.world, rng=rng)
+        self.sim = Simulation(self.world, self.config.n_robots, self._sim_config)
+        self.sim.reset(rng)
+        self.agents = list(self.possible_agents)
+        self._collisions[:] = 0
+        self._done = False
+        self.fusion.reset()
+        self._goal_world = None
+        self._goal_cell = None
+        if self.config.task == "navigate":
+            self._place_goal(rng)
+        self._last_coverage = self.sim.coverage()
+        self._merge()
+        self._obs = self._observe()
+        infos = {a: self._info(a, truncated=False) for a in self.agents}
+        return dict(self._obs), infos
+
+    def step(
+        self, actions: dict[AgentID, int]
+    ) -> tuple[
+        dict[AgentID, NDArray[np.uint8]],
+        dict[AgentID, float],
+        dict[AgentID, bool],
+        dict[AgentID, bool],
+        dict[AgentID, dict[str, Any]],
+    ]:
+        """Advance all robots one step. Live agents missing from ``actions`` stay in place."""
+        if self.sim is None or self._done:
+            raise RuntimeError("step() called on an env that is not running: call reset() first")
+        act = self._parse_actions(actions)
+        sim = self.sim
+        collided = self._act(act)
+        self._merge()
+        self._obs = self._observe()
+        reward = self._reward()
+        terminated = self._terminated()
+        truncated = not terminated and self._truncated()
+        self._done = terminated or truncated
+        agents = list(self.agents)
+        obs = {a: self._obs[a] for a in agents}
+        rewards = dict.fromkeys(agents, reward)
+        terms = dict.fromkeys(agents, terminated)
+        truncs = dict.fromkeys(agents, truncated)
+        infos = {a: self._info(a, truncated=truncated) for a in agents}
+        for i, a in enumerate(agents):
+            infos[a]["collided"] = bool(collided[i])
+        del sim
+        if self._done:
+            self.agents = []
+        if self.render_mode == "human":
+            self.render()
+        return obs, rewards, terms, truncs, infos
+
+    def state(self) -> NDArray[np.uint8]:
+        """All robots' observations stacked on the channel axis (no ground truth)."""
+        if self.sim is None:
+            raise RuntimeError("state() called before reset()")
+        return np.concatenate([self._obs[a] for a in self.possible_agents], axis=0)
+
+    def robot_view(self, agent: AgentID) -> RobotView:
+        """What ``agent`` knows now: the documented accessor for policies (no ground truth)."""
+        self._check_agent(agent)
+        if self.sim is None:
+            raise RuntimeError("robot_view() called before reset()")
+        sim = self.sim
+        i = self.possible_agents.index(agent)
+        merged = self.fusion.merged(agent)
+        teammates: dict[str, tuple[float, float]] = {}
+        transforms: dict[str, NDArray[np.float64]] = {}
+        if merged:
+            transforms = self.fusion.transforms(agent)
+            for other, T in transforms.items():
+                j = self.possible_agents.index(other)
+                c, r, _ = sim.pose_cell(j)
+                p = apply_transform(T, np.array([[c, r]]))[0]
+                teammates[other] = (float(p[0]), float(p[1]))
+        goal = self._goal_cell if (self.config.task == "navigate" and i == 0) else None
+        return RobotView(
+            agent=agent,
+            map=self.fusion.fused(agent),
+            resolution_m=self._resolution_m,
+            pose_cell=sim.pose_cell(i),
+            robot_radius_m=self.config.radius_m,
+            merged=merged,
+            teammates=teammates,
+            transforms=transforms,
+            goal_cell=goal,
+            time_s=float(sim.time_s),
+        )
+
+    def render(self) -> NDArray[np.uint8] | None:
+        """``"rgb_array"``: an HxWx3 uint8 frame (true world with robots, beams and trails beside
+        each robot's map and the fused map, merge status written on it). ``"human"``: shows the
+        frame in a matplotlib window when matplotlib and a display are available; on a headless
+        machine it draws nothing and returns None (a warning is issued once)."""
+        if self.render_mode is None:
+            gymnasium.logger.warn("render() called without a render_mode; pass render_mode='rgb_array'")
+            return None
+        if self.sim is None:
+            raise RuntimeError("render() called before reset()")
+        from mrexplore.render import render_env_frame
+
+        frame = render_env_frame(self)
+        if self.render_mode == "rgb_array":
+            return frame
+        self._show_human(frame)
+        return None
+
+    def close(self) -> None:
+        """Release the human-mode window, if any."""
+        if self._renderer is not None:
+            try:
+                import matplotlib.pyplot as plt
+
+                plt.close(self._renderer[0])
+            except Exception:  # pragma: no cover - closing a window must never raise
+                pass
+            self._renderer = None
+
+    # ------------------------------------------------------------------ step parts
+    def _parse_actions(self, actions: dict[AgentID, int]) -> NDArray[np.int64]:
+        if not isinstance(actions, dict):
+            raise TypeError(f"actions must be a dict agent -> action, got {type(actions).__name__}")
+        act = np.full(self.config.n_robots, int(Action.STAY), dtype=np.int64)
+        for agent, a in actions.items():
+            if agent not in self.possible_agents:
+                raise KeyError(f"unknown agent {agent!r}; agents are {self.possible_agents}")
+            if agent not in self.agents:
+                raise ValueError(f"agent {agent!r} is done and cannot act")
+            if a is None:
+                continue
+            if not self._act_space.contains(a) and not (
+                isinstance(a, (int, np.integer)) and 0 <= int(a) < self._act_space.n
+            ):
+                raise ValueError(
+                    f"action {a!r} of {agent} is outside the action space {self._act_space}"
+                )
+            act[self.possible_agents.index(agent)] = int(a)
+        return act
+
+    def _act(self, act: NDArray[np.int64]) -> NDArray[np.bool_]:
+        """Move, sense and update each robot's own map (all in the simulator)."""
+        assert self.sim is not None and self._rng is not None
+        info = self.sim.step(act, self._rng)
+        collided = np.asarray(info.collided, dtype=bool)
+        self._collisions += collided
+        return collided
+
+    def _links(self) -> NDArray[np.bool_] | None:
+        """Who can exchange maps now: everyone, or robots within ``comm_range_m`` (true distance:
+        the radio's physics, not knowledge given to the robots)."""
+        if self.config.comm_range_m is None or self.sim is None:
+            return None
+        xy = self.sim.true_poses[:, :2]
+        d = np.linalg.norm(xy[:, None, :] - xy[None, :, :], axis=-1)
+        return np.asarray(d <= self.config.comm_range_m)
+
+    def _merge(self) -> None:
+        assert self.sim is not None
+        maps = {a: self.sim.maps[i].to_int8() for i, a in enumerate(self.possible_agents)}
+        self.fusion.update(maps, int(self.sim.steps), self._links())
+
+    def _observe(self) -> dict[AgentID, NDArray[np.uint8]]:
+        assert self.sim is not None
+        out = {}
+        for i, a in enumerate(self.possible_agents):
+            out[a] = self._obs_builder.build(self.robot_view(a), self.sim.trail_cells(i))
+        return out
+
+    def _reward(self) -> float:
+        assert self.sim is not None and self.world is not None
+        cfg = self.config
+        cov = self.sim.coverage()
+        gain = cov - self._last_coverage
+        self._last_coverage = cov
+        if cfg.reward_mode == "time":
+            return -cfg.dt_s
+        area_m2 = gain * self.sim.reachable_cells * self.world.resolution_m**2
+        return float(cfg.coverage_reward_per_m2 * area_m2 - cfg.time_penalty_per_s * cfg.dt_s)
+
+    def _terminated(self) -> bool:
+        assert self.sim is not None
+        if self.config.task == "navigate":
+            return self._goal_reached()
+        return self._last_coverage >= self.config.target_coverage
+
+    def _truncated(self) -> bool:
+        assert self.sim is not None
+        if self.config.max_cycles is not None and self.sim.steps >= self.config.max_cycles:
+            return True
+        # A small epsilon so 600 s / 0.25 s = 2400 steps truncates at step 2400, not 2401.
+        return bool(self.sim.time_s >= self.config.max_time_s - 1e-9)
+
+    # ------------------------------------------------------------------ navigation
+    def _place_goal(self, rng: np.random.Generator) -> None:
+        """A goal for robot_0: a reachable free cell at least ``goal_min_distance_m`` away, given
+        to the robot in its own map frame (the task definition, not a leak)."""
+        assert self.sim is not None and self.world is not None
+        world = self.world
+        rows, cols = np.nonzero(self.sim.reachable_cspace)
+        start = self.world.cell_of(self.sim.true_poses[0, :2])[0]
+        d_m = np.hypot(cols - start[0], rows - start[1]) * world.resolution_m
+        far = np.nonzero(d_m >= self.config.goal_min_distance_m)[0]
+        pool = far if len(far) else np.arange(len(rows))
+        k = int(pool[int(rng.integers(len(pool)))])
+        goal_cell_world = np.array([cols[k], rows[k]], dtype=np.float64)
+        self._goal_world = world.xy_of(goal_cell_world[None])[0]
+        T_world_from_map0 = self.sim.world_from_map(0)
+        T_map0_from_world = np.linalg.inv(T_world_from_map0)
+        g = apply_transform(T_map0_from_world, goal_cell_world[None])[0]
+        self._goal_cell = (float(g[0]), float(g[1]))
+
+    def _goal_reached(self) -> bool:
+        assert self.sim is not None and self._goal_world is not None
+        d = float(np.hypot(*(self.sim.true_poses[0, :2] - self._goal_world)))
+        return d <= self.config.goal_radius_m
+
+    # ------------------------------------------------------------------ info
+    def _merge_error(self, agent: AgentID) -> dict[str, float] | None:
+        """Worst error of ``agent``'s estimated transforms against the truth (evaluation only):
+        mean displacement (cells) of the corners of the teammate's known box, rotation (deg)."""
+        assert self.sim is not None
+        transforms = self.fusion.transforms(agent)
+        if not transforms:
+            return None
+        i = self.possible_agents.index(agent)
+        worst: dict[str, float] | None = None
+        for other, T in transforms.items():
+            j = self.possible_agents.index(other)
+            T_true = self.sim.true_transform(i, j)
+            box = self.sim.maps[j].known_bbox()
+            if box is None:
+                continue
+            r0, r1, c0, c1 = box
+            corners = np.array([[c0, r0], [c1, r0], [c0, r1], [c1, r1]], dtype=np.float64)
+            disp = np.linalg.norm(apply_transform(T, corners) - apply_transform(T_true, corners), axis=1)
+            rot = abs(math.degrees(transform_angle(T @ np.linalg.inv(T_true))))
+            err = {"translation_cells": float(disp.mean()), "rotation_deg": float(rot)}
+            if worst is None or err["translation_cells"] > worst["translation_cells"]:
+                worst = err
+        return worst
+
+    def _info(self, agent: AgentID, truncated: bool) -> dict[str, Any]:
+        assert self.sim is not None
+        i = self.possible_agents.index(agent)
+        first = self.fusion.first_merge_step(agent)
+        info: dict[str, Any] = {
+            "coverage": float(self._last_coverage),
+            "task_time_s": float(self.sim.time_s),
+            "step": int(self.sim.steps),
+            "merged": self.fusion.merged(agent),
+            "merge_error": self._merge_error(agent),
+            "score": self.fusion.score(agent),
+            "first_merge_time_s": None if first is None else first * self.config.dt_s,
+            "collisions": int(self._collisions[i]),
+        }
+        if self.config.task == "navigate":
+            info["goal_reached"] = self._goal_reached()
+        if truncated:
+            info["TimeLimit.truncated"] = True
+        return info
+
+    def _check_agent(self, agent: AgentID) -> None:
+        if agent not in self.possible_agents:
+            raise KeyError(f"unknown agent {agent!r}; agents are {self.possible_agents}")
+
+    def _show_human(self, frame: NDArray[np.uint8]) -> None:
+        try:
+            import matplotlib
+
+            if matplotlib.get_backend().lower() in ("agg", "pdf", "svg", "ps", "cairo", "template"):
+                raise RuntimeError("no interactive matplotlib backend (headless machine)")
+            import matplotlib.pyplot as plt
+        except Exception as exc:
+            if not getattr(self, "_warned_human", False):
+                warnings.warn(
+                    f"render_mode='human' shows nothing here ({exc}); use render_mode='rgb_array' "
+                    "and write frames with mrexplore.render.write_video",
+                    stacklevel=2,
+                )
+                self._warned_human = True
+            return
+        if self._renderer is None:
+            fig, ax = plt.subplots()
+            ax.axis("off")
+            self._renderer = (fig, ax.imshow(frame))
+        else:
+            self._renderer[1].set_data(frame)
+        plt.pause(1.0 / self.metadata["render_fps"])

@@ -1,0 +1,131 @@
+"""The one merging path: local maps in, fused maps and merge facts out, every step.
+
+Both the built-in merging of :class:`mrexplore.env.MultiRobotExplorationEnv` and the generic
+:class:`mrexplore.wrappers.MapMergeWrapper` run their maps through a :class:`FusionStage`, so
+merging behaves identically whether you use our env or wrap your own.
+
+A stage knows nothing of the ground truth: it sees each agent's own-frame int8 map, whether the
+agents can talk (``links``), and the step counter.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mrexplore.grid import validate_grid
+
+
+class FusionStage:
+    """Runs a :class:`~mrexplore.merge.MapMergeTracker` over named agents.
+
+    Args:
+        agents: agent names, in a fixed order (index i = tracker robot i).
+        merger: a method name for :func:`mrexplore.merge.merge_maps`, an object with
+            ``merge(a, b)``, or ``None`` to never merge (each agent keeps its own map).
+        merge_every: steps between merge attempts of a pair before its first success.
+        recheck_every: steps between re-checks of an accepted transform.
+        merge_options: extra keyword options for the merge method.
+    """
+
+    def __init__(
+        self,
+        agents: Sequence[str],
+        merger: Any = "semantic",
+        merge_every: int = 10,
+        recheck_every: int = 100,
+        merge_options: Mapping[str, Any] | None = None,
+    ) -> None:
+        self.agents = list(agents)
+        self.index = {a: i for i, a in enumerate(self.agents)}
+        self.enabled = merger is not None and len(self.agents) > 1
+        self._maps: list[NDArray[np.int8]] = []
+        self._first_merge_step: dict[str, int | None] = dict.fromkeys(self.agents)
+        self.tracker: Any = None
+        if self.enabled:
+            from mrexplore.merge import MapMergeTracker
+
+            self.tracker = MapMergeTracker(
+                len(self.agents),
+                merger=merger,
+                merge_every=merge_every,
+                recheck_every=recheck_every,
+                **dict(merge_options or {}),
+            )
+
+    def reset(self) -> None:
+        """Forget every transform (a new episode)."""
+        self._maps = []
+        self._first_merge_step = dict.fromkeys(self.agents)
+        if self.tracker is not None:
+            self.tracker.reset()
+
+    def update(
+        self,
+        local_maps: Mapping[str, NDArray[np.int8]],
+        step: int,
+        links: NDArray[np.bool_] | None = None,
+    ) -> None:
+        """Feed this step's own-frame maps (one per agent, int8 -1/0/100).
+
+        ``links[i, j]`` False means agents i and j cannot exchange maps this step.
+        """
+        missing = [a for a in self.agents if a not in local_maps]
+        if missing:
+            raise KeyError(f"no local map for agent(s) {missing}")
+        self._maps = [validate_grid(local_maps[a], f"local map of {a}") for a in self.agents]
+        if self.tracker is None:
+            return
+        self.tracker.update(self._maps, step, links)
+        for a in self.agents:
+            if self._first_merge_step[a] is None and self.tracker.merged(self.index[a]):
+                self._first_merge_step[a] = step
+
+    def merged(self, agent: str) -> bool:
+        """True once ``agent``'s map is fused with at least one teammate's."""
+        return bool(self.tracker is not None and self.tracker.merged(self.index[agent]))
+
+    def first_merge_step(self, agent: str) -> int | None:
+        """The step at which ``agent`` was first merged, or None."""
+        return self._first_merge_step[agent]
+
+    def fused(self, agent: str) -> NDArray[np.int8]:
+        """The fused map in ``agent``'s frame (its own map when not merged); same shape as its map."""
+        i = self.index[agent]
+        if self.tracker is not None and self.tracker.merged(i):
+            return np.asarray(self.tracker.fused(i))
+        return self._maps[i]
+
+    def transforms(self, agent: str) -> dict[str, NDArray[np.float64]]:
+        """Estimated transforms from each merged teammate's cells into ``agent``'s cells."""
+        if self.tracker is None:
+            return {}
+        i = self.index[agent]
+        out: dict[str, NDArray[np.float64]] = {}
+        for other in self.agents:
+            j = self.index[other]
+            if j == i:
+                continue
+            T = self.tracker.transform(i, j)
+            if T is not None:
+                out[other] = np.asarray(T, dtype=np.float64)
+        return out
+
+    def score(self, agent: str) -> float | None:
+        """Agreement score of the best accepted merge involving ``agent`` (None if none)."""
+        if self.tracker is None:
+            return None
+        i = self.index[agent]
+        best: float | None = None
+        for other in self.agents:
+            j = self.index[other]
+            if j == i:
+                continue
+            res = self.tracker.last_result(i, j)
+            if res is not None and getattr(res, "matched", False):
+                s = float(res.score)
+                best = s if best is None else max(best, s)
+        return best

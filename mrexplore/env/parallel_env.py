@@ -239,6 +239,26 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
             time_s=float(sim.time_s),
         )
 
+    # ------------------------------------------------------------------ map protocol
+    @property
+    def map_resolution_m(self) -> float:
+        """Metres per cell of every robot's map (the :mod:`mrexplore.wrappers` map protocol)."""
+        return self._resolution_m
+
+    def local_map(self, agent: AgentID) -> NDArray[np.int8]:
+        """``agent``'s own-frame int8 map (-1/0/100) (the map protocol of ``MapMergeWrapper``)."""
+        self._check_agent(agent)
+        if self.sim is None:
+            raise RuntimeError("local_map() called before reset()")
+        return self.sim.maps[self.possible_agents.index(agent)].to_int8()
+
+    def own_pose_cell(self, agent: AgentID) -> tuple[float, float, float]:
+        """``agent``'s pose estimate (col, row, theta) in its own map cells (map protocol)."""
+        self._check_agent(agent)
+        if self.sim is None:
+            raise RuntimeError("own_pose_cell() called before reset()")
+        return self.sim.pose_cell(self.possible_agents.index(agent))
+
     def render(self) -> NDArray[np.uint8] | None:
         """``"rgb_array"``: an HxWx3 uint8 frame (true world with robots, beams and trails beside
         each robot's map and the fused map, merge status written on it). ``"human"``: shows the
@@ -308,7 +328,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
 
     def _merge(self) -> None:
         assert self.sim is not None
-        maps = {a: self.sim.maps[i].to_int8() for i, a in enumerate(self.possible_agents)}
+        maps = {a: self.local_map(a) for a in self.possible_agents}
         self.fusion.update(maps, int(self.sim.steps), self._links())
 
     def _observe(self) -> dict[AgentID, NDArray[np.uint8]]:

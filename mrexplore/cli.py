@@ -1,0 +1,121 @@
+"""The ``mrexplore`` command: ``demo | merge | task-time | bench | train | evaluate``."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from mrexplore.errors import MrexploreError
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from mrexplore.experiments.demo import run_demo
+
+    run_demo(out=args.out, world=args.world, seed=args.seed, policy=args.policy, n_robots=args.n_robots)
+    return 0
+
+
+def _task_time(args: argparse.Namespace) -> int:
+    from mrexplore.experiments.task_time import run_task_time
+
+    run_task_time(
+        world=args.world,
+        seeds=args.seeds,
+        policy=args.policy,
+        out=args.out,
+        first_seed=args.first_seed,
+        tasks=args.tasks,
+        env_options={"max_time_s": args.max_time_s},
+    )
+    return 0
+
+
+def _merge(argv: Sequence[str]) -> int:
+    from mrexplore.experiments.merge_files import main
+
+    return int(main(list(argv)))
+
+
+def _bench(argv: Sequence[str]) -> int:
+    what = argv[0] if argv else ""
+    rest = list(argv[1:])
+    if what == "merge":
+        from mrexplore.experiments.merge_bench import main as merge_main
+
+        return int(merge_main(rest))
+    if what == "env":
+        from mrexplore.experiments.env_bench import main as env_main
+
+        return int(env_main(rest))
+    if what == "sensor":
+        from mrexplore.experiments.sensor_bench import main as sensor_main
+
+        return int(sensor_main(rest))
+    print("usage: mrexplore bench {merge,env,sensor} [options]  (each takes --help)", file=sys.stderr)
+    return 2
+
+
+def _train(argv: Sequence[str]) -> int:
+    from mrexplore.experiments.train import main as train_main
+
+    return int(train_main(list(argv)))
+
+
+def _evaluate(argv: Sequence[str]) -> int:
+    from mrexplore.experiments.evaluate import main as eval_main
+
+    return int(eval_main(list(argv)))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The top-level parser (sub-commands with their own options)."""
+    p = argparse.ArgumentParser(prog="mrexplore", description=__doc__)
+    sub = p.add_subparsers(dest="command", required=True)
+
+    d = sub.add_parser("demo", help="one two-robot episode -> demo/episode.gif, demo/final.png")
+    d.add_argument("--out", default="demo")
+    d.add_argument("--world", default="symmetric_office")
+    d.add_argument("--seed", type=int, default=0)
+    d.add_argument("--policy", default="coordinated-frontier")
+    d.add_argument("--n-robots", type=int, default=2)
+
+    t = sub.add_parser("task-time", help="single vs multi-robot task times (the paper's experiment)")
+    t.add_argument("--world", default="symmetric_office")
+    t.add_argument("--seeds", type=int, default=20)
+    t.add_argument("--first-seed", type=int, default=1000)
+    t.add_argument("--policy", default="coordinated-frontier", help="a policy name or a trained policy folder")
+    t.add_argument("--out", default="results")
+    t.add_argument("--tasks", nargs="+", default=["explore", "navigate"], choices=["explore", "navigate"])
+    t.add_argument("--max-time-s", type=float, default=600.0)
+
+    for name, helptext in (
+        ("merge", "merge two map_server maps: mrexplore merge a.yaml b.yaml -o merged.yaml"),
+        ("bench", "benchmarks: mrexplore bench {merge,env,sensor}"),
+        ("train", "train a shared policy with stable-baselines3"),
+        ("evaluate", "evaluate a trained policy against the baselines"),
+    ):
+        sub.add_parser(name, help=helptext, add_help=False)
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``mrexplore`` command; returns the exit code."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    passthrough = {"merge": _merge, "bench": _bench, "train": _train, "evaluate": _evaluate}
+    try:
+        if argv and argv[0] in passthrough:
+            return passthrough[argv[0]](argv[1:])
+        args = build_parser().parse_args(argv)
+        if args.command == "demo":
+            return _demo(args)
+        if args.command == "task-time":
+            return _task_time(args)
+    except MrexploreError as exc:
+        print(f"mrexplore: error: {exc}", file=sys.stderr)
+        return 2
+    return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

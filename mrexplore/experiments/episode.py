@@ -1,0 +1,115 @@
+"""Run one episode of the env with a team policy and record what an experiment needs."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+import mrexplore
+
+
+@dataclass
+class EpisodeResult:
+    """What one episode measured (simulated seconds, shares in [0, 1]).
+
+    Attributes:
+        task_time_s: simulated time at the end of the episode.
+        success: the task was completed (coverage target or goal reached), not truncated.
+        coverage: final team coverage.
+        times_s, coverages: the coverage curve, one entry per step (step 0 = after reset).
+        first_merge_time_s: when robot_0 was first merged (None if never, or single robot).
+        merge_error: robot_0's merge error against the truth at the end (None if not merged).
+        collisions: total collisions of the team.
+        frames: rendered frames when recording, else empty.
+        merge_frame: the frame rendered at the first merge, when recording.
+    """
+
+    task_time_s: float
+    success: bool
+    coverage: float
+    times_s: list[float]
+    coverages: list[float]
+    first_merge_time_s: float | None
+    merge_error: dict[str, float] | None
+    collisions: int
+    frames: list[NDArray[np.uint8]] = field(default_factory=list)
+    merge_frame: NDArray[np.uint8] | None = None
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-friendly fields (no frames)."""
+        return {
+            "task_time_s": self.task_time_s,
+            "success": self.success,
+            "coverage": self.coverage,
+            "first_merge_time_s": self.first_merge_time_s,
+            "merge_error": self.merge_error,
+            "collisions": self.collisions,
+        }
+
+
+def run_episode(
+    env_options: dict[str, Any],
+    team_policy: Any,
+    seed: int,
+    record_every: int = 0,
+    on_step: Callable[[int], None] | None = None,
+) -> EpisodeResult:
+    """Run one episode to its end.
+
+    Args:
+        env_options: options of :func:`mrexplore.parallel_env`.
+        team_policy: an object with ``reset(rng)`` and ``act(views) -> {agent: action}``
+            (:class:`mrexplore.policies.TeamPolicy`); it sees only ``env.robot_view(agent)``.
+        seed: the episode seed (env reset seed; the policy gets its own Generator from it).
+        record_every: render a frame every this many steps (0 = no frames).
+        on_step: called with the step number after each step (progress bars).
+    """
+    render_mode = "rgb_array" if record_every > 0 else None
+    penv = mrexplore.parallel_env(render_mode=render_mode, **env_options)
+    _, infos = penv.reset(seed=seed)
+    team_policy.reset(np.random.default_rng([seed, 1]))
+    a0 = penv.possible_agents[0]
+    times, covs = [0.0], [float(infos[a0]["coverage"])]
+    frames: list[NDArray[np.uint8]] = []
+    merge_frame = None
+    step = 0
+    if record_every:
+        frames.append(penv.render())
+    done = False
+    terminated = False
+    info0 = infos[a0]
+    while not done:
+        views = {a: penv.robot_view(a) for a in penv.agents}
+        actions = team_policy.act(views)
+        _, _, terms, truncs, infos = penv.step(actions)
+        step += 1
+        info0 = infos[a0]
+        times.append(float(info0["task_time_s"]))
+        covs.append(float(info0["coverage"]))
+        terminated = bool(terms[a0])
+        done = terminated or bool(truncs[a0])
+        if record_every:
+            if merge_frame is None and info0["merged"]:
+                merge_frame = penv.render()
+            if step % record_every == 0 or done:
+                frames.append(penv.render())
+        if on_step is not None:
+            on_step(step)
+    collisions = sum(int(i["collisions"]) for i in infos.values())
+    penv.close()
+    return EpisodeResult(
+        task_time_s=float(info0["task_time_s"]),
+        success=terminated,
+        coverage=float(info0["coverage"]),
+        times_s=times,
+        coverages=covs,
+        first_merge_time_s=info0["first_merge_time_s"],
+        merge_error=info0["merge_error"],
+        collisions=collisions,
+        frames=frames,
+        merge_frame=merge_frame,
+    )

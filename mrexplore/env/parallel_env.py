@@ -118,6 +118,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
             merge_options=cfg.merge_options,
         )
         self._rng: np.random.Generator | None = None
+        self._run_rng = np.random.default_rng(0)
         self.sim: Simulation | None = None
         self.world: World | None = None
         self._obs: dict[AgentID, NDArray[np.uint8]] = {}
@@ -144,14 +145,31 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
     def reset(
         self, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[AgentID, NDArray[np.uint8]], dict[AgentID, dict[str, Any]]]:
-        """Start an episode. ``seed`` re-seeds the env's one Generator; ``options`` is accepted for
-        API compatibility and currently has no recognised keys."""
+        """Start an episode.
+
+        ``seed`` re-seeds the env's one Generator (``None`` continues it). From it, independent
+        child streams are spawned for the world, the starts, the goal and the run (noise), so that
+        robot_0's start and the navigation goal are the same for every team size.
+        ``options``: ``{"starts": (n, 3) array}`` fixes the start poses (world metres, radians);
+        other keys are ignored (PettingZoo's API test passes arbitrary options).
+        """
         if seed is not None or self._rng is None:
             self._rng = np.random.default_rng(seed)
-        rng = self._rng
-        self.world = self._fixed_world if self._fixed_world is not None else load_world(self.config.world, rng=rng)
+        world_rng, start_rng, goal_rng, self._run_rng = self._rng.spawn(4)
+        self.world = (
+            self._fixed_world
+            if self._fixed_world is not None
+            else load_world(self.config.world, rng=world_rng)
+        )
+        starts = None
+        if options and options.get("starts") is not None:
+            starts = np.asarray(options["starts"], dtype=np.float64)
+            if starts.shape != (self.config.n_robots, 3):
+                raise ConfigError(
+                    f"reset option starts must have shape ({self.config.n_robots}, 3), got {starts.shape}"
+                )
         self.sim = Simulation(self.world, self.config.n_robots, self._sim_config)
-        self.sim.reset(rng)
+        self.sim.reset(start_rng, starts=starts)
         self.agents = list(self.possible_agents)
         self._collisions[:] = 0
         self._done = False
@@ -159,7 +177,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         self._goal_world = None
         self._goal_cell = None
         if self.config.task == "navigate":
-            self._place_goal(rng)
+            self._place_goal(goal_rng)
         self._last_coverage = self.sim.coverage()
         self._merge()
         self._obs = self._observe()
@@ -311,8 +329,8 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
 
     def _act(self, act: NDArray[np.int64]) -> NDArray[np.bool_]:
         """Move, sense and update each robot's own map (all in the simulator)."""
-        assert self.sim is not None and self._rng is not None
-        info = self.sim.step(act, self._rng)
+        assert self.sim is not None
+        info = self.sim.step(act, self._run_rng)
         collided = np.asarray(info.collided, dtype=bool)
         self._collisions += collided
         return collided

@@ -1,0 +1,187 @@
+"""The PettingZoo env: official API checks, determinism, spaces, no ground truth, merging in the loop."""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+from pettingzoo.test import api_test, parallel_api_test, render_test
+from pettingzoo.test.max_cycles_test import max_cycles_test
+from pettingzoo.test.state_test import state_test
+
+import mrexplore
+from mrexplore.errors import ConfigError, WorldError
+
+SMALL = {"world": "small_office", "max_time_s": 60.0}
+
+
+def test_parallel_api() -> None:
+    parallel_api_test(mrexplore.parallel_env(**SMALL), num_cycles=300)
+
+
+def test_aec_api() -> None:
+    api_test(mrexplore.env(**SMALL), num_cycles=100)
+
+
+def test_render() -> None:
+    render_test(lambda render_mode=None: mrexplore.env(render_mode=render_mode, **SMALL))
+
+
+def test_max_cycles() -> None:
+    max_cycles_test(sys.modules["mrexplore"])
+
+
+def test_state() -> None:
+    state_test(mrexplore.env(**SMALL), mrexplore.parallel_env(**SMALL))
+
+
+def test_spaces_are_cached_and_documented_shape() -> None:
+    penv = mrexplore.parallel_env(**SMALL)
+    for a in penv.possible_agents:
+        assert penv.observation_space(a) is penv.observation_space(a)
+        assert penv.action_space(a) is penv.action_space(a)
+        assert penv.observation_space(a).shape == (8, 64, 64)
+        assert penv.observation_space(a).dtype == np.uint8
+    assert penv.metadata["is_parallelizable"] is True
+    assert penv.state_space.shape == (16, 64, 64)
+
+
+def _rollout(seed: int, steps: int, **options: object) -> list[tuple]:
+    penv = mrexplore.parallel_env(**{**SMALL, "max_time_s": 10_000.0, **options})
+    obs, _ = penv.reset(seed=seed)
+    rng = np.random.default_rng(123)
+    trace = []
+    for _ in range(steps):
+        if not penv.agents:
+            obs, _ = penv.reset()
+        actions = {a: int(rng.integers(4)) for a in penv.agents}
+        obs, rew, term, trunc, info = penv.step(actions)
+        trace.append(
+            (
+                {a: o.tobytes() for a, o in obs.items()},
+                rew,
+                term,
+                trunc,
+                {a: (i["coverage"], i["merged"], i["collisions"]) for a, i in info.items()},
+                penv.sim.true_poses.tobytes(),
+            )
+        )
+    return trace
+
+
+def test_determinism_over_1000_steps() -> None:
+    # PettingZoo 1.27's parallel_seed_test effectively compares one step: this compares 1,000.
+    a = _rollout(7, 1000, range_noise_m=0.02, odom_noise_trans=0.02, odom_noise_rot=0.02)
+    b = _rollout(7, 1000, range_noise_m=0.02, odom_noise_trans=0.02, odom_noise_rot=0.02)
+    assert a == b
+    c = _rollout(8, 50)
+    assert c != a[:50]
+
+
+def test_episode_observations_in_space_and_infos_complete() -> None:
+    penv = mrexplore.parallel_env(**{**SMALL, "max_cycles": 120})
+    obs, infos = penv.reset(seed=3)
+    steps = 0
+    while penv.agents:
+        for a, o in obs.items():
+            assert penv.observation_space(a).contains(o)
+        assert penv.state_space.contains(penv.state())
+        obs, rew, term, trunc, infos = penv.step({a: penv.action_space(a).sample() for a in penv.agents})
+        steps += 1
+        for a, i in infos.items():
+            assert {"coverage", "task_time_s", "merged", "merge_error", "collisions"} <= set(i)
+            assert 0.0 <= i["coverage"] <= 1.0
+            assert rew[a] == pytest.approx(-0.25)  # time mode: -dt per step
+    assert steps == 120
+    assert all(i.get("TimeLimit.truncated") for i in infos.values())
+
+
+def test_observation_carries_no_absolute_position() -> None:
+    """Shifting the whole world inside a bigger grid moves every true pose, yet each robot's
+    observation (own frame) must stay byte-identical: nothing absolute leaks into it."""
+    from mrexplore.world import World, load_world
+
+    base = load_world("small_office")
+    pad = 37
+    # Rows are padded at the bottom (row 0 = lowest y) and columns at the left: +pad cells in x, y.
+    walls = np.pad(base.walls, ((pad, 11), (pad, 5)), constant_values=True)
+    shifted = World(walls=walls, resolution_m=base.resolution_m, origin_m=base.origin_m, name="shifted")
+    probe = mrexplore.parallel_env(world=base, n_robots=2, merger=None)
+    probe.reset(seed=5)
+    starts = probe.sim.start_poses.copy()
+
+    def run(world: World, starts: np.ndarray) -> list[bytes]:
+        penv = mrexplore.parallel_env(world=world, n_robots=2, merger=None, max_time_s=1000.0)
+        obs, _ = penv.reset(seed=5, options={"starts": starts})
+        out = [o.tobytes() for o in obs.values()]
+        rng = np.random.default_rng(0)
+        for _ in range(40):
+            obs, *_ = penv.step({a: int(rng.integers(4)) for a in penv.agents})
+            out.extend(o.tobytes() for o in obs.values())
+        return out
+
+    shift = np.array([pad * base.resolution_m, pad * base.resolution_m, 0.0])
+    assert run(base, starts) == run(shifted, starts + shift)
+
+
+def test_single_robot_baseline_shares_robot0_start() -> None:
+    one = mrexplore.parallel_env(**SMALL, n_robots=1)
+    two = mrexplore.parallel_env(**SMALL, n_robots=2)
+    one.reset(seed=11)
+    two.reset(seed=11)
+    np.testing.assert_array_equal(one.sim.start_poses[0], two.sim.start_poses[0])
+
+
+def test_navigation_goal_same_for_single_and_team() -> None:
+    one = mrexplore.parallel_env(**SMALL, n_robots=1, task="navigate")
+    two = mrexplore.parallel_env(**SMALL, n_robots=2, task="navigate")
+    one.reset(seed=4)
+    two.reset(seed=4)
+    assert one.robot_view("robot_0").goal_cell == two.robot_view("robot_0").goal_cell
+    assert two.robot_view("robot_1").goal_cell is None
+
+
+@pytest.mark.parametrize(
+    ("options", "error"),
+    [
+        ({"n_robotz": 2}, ConfigError),  # a typo in an option name
+        ({"n_robots": 0}, ConfigError),  # no robot
+        ({"max_range_m": -1.0}, ConfigError),  # negative range
+        ({"reward_mode": "speed"}, ConfigError),  # unknown reward mode
+        ({"world": "no_such_world"}, WorldError),  # unknown world
+    ],
+)
+def test_bad_options(options: dict, error: type[Exception]) -> None:
+    with pytest.raises(error):
+        mrexplore.parallel_env(**{**SMALL, **options})
+
+
+def test_bad_actions_and_agents() -> None:
+    penv = mrexplore.parallel_env(**SMALL)
+    with pytest.raises(RuntimeError, match="reset"):
+        penv.step({"robot_0": 0})
+    penv.reset(seed=0)
+    with pytest.raises(ValueError, match="outside the action space"):
+        penv.step({"robot_0": 7, "robot_1": 0})
+    with pytest.raises(KeyError, match="unknown agent"):
+        penv.step({"robot_9": 0})
+    with pytest.raises(KeyError, match="unknown agent"):
+        penv.observation_space("robot_9")
+
+
+def test_step_after_end_is_an_error() -> None:
+    penv = mrexplore.parallel_env(**{**SMALL, "max_cycles": 2})
+    penv.reset(seed=0)
+    penv.step({a: 3 for a in penv.agents})
+    penv.step({a: 3 for a in penv.agents})
+    assert penv.agents == []
+    with pytest.raises(RuntimeError, match="reset"):
+        penv.step({"robot_0": 0})
+
+
+def test_render_frame_shape() -> None:
+    penv = mrexplore.parallel_env(render_mode="rgb_array", **SMALL)
+    penv.reset(seed=0)
+    frame = penv.render()
+    assert frame.ndim == 3 and frame.shape[2] == 3 and frame.dtype == np.uint8

@@ -70,7 +70,9 @@ def run_episode(
     """
     render_mode = "rgb_array" if record_every > 0 else None
     penv = mrexplore.parallel_env(render_mode=render_mode, **env_options)
-    _, infos = penv.reset(seed=seed)
+    obs, infos = penv.reset(seed=seed)
+    # Trained policies act on the env's observations; planners act on robot views.
+    uses_obs = bool(getattr(team_policy, "uses_observations", False))
     team_policy.reset(np.random.default_rng([seed, 1]))
     a0 = penv.possible_agents[0]
     times, covs = [0.0], [float(infos[a0]["coverage"])]
@@ -83,9 +85,11 @@ def run_episode(
     terminated = False
     info0 = infos[a0]
     while not done:
-        views = {a: penv.robot_view(a) for a in penv.agents}
-        actions = team_policy.act(views)
-        _, _, terms, truncs, infos = penv.step(actions)
+        if uses_obs:
+            actions = team_policy.act_obs(obs)
+        else:
+            actions = team_policy.act({a: penv.robot_view(a) for a in penv.agents})
+        obs, _, terms, truncs, infos = penv.step(actions)
         step += 1
         info0 = infos[a0]
         times.append(float(info0["task_time_s"]))

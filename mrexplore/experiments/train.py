@@ -1,0 +1,236 @@
+"""``mrexplore train``: one shared policy for all robots with stable-baselines3.
+
+Hyperparameters live in YAML files per algorithm (``mrexplore/configs/{ppo,a2c,dqn}.yaml``, the
+rl-baselines3-zoo habit), not in code. Worlds for training are drawn from the seeded generators
+(``random:<generator>``), a fresh one per episode, so the policy cannot memorise one map;
+evaluation uses seeds from :data:`~mrexplore.experiments.evaluate.EVAL_SEED_BASE` up, never used
+in training. Writes ``model.zip``, ``config.yaml`` (every setting needed to rerun, the seed
+included), ``eval.json`` and ``checkpoints/``; TensorBoard logs in ``tb/`` when tensorboard is
+installed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import importlib.resources
+import importlib.util
+import json
+import platform
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from mrexplore.errors import ConfigError
+from mrexplore.experiments.evaluate import (
+    BASELINES,
+    EVAL_SEED_BASE,
+    evaluate_folder,
+    evaluate_policies,
+)
+from mrexplore.experiments.trained import ALGOS, TrainedTeamPolicy, algo_class
+
+
+def load_hyperparams(algo: str, path: str | Path | None = None) -> dict[str, Any]:
+    """The YAML hyperparameter file of ``algo`` (or the file at ``path``)."""
+    if algo not in ALGOS:
+        raise ConfigError(f"unknown algorithm {algo!r}; choose one of {', '.join(ALGOS)}")
+    if path is not None:
+        text = Path(path).read_text()
+    else:
+        text = importlib.resources.files("mrexplore").joinpath("configs", f"{algo}.yaml").read_text()
+    cfg = yaml.safe_load(text)
+    for key in ("policy", "env", "hyperparams"):
+        if key not in cfg:
+            raise ConfigError(f"hyperparameter file for {algo} has no '{key}' section")
+    return dict(cfg)
+
+
+def training_world(world: str | None, default: str) -> str:
+    """A generator name becomes ``random:<name>`` (a new world per episode); other specs stay."""
+    if world is None:
+        return default
+    from mrexplore.world import GENERATORS
+
+    if world in GENERATORS:
+        return f"random:{world}"
+    return world
+
+
+def _versions() -> dict[str, str]:
+    import gymnasium
+    import numpy
+    import pettingzoo
+    import stable_baselines3
+    import torch
+
+    import mrexplore
+
+    return {
+        "mrexplore": mrexplore.__version__,
+        "stable_baselines3": stable_baselines3.__version__,
+        "torch": torch.__version__,
+        "gymnasium": gymnasium.__version__,
+        "pettingzoo": pettingzoo.__version__,
+        "numpy": numpy.__version__,
+        "python": platform.python_version(),
+    }
+
+
+def train(
+    algo: str = "ppo",
+    timesteps: int = 1_000_000,
+    out: str | Path = "policies/ppo_symmetric_2r",
+    world: str | None = None,
+    n_robots: int | None = None,
+    seed: int = 0,
+    hyperparams_file: str | Path | None = None,
+    eval_every: int = 50_000,
+    eval_seeds: int = 5,
+    final_eval_seeds: int = 20,
+    n_copies: int | None = None,
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Train, evaluate periodically against the frontier baselines, save; returns the config."""
+    from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
+    from stable_baselines3.common.vec_env import VecMonitor
+    from tqdm import tqdm
+
+    from mrexplore.policies import make_team_policy
+    from mrexplore.wrappers.sb3_vec import make_vec_env
+
+    cfg = load_hyperparams(algo, hyperparams_file)
+    env_opts = dict(cfg["env"])
+    env_opts["world"] = training_world(world, env_opts.get("world", "random:symmetric_office"))
+    if n_robots is not None:
+        env_opts["n_robots"] = int(n_robots)
+    copies = int(n_copies if n_copies is not None else cfg.get("n_copies", 1))
+    use_subprocess = bool(cfg.get("use_subprocess", False))
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    config = {
+        "algo": algo,
+        "timesteps": int(timesteps),
+        "seed": int(seed),
+        "policy": cfg["policy"],
+        "n_copies": copies,
+        "use_subprocess": use_subprocess,
+        "env": env_opts,
+        "hyperparams": cfg["hyperparams"],
+        "policy_kwargs": cfg.get("policy_kwargs", {}),
+        "eval": {"seed_base": EVAL_SEED_BASE, "every": eval_every, "seeds": eval_seeds, "final_seeds": final_eval_seeds},
+        "versions": _versions(),
+    }
+    (out / "config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
+
+    venv = VecMonitor(make_vec_env(n_copies=copies, use_subprocess=use_subprocess, seed=seed, **env_opts))
+    tb = str(out / "tb") if importlib.util.find_spec("tensorboard") is not None else None
+    model = algo_class(algo)(
+        cfg["policy"],
+        venv,
+        seed=seed,
+        device="cpu",
+        verbose=0,
+        tensorboard_log=tb,
+        policy_kwargs=copy.deepcopy(cfg.get("policy_kwargs") or None),
+        **cfg["hyperparams"],
+    )
+    eval_env = {**env_opts, "task": "explore"}
+    periodic_seeds = list(range(EVAL_SEED_BASE, EVAL_SEED_BASE + eval_seeds))
+    agents = [f"robot_{i}" for i in range(int(env_opts.get("n_robots", 2)))]
+    baseline = evaluate_policies(
+        {b: (lambda ag, b=b: make_team_policy(b, ag)) for b in BASELINES if b != "random"},
+        eval_env,
+        periodic_seeds,
+        progress=False,
+    )
+    history: list[dict[str, Any]] = []
+
+    class _Progress(BaseCallback):
+        """tqdm progress bar and periodic evaluation against the frontier baselines."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.bar = tqdm(total=int(timesteps), desc=f"train {algo}", unit="step", disable=not progress)
+            self.next_eval = eval_every
+            self.t0 = time.perf_counter()
+
+        def _on_step(self) -> bool:
+            self.bar.update(self.training_env.num_envs)
+            if self.num_timesteps >= self.next_eval:
+                self.next_eval += eval_every
+                res = evaluate_policies(
+                    {"trained": lambda ag: TrainedTeamPolicy(self.model, ag)}, eval_env, periodic_seeds, progress=False
+                )["trained"]
+                entry = {
+                    "timesteps": int(self.num_timesteps),
+                    "wall_s": time.perf_counter() - self.t0,
+                    "task_time_s": res["task_time_s"]["mean"],
+                    "final_coverage": res["final_coverage"]["mean"],
+                    "coverage_at": {k: v["mean"] for k, v in res["coverage_at"].items()},
+                }
+                history.append(entry)
+                self.logger.record("eval/final_coverage", entry["final_coverage"])
+                self.logger.record("eval/task_time_s", entry["task_time_s"])
+                for name, s in baseline.items():
+                    self.logger.record(f"eval/baseline_{name}_final_coverage", s["final_coverage"]["mean"])
+                self.bar.write(
+                    f"[eval @ {self.num_timesteps}] trained: coverage {entry['final_coverage']:.1%}, "
+                    f"task time {entry['task_time_s']:.1f} s | "
+                    + ", ".join(f"{n}: {s['final_coverage']['mean']:.1%}" for n, s in baseline.items())
+                )
+            return True
+
+        def _on_training_end(self) -> None:
+            self.bar.close()
+
+    ckpt_every = max(1, eval_every // max(1, venv.num_envs))
+    callbacks = CallbackList([_Progress(), CheckpointCallback(ckpt_every, str(out / "checkpoints"), name_prefix=algo)])
+    t0 = time.perf_counter()
+    model.learn(total_timesteps=int(timesteps), callback=callbacks)
+    train_s = time.perf_counter() - t0
+    model.save(str(out / "model.zip"))
+    venv.close()
+    throughput = {"timesteps": int(model.num_timesteps), "wall_s": train_s, "env_steps_per_s": model.num_timesteps / train_s}
+    doc = evaluate_folder(out, n_seeds=final_eval_seeds, progress=progress)
+    doc["training"] = {"throughput": throughput, "history": history, "baseline_periodic": baseline}
+    (out / "eval.json").write_text(json.dumps(doc, indent=2))
+    print(
+        f"trained {model.num_timesteps} steps in {train_s:.0f} s "
+        f"({throughput['env_steps_per_s']:.0f} env steps/s including updates); wrote {out}"
+    )
+    return config
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """CLI: ``mrexplore train --algo ppo --world symmetric_office --n-robots 2 --timesteps N --out DIR``."""
+    p = argparse.ArgumentParser(prog="mrexplore train", description=__doc__)
+    p.add_argument("--algo", default="ppo", choices=ALGOS)
+    p.add_argument("--world", default=None, help="a generator name (trained on fresh worlds) or a world spec")
+    p.add_argument("--n-robots", type=int, default=None)
+    p.add_argument("--timesteps", type=int, default=1_000_000)
+    p.add_argument("--out", default="policies/ppo_symmetric_2r")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--hyperparams", default=None, help="a YAML file instead of the shipped one")
+    p.add_argument("--eval-every", type=int, default=50_000)
+    p.add_argument("--eval-seeds", type=int, default=5)
+    p.add_argument("--final-eval-seeds", type=int, default=20)
+    p.add_argument("--n-copies", type=int, default=None)
+    args = p.parse_args(argv)
+    train(
+        algo=args.algo,
+        timesteps=args.timesteps,
+        out=args.out,
+        world=args.world,
+        n_robots=args.n_robots,
+        seed=args.seed,
+        hyperparams_file=args.hyperparams,
+        eval_every=args.eval_every,
+        eval_seeds=args.eval_seeds,
+        final_eval_seeds=args.final_eval_seeds,
+        n_copies=args.n_copies,
+    )
+    return 0

@@ -1,0 +1,243 @@
+"""Each robot's own occupancy grid: log-odds, in the robot's own start frame.
+
+A robot does not know the world: it maps into a canvas centred on where it started. The frame
+is its start pose: origin at the start position, x along the start heading. The start position
+sits at cell ``origin_cell = (c0, r0)``, so frame metres ``(x, y)`` are the continuous cell
+``(c0 + x / res, r0 + y / res)`` (cell centres are integers, row 0 = lowest y). The simulator
+chooses a canvas large enough for any start (see :func:`mrexplore.sim.canvas_for`).
+
+Inverse sensor model (per scan): the cells a beam enters before its measured end are free
+(``l_free``), the cell holding the end point is occupied (``l_occ``) when the beam hit; log-odds
+are clamped to ``[l_min, l_max]``; every cell is updated at most once per scan, occupied winning
+over free. The beams are traversed with :func:`mrexplore.sensors.traverse`, the same vectorised
+grid traversal the sensor uses.
+
+The int8 view (``-1/0/100``, :mod:`mrexplore.grid`) is kept up to date incrementally (only the
+cells a scan touched), so :meth:`OccupancyMap.to_int8` is O(1) even on 1500 x 1500 canvases.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mrexplore.errors import ConfigError, GridError
+from mrexplore.grid import FREE, FREE_THRESHOLD, OCCUPIED, OCCUPIED_THRESHOLD, UNKNOWN
+from mrexplore.sensors import CORNER_EPS, traverse
+
+#: Beams are traversed in two groups: those shorter than this many cells (most beams indoors)
+#: with this many crossing slots, the long ones with as many as the longest needs.
+SHORT_BEAM_CELLS: int = 24
+
+#: The occupied end point is taken this far (cells) beyond the measured range, so a noise-free
+#: range that ends exactly on a wall boundary lands in the wall cell, not the free one before.
+_END_NUDGE_CELLS: float = 1e-3
+
+
+class OccupancyMap:
+    """A log-odds occupancy grid in one robot's own start frame.
+
+    Args:
+        shape: (H, W) cells of the canvas.
+        resolution_m: metres per cell (> 0).
+        origin_cell: (c0, r0) integer cell of the robot's start position (the frame origin).
+        l_free, l_occ: log-odds increments of a free and an occupied observation. The defaults
+            (-1.2, +1.4) make one observation enough to cross the int8 readers' thresholds
+            (free at most 25 %, occupied at least 65 %): exploration maps each cell once or a
+            few times, and a map that needs three looks per cell would lag the robot.
+            A free-then-occupied cell lands at +0.2 (55 %): uncertain, neither free nor wall.
+        l_min, l_max: clamp of the log-odds (keeps the map able to change its mind).
+
+    >>> m = OccupancyMap((21, 21), 0.05, (10, 10))
+    >>> m.update((0.0, 0.0, 0.0), np.array([0.0]), np.array([0.2]), np.array([True]))
+    >>> m.to_int8()[10, 10:16].tolist()  # free from the robot's cell, the wall 4 cells ahead
+    [0, 0, 0, 0, 100, -1]
+    """
+
+    def __init__(
+        self,
+        shape: tuple[int, int],
+        resolution_m: float,
+        origin_cell: tuple[int, int],
+        l_free: float = -1.2,
+        l_occ: float = 1.4,
+        l_min: float = -5.0,
+        l_max: float = 5.0,
+    ) -> None:
+        h, w = int(shape[0]), int(shape[1])
+        if h < 1 or w < 1:
+            raise ConfigError(f"OccupancyMap shape must be positive (rows, cols), got {shape}")
+        if not (math.isfinite(resolution_m) and resolution_m > 0.0):
+            raise ConfigError(f"OccupancyMap resolution_m must be positive, got {resolution_m}")
+        c0, r0 = int(origin_cell[0]), int(origin_cell[1])
+        if not (0 <= c0 < w and 0 <= r0 < h):
+            raise ConfigError(f"origin_cell {origin_cell} is outside the {h}x{w} canvas")
+        if not (l_free < 0.0 < l_occ and l_min < 0.0 < l_max):
+            raise ConfigError(
+                f"need l_free < 0 < l_occ and l_min < 0 < l_max, got l_free={l_free}, "
+                f"l_occ={l_occ}, l_min={l_min}, l_max={l_max}"
+            )
+        self.shape = (h, w)
+        self.resolution_m = float(resolution_m)
+        self.origin_cell = (c0, r0)
+        self.l_free, self.l_occ = float(l_free), float(l_occ)
+        self.l_min, self.l_max = float(l_min), float(l_max)
+        #: float32 (H, W) log-odds; 0 = never observed.
+        self.logodds = np.zeros((h, w), dtype=np.float32)
+        self._int8 = np.full((h, w), UNKNOWN, dtype=np.int8)
+        # Scratch marks of one scan (0 none, 1 free, 2 occupied); always zero between scans.
+        self._marks = np.zeros((h, w), dtype=np.uint8)
+        self._delta = np.array([0.0, self.l_free, self.l_occ], dtype=np.float32)
+        self._bbox: list[int] | None = None  # [row0, row1, col0, col1] inclusive
+
+    # ------------------------------------------------------------------ queries
+    def cell_of(self, x_m: float, y_m: float) -> tuple[float, float]:
+        """Own-frame metres -> continuous cell ``(col, row)`` of this canvas."""
+        return (
+            self.origin_cell[0] + x_m / self.resolution_m,
+            self.origin_cell[1] + y_m / self.resolution_m,
+        )
+
+    def to_int8(self) -> NDArray[np.int8]:
+        """The map as int8 (H, W): -1 never observed, 0 free, 100 occupied, and the occupancy in
+        percent for observed cells in between the :mod:`mrexplore.grid` thresholds.
+
+        O(1): returns a read-only *view* of an array kept up to date by :meth:`update`; it
+        changes with the next update, so copy it to keep a snapshot.
+        """
+        view = self._int8.view()
+        view.flags.writeable = False
+        return view
+
+    def known_bbox(self) -> tuple[int, int, int, int] | None:
+        """``(row0, row1, col0, col1)`` inclusive bounds of the observed cells, None if none."""
+        return None if self._bbox is None else (self._bbox[0], self._bbox[1], self._bbox[2], self._bbox[3])
+
+    # ------------------------------------------------------------------ update
+    def update(
+        self,
+        pose_est: tuple[float, float, float] | NDArray[np.floating],
+        angles: NDArray[np.floating],
+        ranges_m: NDArray[np.floating],
+        hit: NDArray[np.bool_],
+    ) -> None:
+        """Integrate one scan taken at ``pose_est``.
+
+        Args:
+            pose_est: (x_m, y_m, theta_rad), the robot's pose estimate in its own frame.
+            angles: (B,) beam angles in radians relative to the heading.
+            ranges_m: (B,) measured ranges in metres (>= 0).
+            hit: (B,) bool, the beam ended on an obstacle (else it reached its maximum range).
+        """
+        x, y, th = (float(v) for v in np.asarray(pose_est, dtype=np.float64).reshape(3))
+        ang = np.asarray(angles, dtype=np.float64).reshape(-1)
+        rng_m = np.asarray(ranges_m, dtype=np.float64).reshape(-1)
+        hits = np.asarray(hit, dtype=bool).reshape(-1)
+        if not (ang.shape == rng_m.shape == hits.shape):
+            raise GridError(
+                f"angles, ranges_m and hit must have the same length, got {ang.shape}, "
+                f"{rng_m.shape}, {hits.shape}"
+            )
+        if not (np.isfinite(rng_m).all() and (rng_m >= 0.0).all()):
+            raise GridError("ranges_m must be finite and non-negative")
+        h, w = self.shape
+        res = self.resolution_m
+        # Corner coordinates (col + 0.5, row + 0.5): cell = floor.
+        ox = self.origin_cell[0] + x / res + 0.5
+        oy = self.origin_cell[1] + y / res + 0.5
+        if not (1.0 <= ox < w - 1 and 1.0 <= oy < h - 1):
+            raise GridError(
+                f"pose ({x:.3f}, {y:.3f}) m is outside the {h}x{w} canvas: make the canvas larger"
+            )
+        a = th + ang
+        d = np.stack([np.cos(a), np.sin(a)], axis=1)
+        t_end = rng_m / res
+        hits = hits.copy()
+        # Beams that would leave the canvas (keeping a one-cell ring) are cut at its edge and
+        # lose their hit: the canvas should be big enough for this never to happen.
+        ex = ox + t_end * d[:, 0]
+        ey = oy + t_end * d[:, 1]
+        out = (ex < 1.0) | (ex >= w - 1) | (ey < 1.0) | (ey >= h - 1)
+        if out.any():
+            t_end[out] = np.minimum(t_end[out], _exit_t(ox, oy, d[out], w, h))
+            hits[out] = False
+
+        marks = self._marks
+        flat_marks = marks.reshape(-1)
+        origins = np.empty_like(d)
+        origins[:, 0] = ox
+        origins[:, 1] = oy
+        short = t_end < SHORT_BEAM_CELLS
+        for group in (np.flatnonzero(short), np.flatnonzero(~short)):
+            if group.size == 0:
+                continue
+            n_slots = int(math.ceil(float(t_end[group].max()))) + 1
+            tr = traverse(
+                origins[group], d[group], 0, n_slots, w, float(n_slots) + 2.0, dtype=np.float32
+            )
+            counts = tr.count_before(t_end[group])
+            slots = np.arange(n_slots)
+            for cnt, idx in zip(counts, (tr.idx_x, tr.idx_y)):
+                flat_marks[idx[slots[None, :] < cnt[:, None]]] = 1
+        marks[int(oy), int(ox)] = 1
+        # The end cell of each hit beam (occupied wins: written after the free marks).
+        if hits.any():
+            te = t_end[hits] + _END_NUDGE_CELLS
+            ec = np.floor(ox + te * d[hits, 0]).astype(np.int64)
+            er = np.floor(oy + te * d[hits, 1]).astype(np.int64)
+            marks[er, ec] = 2
+        # Only a window around the scan can hold marks: read them there, apply once per cell.
+        reach = float(t_end.max()) + 2.0 if t_end.size else 2.0
+        r0, r1 = max(0, int(oy - reach)), min(h, int(oy + reach) + 2)
+        c0, c1 = max(0, int(ox - reach)), min(w, int(ox + reach) + 2)
+        win = marks[r0:r1, c0:c1]
+        rr, cc = np.nonzero(win)
+        code = win[rr, cc]
+        win[rr, cc] = 0
+        rr += r0
+        cc += c0
+        lo = np.clip(self.logodds[rr, cc] + self._delta[code], self.l_min, self.l_max)
+        self.logodds[rr, cc] = lo
+        self._int8[rr, cc] = _logodds_to_int8(lo)
+        if rr.size:
+            box = [int(rr.min()), int(rr.max()), int(cc.min()), int(cc.max())]
+            if self._bbox is None:
+                self._bbox = box
+            else:
+                b = self._bbox
+                self._bbox = [min(b[0], box[0]), max(b[1], box[1]), min(b[2], box[2]), max(b[3], box[3])]
+
+    def save(self, path_yaml: str | Path) -> Path:
+        """Write the int8 map as a map_server YAML + image (needs :mod:`mrexplore.world.map_io`).
+
+        The YAML origin is the world position of cell (0, 0)'s corner in this robot's own frame.
+        """
+        from mrexplore.world.map_io import write_map_yaml
+
+        res = self.resolution_m
+        origin = (-(self.origin_cell[0] + 0.5) * res, -(self.origin_cell[1] + 0.5) * res, 0.0)
+        return Path(write_map_yaml(path_yaml, self._int8.copy(), res, origin_m=origin))
+
+
+def _exit_t(
+    ox: float, oy: float, d: NDArray[np.float64], w: int, h: int
+) -> NDArray[np.float64]:
+    """Ray parameter (cells) where rays from (ox, oy) (corner coordinates) leave the box
+    ``[1, w - 1) x [1, h - 1)``, minus a small margin."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tx = np.where(d[:, 0] > 0, (w - 1 - ox) / d[:, 0], np.where(d[:, 0] < 0, (1.0 - ox) / d[:, 0], np.inf))
+        ty = np.where(d[:, 1] > 0, (h - 1 - oy) / d[:, 1], np.where(d[:, 1] < 0, (1.0 - oy) / d[:, 1], np.inf))
+    return np.maximum(np.minimum(tx, ty) - 10.0 * CORNER_EPS, 0.0)
+
+
+def _logodds_to_int8(lo: NDArray[np.float32]) -> NDArray[np.int8]:
+    """Observed cells' log-odds -> int8 occupancy: FREE / OCCUPIED past the thresholds of
+    :mod:`mrexplore.grid`, else the probability in percent (never UNKNOWN: they were observed)."""
+    pct = 100.0 / (1.0 + np.exp(-lo.astype(np.float64)))
+    out = np.clip(np.rint(pct), FREE_THRESHOLD + 1, OCCUPIED_THRESHOLD - 1).astype(np.int8)
+    out[pct <= FREE_THRESHOLD] = FREE
+    out[pct >= OCCUPIED_THRESHOLD] = OCCUPIED
+    return out

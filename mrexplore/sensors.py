@@ -1,0 +1,533 @@
+"""A 2-D range sensor (lidar) on an occupancy grid: an exact, vectorised grid traversal.
+
+Geometry. A point on a grid is ``(col, row)`` with cell centres at integer points, so cell
+``(c, r)`` covers ``[c - 0.5, c + 0.5) x [r - 0.5, r + 0.5)``. Internally the traversal works in
+*corner coordinates* ``u = col + 0.5``, where cell ``c`` is ``floor(u)`` and grid lines are the
+integers.
+
+Traversal (shared by the sensor and by :mod:`mrexplore.mapping`). A ray ``p(t) = o + t d`` with
+``|d| = 1`` (``t`` in cells) enters a new cell exactly when it crosses a vertical or a horizontal
+grid line. The k-th vertical crossing happens at ``t = t0x + k / |dx|`` and enters column
+``c0 + k * sign(dx)``; the k-th horizontal crossing likewise. Both sequences are arithmetic in
+``t``, so all crossings of all beams of all robots are computed at once as ``(N, K)`` arrays,
+with no Python loop over steps and no sort: the cells a textbook DDA (Amanatides & Woo) visits
+are exactly the cells entered at these crossings. The hit distance is the smallest entry ``t``
+over wall cells.
+
+Corners. When a ray passes within :data:`CORNER_EPS` cells of a grid corner, the sensor tests
+*both* cells beside the crossing point (and the diagonal one), so a ray cannot slip between two
+wall cells that touch only at a corner (a diagonal staircase of walls is closed). The same rule
+is used by :func:`cast_ray_reference`.
+
+Cells outside the grid count as walls: a beam leaving the grid stops at the border.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mrexplore.errors import ConfigError, GridError
+
+#: Rays passing within this many cells of a grid corner test both cells beside the corner.
+#: Larger than the float32 rounding of the per-slot positions (~2e-5 cells for beams of a few
+#: hundred cells), so a crossing exactly at a corner is always recognised; 1e-4 cells is 5 um at
+#: 0.05 m per cell.
+CORNER_EPS: float = 1e-4
+
+#: Crossing slots (per line family) of the first slice of a cast. Beams are traversed in two
+#: slices: most indoor beams meet a wall within the first one and drop out, so the second
+#: (up to the maximum range) only runs on the long beams. See ``scripts/bench_sensor.py``.
+FIRST_SLICE_SLOTS: int = 24
+
+
+@dataclass(frozen=True)
+class LidarConfig:
+    """Options of the range sensor.
+
+    Attributes:
+        n_beams: number of beams (>= 1).
+        fov_rad: field of view in radians, in (0, 2 pi]. A full circle spaces the beams by
+            ``2 pi / n_beams`` starting at ``-pi`` (ROS ``angle_min``); a smaller field of view
+            spans ``[-fov/2, +fov/2]`` with both ends included.
+        max_range_m: maximum range in metres (> 0). A beam that meets no wall within it
+            reports ``max_range_m`` and ``hit = False``.
+        noise_std_m: standard deviation in metres of the Gaussian noise added to the ranges of
+            beams that hit (>= 0); only applied when a generator is passed to ``cast``.
+    """
+
+    n_beams: int = 360
+    fov_rad: float = 2.0 * math.pi
+    max_range_m: float = 4.0
+    noise_std_m: float = 0.01
+
+    def __post_init__(self) -> None:
+        if int(self.n_beams) != self.n_beams or self.n_beams < 1:
+            raise ConfigError(f"LidarConfig.n_beams must be a positive integer, got {self.n_beams}")
+        if not (0.0 < self.fov_rad <= 2.0 * math.pi + 1e-12):
+            raise ConfigError(f"LidarConfig.fov_rad must be in (0, 2 pi], got {self.fov_rad}")
+        if not (math.isfinite(self.max_range_m) and self.max_range_m > 0.0):
+            raise ConfigError(
+                f"LidarConfig.max_range_m must be a positive number, got {self.max_range_m}"
+            )
+        if not (math.isfinite(self.noise_std_m) and self.noise_std_m >= 0.0):
+            raise ConfigError(
+                f"LidarConfig.noise_std_m must be a non-negative number, got {self.noise_std_m}"
+            )
+
+
+@dataclass(frozen=True, eq=False)
+class Scan:
+    """One scan of R robots with B beams each.
+
+    Attributes:
+        ranges_m: float32 (R, B): distance in metres from the sensor to the boundary of the first
+            wall cell along each beam, capped at the maximum range; noisy when a generator was
+            passed.
+        hit: bool (R, B): a wall lies within the maximum range along the beam.
+        angles: float64 (B,): beam angles in radians relative to the robot's heading.
+        visible_flat: when requested, one int64 array per robot of flat indices into
+            ``walls.ravel()`` of the cells its beams passed through (free cells before the hit,
+            and the hit cell itself; noise-free; duplicates possible). Else None.
+    """
+
+    ranges_m: NDArray[np.float32]
+    hit: NDArray[np.bool_]
+    angles: NDArray[np.float64]
+    visible_flat: tuple[NDArray[np.int64], ...] | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class PaddedGrid:
+    """A wall grid prepared for repeated casts (see :meth:`Lidar.prepare`).
+
+    ``table`` is the grid padded by one ring of walls and stacked with its "pair" grids, flat:
+    plane 0 = walls, plane 1 = ``walls[r] | walls[r+1]`` (a crossing of a vertical grid line
+    near a corner), plane 2 = ``walls[:, c] | walls[:, c+1]`` (same for horizontal lines).
+    One gather then tests one cell, or both cells beside a corner.
+    """
+
+    shape: tuple[int, int]
+    table: NDArray[np.bool_]
+
+    @property
+    def padded_width(self) -> int:
+        """Columns of the padded grid (W + 2)."""
+        return self.shape[1] + 2
+
+    @property
+    def plane(self) -> int:
+        """Cells in one padded plane, (H + 2) * (W + 2)."""
+        return (self.shape[0] + 2) * (self.shape[1] + 2)
+
+
+def _check_walls(walls: object) -> NDArray[np.bool_]:
+    if not isinstance(walls, np.ndarray) or walls.ndim != 2 or walls.size == 0:
+        raise GridError("walls must be a non-empty 2-D numpy bool array (rows, cols)")
+    if walls.dtype != np.bool_:
+        raise GridError(f"walls must be a bool array, got dtype {walls.dtype}")
+    return walls
+
+
+def prepare_walls(walls: NDArray[np.bool_]) -> PaddedGrid:
+    """Pad ``walls`` (H, W) bool with a ring of walls and build the corner pair planes."""
+    w = _check_walls(walls)
+    h, wd = w.shape
+    pad = np.ones((h + 2, wd + 2), dtype=np.bool_)
+    pad[1:-1, 1:-1] = w
+    pair_rows = pad.copy()
+    pair_rows[:-1, :] |= pad[1:, :]
+    pair_cols = pad.copy()
+    pair_cols[:, :-1] |= pad[:, 1:]
+    table = np.concatenate([pad.ravel(), pair_rows.ravel(), pair_cols.ravel()])
+    return PaddedGrid(shape=(h, wd), table=table)
+
+
+@dataclass(frozen=True, eq=False)
+class Traversal:
+    """The cells N rays enter at grid-line crossing slots ``k = k0 .. k0 + K - 1``.
+
+    Family x are the crossings of vertical grid lines (integer corner x), family y of
+    horizontal ones. For family x, slot k is the crossing at ray parameter
+    ``t = t0_x + k * dt_x`` (cells; ``t0_x = inf`` for rays parallel to those lines) and
+    ``idx_x[n, k - k0]`` is the flat index ``row * stride + col`` of the cell entered there.
+
+    Attributes:
+        idx_x, idx_y: int64 (N, K) flat cell indices (garbage, but finite, for slots of rays
+            parallel to that family: their t is inf).
+        t0_x, dt_x, t0_y, dt_y: float64 (N,) arithmetic sequences of the crossing t.
+        k0: first slot.
+    """
+
+    idx_x: NDArray[np.int64]
+    idx_y: NDArray[np.int64]
+    t0_x: NDArray[np.float64]
+    dt_x: NDArray[np.float64]
+    t0_y: NDArray[np.float64]
+    dt_y: NDArray[np.float64]
+    k0: int
+
+    def t_at(self, family_x: bool, k: NDArray[np.integer]) -> NDArray[np.float64]:
+        """Ray parameter of absolute slot ``k`` (N,) of one family."""
+        if family_x:
+            return self.t0_x + k * self.dt_x
+        return self.t0_y + k * self.dt_y
+
+    def count_before(self, t_end: NDArray[np.float64]) -> tuple[NDArray[np.int64], ...]:
+        """Per family, the number of slots of this traversal with ``t < t_end`` (N,)."""
+        out = []
+        for t0, dt in ((self.t0_x, self.dt_x), (self.t0_y, self.dt_y)):
+            with np.errstate(invalid="ignore", divide="ignore"):
+                n_all = np.where(
+                    np.isfinite(t0) & (t_end > t0),
+                    np.ceil((t_end - t0) / np.where(dt > 0, dt, 1.0)),
+                    0.0,
+                )
+            n_all = np.where(dt > 0, n_all, np.where(t_end > t0, np.inf, 0.0))
+            k = np.clip(n_all - self.k0, 0, self.idx_x.shape[1])
+            out.append(k.astype(np.int64))
+        return tuple(out)
+
+
+def _family(
+    o: NDArray[np.float64],
+    d: NDArray[np.float64],
+    o_other: NDArray[np.float64],
+    d_other: NDArray[np.float64],
+    k: NDArray[np.float32],
+    stride_self: int,
+    stride_other: int,
+    near_offset: int | None,
+    dtype: type[np.floating],
+    t_cap: float,
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
+    """Cells entered at the crossings of lines ``coordinate = integer`` by rays ``o + t d``.
+
+    ``stride_self`` is the flat-index step of one cell along this coordinate (1 for columns,
+    the row stride for rows), ``stride_other`` along the other one.
+    """
+    fo = np.floor(o)
+    pos = d > 0.0
+    step = np.where(pos, 1, -1)
+    ad = np.abs(d)
+    moving = ad > 0.0
+    # A ray parallel to these lines never crosses one: t0 = inf and the slope is taken as 0 so
+    # that the (unused) positions stay finite.
+    inv = np.where(moving, 1.0 / np.where(moving, ad, 1.0), 0.0)
+    t0 = np.where(moving, np.where(pos, fo + 1.0 - o, o - fo) * inv, np.inf)
+    # Other coordinate at slot k, relative to the origin's cell, plus an offset so that
+    # truncation to int is floor: a = start, s = slope per slot. Relative values keep float32
+    # within ~1e-5 cells. Slots with t > t_cap are never used, so t0 and the slope are clipped
+    # to t_cap: positions stay bounded (no int overflow for near-parallel rays).
+    offset = math.ceil(t_cap) + 2
+    t0_pos = np.where(moving, np.minimum(t0, t_cap), 0.0)
+    fo_other = np.floor(o_other)
+    a = (o_other - fo_other) + t0_pos * d_other - CORNER_EPS + offset
+    s = np.clip(inv * d_other, -t_cap, t_cap)
+    pos_other = np.multiply.outer(s.astype(dtype), k)
+    pos_other += a.astype(dtype)[:, None]
+    cell_other = pos_other.astype(np.int64)
+    # Flat index: (origin cell) + (k + 1) steps along this axis + cell_other along the other.
+    base = (
+        fo.astype(np.int64) * stride_self
+        + (fo_other.astype(np.int64) - offset) * stride_other
+        + step * stride_self
+    )
+    idx = cell_other * stride_other
+    idx += np.multiply.outer(step * stride_self, k.astype(np.int64))
+    idx += base[:, None]
+    if near_offset is not None:
+        # Within 2 * CORNER_EPS below the next line too: the crossing is at a corner, test the
+        # "pair" plane (both cells beside it) with the same gather.
+        pos_other -= cell_other
+        near = pos_other >= (1.0 - 2.0 * CORNER_EPS)
+        idx += near * near_offset
+    return idx, t0, inv
+
+
+def traverse(
+    origins: NDArray[np.float64],
+    directions: NDArray[np.float64],
+    k0: int,
+    n_slots: int,
+    row_stride: int,
+    t_cap: float,
+    near_offsets: tuple[int, int] | None = None,
+    dtype: type[np.floating] = np.float64,
+) -> Traversal:
+    """Cells entered by N rays at crossing slots ``k0 .. k0 + n_slots - 1`` of each line family.
+
+    The one traversal used by the sensor (on the padded world) and by the occupancy map (on the
+    robot's canvas).
+
+    Args:
+        origins: (N, 2) ray origins in corner coordinates ``(col + 0.5, row + 0.5)`` of the
+            grid whose flat index is ``row * row_stride + col``.
+        directions: (N, 2) unit directions ``(dcol, drow)``.
+        k0, n_slots: the slot window.
+        row_stride: flat-index step of one row (the grid width).
+        t_cap: the largest ray parameter (cells) the caller will use; indices of slots beyond
+            it are garbage (finite, possibly outside the grid: gather with ``mode="clip"``).
+        near_offsets: when given ``(off_x, off_y)``, a crossing within :data:`CORNER_EPS` of a
+            corner gets ``off_x`` (vertical lines) or ``off_y`` (horizontal lines) added to its
+            index: the sensor points those at planes that test both cells beside the corner.
+            When None, the entered cell is ``floor`` of the position (exact up to rounding).
+        dtype: float type of the per-slot positions (float32 is faster; relative coordinates
+            keep it within ~1e-5 cells for beams of a few hundred cells).
+    """
+    k = np.arange(k0, k0 + n_slots, dtype=dtype)
+    ox, oy = origins[:, 0], origins[:, 1]
+    dx, dy = directions[:, 0], directions[:, 1]
+    nx = near_offsets[0] if near_offsets is not None else None
+    ny = near_offsets[1] if near_offsets is not None else None
+    idx_x, t0_x, dt_x = _family(ox, dx, oy, dy, k, 1, row_stride, nx, dtype, t_cap)
+    idx_y, t0_y, dt_y = _family(oy, dy, ox, dx, k, row_stride, 1, ny, dtype, t_cap)
+    return Traversal(idx_x=idx_x, idx_y=idx_y, t0_x=t0_x, dt_x=dt_x, t0_y=t0_y, dt_y=dt_y, k0=k0)
+
+
+def _beam_angles(cfg: LidarConfig) -> NDArray[np.float64]:
+    """Beam angles (B,) relative to the heading, radians (see :class:`LidarConfig`)."""
+    if cfg.fov_rad >= 2.0 * math.pi - 1e-12:
+        return -math.pi + np.arange(cfg.n_beams, dtype=np.float64) * (2.0 * math.pi / cfg.n_beams)
+    if cfg.n_beams == 1:
+        return np.zeros(1, dtype=np.float64)
+    return np.linspace(-cfg.fov_rad / 2.0, cfg.fov_rad / 2.0, cfg.n_beams, dtype=np.float64)
+
+
+def _grid_flat_of(padded: NDArray[np.int64], shape: tuple[int, int]) -> NDArray[np.int64]:
+    """Padded plane-0 flat indices -> flat indices of the unpadded (H, W) grid, -1 outside."""
+    h, w = shape
+    wp = w + 2
+    r = padded // wp - 1
+    c = padded % wp - 1
+    inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+    return np.where(inside, r * w + c, -1)
+
+
+class Lidar:
+    """A 2-D lidar: casts all beams of all robots at once on a wall grid.
+
+    >>> import numpy as np
+    >>> walls = np.zeros((5, 9), dtype=bool); walls[:, 8] = True
+    >>> lidar = Lidar(LidarConfig(n_beams=4, max_range_m=10.0, noise_std_m=0.0))
+    >>> scan = lidar.cast(walls, np.array([[2.0, 2.0]]), np.array([0.0]), resolution_m=1.0)
+    >>> float(scan.ranges_m[0, 2])  # beam straight ahead: from the centre of col 2 to col 8
+    5.5
+    """
+
+    def __init__(self, config: LidarConfig | None = None) -> None:
+        self.config = config if config is not None else LidarConfig()
+        #: float64 (B,): beam angles relative to the heading, radians.
+        self.angles = _beam_angles(self.config)
+        self._cos = np.cos(self.angles)
+        self._sin = np.sin(self.angles)
+        #: Float type of the per-slot positions (see :func:`traverse`).
+        self.dtype: type[np.floating] = np.float32
+
+    @staticmethod
+    def prepare(walls: NDArray[np.bool_]) -> PaddedGrid:
+        """Prepare a wall grid once for many casts (saves an O(H W) pad per cast)."""
+        return prepare_walls(walls)
+
+    def directions(self, headings: NDArray[np.floating]) -> NDArray[np.float64]:
+        """Unit beam directions (R * B, 2) as (dcol, drow) for headings (R,) radians."""
+        h = np.asarray(headings, dtype=np.float64).reshape(-1, 1)
+        ch, sh = np.cos(h), np.sin(h)
+        dx = ch * self._cos - sh * self._sin
+        dy = sh * self._cos + ch * self._sin
+        return np.stack([dx.ravel(), dy.ravel()], axis=1)
+
+    def cast(
+        self,
+        walls: NDArray[np.bool_] | PaddedGrid,
+        origins_cells: NDArray[np.floating],
+        headings: NDArray[np.floating],
+        resolution_m: float,
+        rng: np.random.Generator | None = None,
+        want_visible: bool = False,
+    ) -> Scan:
+        """Cast every beam of R robots.
+
+        Args:
+            walls: bool (H, W) wall grid (True = wall), or a :class:`PaddedGrid` from
+                :meth:`prepare` (faster when casting on the same grid many times).
+            origins_cells: (R, 2) sensor positions as continuous ``(col, row)`` cells (cell
+                centres are integers); each must lie inside the grid.
+            headings: (R,) headings in radians (from +col towards +row).
+            resolution_m: metres per cell (> 0).
+            rng: when given, Gaussian noise N(0, noise_std_m) is added to the ranges of beams
+                that hit, clipped to [0, max_range_m].
+            want_visible: also return the cells each robot's beams passed through
+                (:attr:`Scan.visible_flat`, noise-free), for coverage.
+        """
+        grid = walls if isinstance(walls, PaddedGrid) else prepare_walls(walls)
+        if not (math.isfinite(resolution_m) and resolution_m > 0.0):
+            raise GridError(f"resolution_m must be a positive number, got {resolution_m}")
+        org = np.asarray(origins_cells, dtype=np.float64).reshape(-1, 2)
+        hd = np.asarray(headings, dtype=np.float64).reshape(-1)
+        n_rob = org.shape[0]
+        if hd.shape[0] != n_rob:
+            raise GridError(f"got {n_rob} origins but {hd.shape[0]} headings")
+        h, w = grid.shape
+        corner = org + 0.5
+        if not (
+            np.isfinite(corner).all()
+            and (corner >= 0.0).all()
+            and (corner[:, 0] < w).all()
+            and (corner[:, 1] < h).all()
+        ):
+            raise GridError(f"sensor origins {org.tolist()} must lie inside the {h}x{w} grid")
+        n_b = self.angles.shape[0]
+        max_cells = self.config.max_range_m / resolution_m
+        dirs = self.directions(hd)
+        origins = np.repeat(corner, n_b, axis=0)
+        n = origins.shape[0]
+        best = np.full(n, np.inf)
+        # A sensor inside a wall cell sees nothing: range 0.
+        oc = np.floor(corner).astype(np.int64)
+        origin_wall = grid.table[(oc[:, 1] + 1) * grid.padded_width + oc[:, 0] + 1]
+        best[np.repeat(origin_wall, n_b)] = 0.0
+
+        k_total = int(math.ceil(max_cells)) + 1
+        bounds = [0, min(FIRST_SLICE_SLOTS, k_total), k_total]
+        active = np.flatnonzero(~np.isfinite(best))
+        t_cap = max_cells + 2.0
+        # Ray origins in the padded grid (one ring of walls around the world).
+        origins_p = origins + 1.0
+        wp = grid.padded_width
+        near = (grid.plane, 2 * grid.plane)
+        kept: list[tuple[NDArray[np.int64], Traversal]] = []
+        for k_a, k_b in zip(bounds[:-1], bounds[1:]):
+            if k_b <= k_a or active.size == 0:
+                continue
+            tr = traverse(origins_p[active], dirs[active], k_a, k_b - k_a, wp, t_cap, near, self.dtype)
+            slice_best = np.full(active.size, np.inf)
+            rows = np.arange(active.size)
+            for fam_x, idx in ((True, tr.idx_x), (False, tr.idx_y)):
+                wall = np.take(grid.table, idx, mode="clip")
+                # Crossing t grows with k, so the first wall slot is the nearest wall.
+                k_first = wall.argmax(axis=1)
+                has = wall[rows, k_first]
+                t_first = tr.t_at(fam_x, k_first + k_a)
+                slice_best = np.minimum(slice_best, np.where(has, t_first, np.inf))
+            best[active] = np.minimum(best[active], slice_best)
+            if want_visible:
+                kept.append((active, tr))
+            # Every crossing with t <= covered has been tested for these rays.
+            last = np.full(active.size, k_b - 1)
+            covered = np.minimum(tr.t_at(True, last), tr.t_at(False, last))
+            done = (best[active] <= covered) | (covered >= max_cells)
+            active = active[~done]
+
+        hit = best <= max_cells
+        ranges_cells = np.where(hit, best, max_cells)
+        ranges = (ranges_cells * resolution_m).astype(np.float32)
+        if rng is not None and self.config.noise_std_m > 0.0:
+            noise = rng.normal(0.0, self.config.noise_std_m, size=n).astype(np.float32)
+            ranges = np.where(hit, np.clip(ranges + noise, 0.0, self.config.max_range_m), ranges)
+            ranges = ranges.astype(np.float32)
+
+        visible: tuple[NDArray[np.int64], ...] | None = None
+        if want_visible:
+            visible = self._visible(grid, kept, ranges_cells, oc, n_rob, n_b)
+        return Scan(
+            ranges_m=ranges.reshape(n_rob, n_b),
+            hit=hit.reshape(n_rob, n_b),
+            angles=self.angles,
+            visible_flat=visible,
+        )
+
+    @staticmethod
+    def _visible(
+        grid: PaddedGrid,
+        kept: list[tuple[NDArray[np.int64], Traversal]],
+        limit: NDArray[np.float64],
+        origin_cells: NDArray[np.int64],
+        n_rob: int,
+        n_b: int,
+    ) -> tuple[NDArray[np.int64], ...]:
+        """Per robot, flat (H, W) indices of the cells entered at t <= the beam's range
+        (the free cells it crossed and the wall cell it hit), plus the robot's own cell."""
+        h, w = grid.shape
+        wp = grid.padded_width
+        rays: list[NDArray[np.int64]] = []
+        cells: list[NDArray[np.int64]] = []
+        for active, tr in kept:
+            # A hair above the range so the hit cell (entered exactly at the range) counts.
+            counts = tr.count_before(limit[active] + 1e-9)
+            slots = np.arange(tr.idx_x.shape[1])
+            for cnt, idx in zip(counts, (tr.idx_x, tr.idx_y)):
+                sel = slots[None, :] < cnt[:, None]
+                rays.append(np.broadcast_to(active[:, None], idx.shape)[sel])
+                # Reduce the corner planes back to plane 0 (the cell itself).
+                cells.append(idx[sel] % grid.plane)
+        ray_idx = np.concatenate(rays) if rays else np.zeros(0, dtype=np.int64)
+        padded = np.concatenate(cells) if cells else np.zeros(0, dtype=np.int64)
+        r = padded // wp - 1
+        c = padded % wp - 1
+        ok = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+        flat = r * w + c
+        robot = ray_idx // n_b
+        out = []
+        for i in range(n_rob):
+            own = flat[ok & (robot == i)]
+            oc = origin_cells[i]
+            out.append(np.concatenate([own, np.array([oc[1] * w + oc[0]], dtype=np.int64)]))
+        return tuple(out)
+
+
+def cast_ray_reference(
+    walls: NDArray[np.bool_],
+    origin_cell: tuple[float, float],
+    angle_rad: float,
+    max_range_cells: float,
+) -> tuple[float, bool]:
+    """One ray, the textbook way (a DDA loop in Python): for tests of :meth:`Lidar.cast`.
+
+    Walks the grid-line crossings in order of the ray parameter t (cells) with the running
+    ``t_max_x`` / ``t_max_y`` of Amanatides & Woo, and stops at the first wall cell entered
+    (cells outside the grid are walls). Near a corner (within :data:`CORNER_EPS` cells) both
+    cells beside the crossing are tested, as in the vectorised cast.
+
+    Returns:
+        (range in cells, hit): distance from the origin to the boundary of the first wall cell,
+        or ``(max_range_cells, False)`` when there is none within range.
+    """
+    h, w = walls.shape
+    ox, oy = origin_cell[0] + 0.5, origin_cell[1] + 0.5
+    dx, dy = math.cos(angle_rad), math.sin(angle_rad)
+
+    def is_wall(c: int, r: int) -> bool:
+        return not (0 <= c < w and 0 <= r < h) or bool(walls[r, c])
+
+    c, r = math.floor(ox), math.floor(oy)
+    if is_wall(c, r):
+        return 0.0, True
+    step_x = 1 if dx > 0 else -1
+    step_y = 1 if dy > 0 else -1
+    t_max_x = ((c + 1 - ox) / dx if dx > 0 else (ox - c) / -dx) if dx != 0 else math.inf
+    t_max_y = ((r + 1 - oy) / dy if dy > 0 else (oy - r) / -dy) if dy != 0 else math.inf
+    t_delta_x = 1.0 / abs(dx) if dx != 0 else math.inf
+    t_delta_y = 1.0 / abs(dy) if dy != 0 else math.inf
+    while True:
+        if t_max_x <= t_max_y:
+            t = t_max_x
+            c += step_x
+            t_max_x += t_delta_x
+            y = oy + t * dy
+            r_lo = math.floor(y - CORNER_EPS)
+            wall = is_wall(c, r_lo) or (y + CORNER_EPS >= r_lo + 1 and is_wall(c, r_lo + 1))
+        else:
+            t = t_max_y
+            r += step_y
+            t_max_y += t_delta_y
+            x = ox + t * dx
+            c_lo = math.floor(x - CORNER_EPS)
+            wall = is_wall(c_lo, r) or (x + CORNER_EPS >= c_lo + 1 and is_wall(c_lo + 1, r))
+        if t > max_range_cells:
+            return float(max_range_cells), False
+        if wall:
+            return float(t), True

@@ -1,0 +1,335 @@
+"""The simulation core: robots move on the true world, sense it, and map it in their own frames.
+
+One step, in order (:meth:`Simulation.step`):
+
+1. move every robot (true poses, :class:`mrexplore.robot.Motion`, collisions with walls);
+2. odometry: each robot's pose *estimate* in its own start frame, drifting when odometry noise
+   is enabled;
+3. one lidar cast of all robots at once on the true world (:class:`mrexplore.sensors.Lidar`);
+4. each robot's own map is updated with the scan at its *estimated* pose;
+5. the ground-truth bookkeeping: which world cells each robot has observed (for coverage).
+
+Canvas rule (:func:`canvas_for`): a robot does not know the world, so its map canvas must hold
+any world seen from any start. Everything a robot senses lies inside the world, hence within
+one world diagonal of its start: the canvas is a square of side ``2 * ceil(diagonal / res) + 1
++ 2 * margin`` cells with the start at the centre cell, ``margin`` = 16 cells (plus half a
+diagonal when odometry noise is on, since the estimate may drift away from the truth).
+
+All randomness comes from the Generator passed to :meth:`Simulation.reset` and
+:meth:`Simulation.step`: the same seed and actions give the same poses, scans and maps.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mrexplore.errors import ConfigError
+from mrexplore.grid import Transform
+from mrexplore.mapping import OccupancyMap
+from mrexplore.robot import Motion, RobotConfig, largest_component, sample_start_poses, wrap_angle
+from mrexplore.sensors import Lidar, LidarConfig, Scan
+from mrexplore.truth import T_world_from_map, reachable_cspace, reachable_free
+from mrexplore.truth import true_transform as _true_transform
+from mrexplore.world.world import World
+
+#: Extra cells around the world diagonal on each side of a robot's canvas.
+CANVAS_MARGIN_CELLS: int = 16
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Options of the simulation.
+
+    Attributes:
+        robot: body and motion (:class:`RobotConfig`).
+        lidar: range sensor (:class:`LidarConfig`).
+        aligned_headings: all robots start with heading 0 in the world (the paper's setting);
+            else headings are uniform in (-pi, pi].
+        odom_noise_trans: standard deviation of the odometry's translation error as a fraction
+            of the distance moved (>= 0; 0.02 = 2 %).
+        odom_noise_rot: standard deviation of the heading error in radians per radian turned
+            (>= 0).
+        odom_noise_rot_per_m: standard deviation of the heading error in radians per metre
+            driven (>= 0): the small drift of a robot going straight.
+        min_start_separation_m: robots start at least this far apart (>= 0).
+    """
+
+    robot: RobotConfig = field(default_factory=RobotConfig)
+    lidar: LidarConfig = field(default_factory=LidarConfig)
+    aligned_headings: bool = True
+    odom_noise_trans: float = 0.0
+    odom_noise_rot: float = 0.0
+    odom_noise_rot_per_m: float = 0.0
+    min_start_separation_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.robot, RobotConfig):
+            raise ConfigError(f"SimConfig.robot must be a RobotConfig, got {type(self.robot).__name__}")
+        if not isinstance(self.lidar, LidarConfig):
+            raise ConfigError(f"SimConfig.lidar must be a LidarConfig, got {type(self.lidar).__name__}")
+        for name in ("odom_noise_trans", "odom_noise_rot", "odom_noise_rot_per_m", "min_start_separation_m"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0.0):
+                raise ConfigError(f"SimConfig.{name} must be a non-negative number, got {v!r}")
+
+    @property
+    def odometry_noisy(self) -> bool:
+        """Whether any odometry noise is enabled."""
+        return self.odom_noise_trans > 0.0 or self.odom_noise_rot > 0.0 or self.odom_noise_rot_per_m > 0.0
+
+
+@dataclass(frozen=True, eq=False)
+class StepInfo:
+    """What happened in one step.
+
+    Attributes:
+        collided: bool (R,): a FORWARD was stopped by a wall.
+        newly_observed: int64 (R,): world cells this robot observed for the first time.
+    """
+
+    collided: NDArray[np.bool_]
+    newly_observed: NDArray[np.int64]
+
+
+def canvas_for(world: World, map_resolution_m: float, noisy_odometry: bool = False) -> tuple[tuple[int, int], tuple[int, int]]:
+    """``((H, W), (c0, r0))``: a robot's canvas and the cell of its start (see the module doc)."""
+    diag_m = math.hypot(*world.size_m)
+    half = int(math.ceil(diag_m / map_resolution_m)) + CANVAS_MARGIN_CELLS
+    if noisy_odometry:
+        half += int(math.ceil(0.5 * diag_m / map_resolution_m))
+    side = 2 * half + 1
+    return (side, side), (half, half)
+
+
+class _Trail:
+    """A growable (N, 2) float64 buffer of own-frame cells."""
+
+    def __init__(self) -> None:
+        self._buf = np.zeros((64, 2), dtype=np.float64)
+        self._n = 0
+
+    def append(self, col: float, row: float) -> None:
+        if self._n == self._buf.shape[0]:
+            self._buf = np.concatenate([self._buf, np.zeros_like(self._buf)])
+        self._buf[self._n] = (col, row)
+        self._n += 1
+
+    def view(self) -> NDArray[np.float64]:
+        out = self._buf[: self._n]
+        out.flags.writeable = False
+        return out
+
+
+class Simulation:
+    """R robots exploring one world, each mapping in its own frame.
+
+    Args:
+        world: the ground truth.
+        n_robots: R >= 1.
+        config: :class:`SimConfig`.
+
+    Attributes (after :meth:`reset`):
+        true_poses: float64 (R, 3) ``[x_m, y_m, theta]`` in world metres (truth).
+        est_poses: float64 (R, 3) each robot's odometry estimate in its own start frame.
+        start_poses: float64 (R, 3) true start poses (world metres).
+        maps: one :class:`OccupancyMap` per robot, own frame, at the world's resolution.
+        observed: bool (R, H, W) world cells each robot has observed (truth side).
+        reachable: bool (H, W) world cells that count for coverage
+            (:func:`mrexplore.truth.reachable_free` seeded at the starts).
+        reachable_cspace: bool (H, W) cells the robots' centres can reach from their starts.
+        reachable_cells: number of ``reachable`` cells.
+        time_s, steps: simulated time (s) and steps since reset.
+        last_scan: the last :class:`mrexplore.sensors.Scan` (for rendering beams).
+    """
+
+    def __init__(self, world: World, n_robots: int, config: SimConfig | None = None) -> None:
+        if not isinstance(world, World):
+            raise ConfigError(f"world must be a World, got {type(world).__name__}")
+        if int(n_robots) != n_robots or n_robots < 1:
+            raise ConfigError(f"n_robots must be a positive integer, got {n_robots}")
+        self.world = world
+        self.n_robots = int(n_robots)
+        self.config = config if config is not None else SimConfig()
+        self.motion = Motion(world, self.config.robot)
+        self.lidar = Lidar(self.config.lidar)
+        self._grid = self.lidar.prepare(world.walls)
+        self.resolution_m = world.resolution_m
+        self.canvas_shape, self.canvas_origin = canvas_for(world, self.resolution_m, self.config.odometry_noisy)
+        self._free_cspace_main = largest_component(~self.motion.cspace)
+        r, h, w = self.n_robots, *world.shape
+        self.true_poses = np.zeros((r, 3))
+        self.est_poses = np.zeros((r, 3))
+        self.start_poses = np.zeros((r, 3))
+        self.maps: list[OccupancyMap] = []
+        self.observed = np.zeros((r, h, w), dtype=bool)
+        self.reachable = np.zeros((h, w), dtype=bool)
+        self.reachable_cspace = self._free_cspace_main
+        self.reachable_cells = 0
+        self.time_s = 0.0
+        self.steps = 0
+        self.last_scan: Scan | None = None
+        self._team_observed = np.zeros((h, w), dtype=bool)
+        self._team_covered = 0
+        self._trails: list[_Trail] = []
+
+    # ------------------------------------------------------------------ lifecycle
+    def reset(self, rng: np.random.Generator, starts: NDArray[np.floating] | None = None) -> None:
+        """Place the robots (``starts`` (R, 3) world metres, or sampled from ``rng``, robot 0
+        first), create their maps and take a first scan."""
+        world = self.world
+        if starts is None:
+            poses = sample_start_poses(
+                world,
+                self.n_robots,
+                rng,
+                self.config.robot.radius_m,
+                aligned=self.config.aligned_headings,
+                min_separation_m=self.config.min_start_separation_m,
+                reachable=self._free_cspace_main,
+            )
+        else:
+            poses = np.array(starts, dtype=np.float64).reshape(-1, 3)
+            if poses.shape[0] != self.n_robots or not np.isfinite(poses).all():
+                raise ConfigError(f"starts must be a finite ({self.n_robots}, 3) array, got shape {np.shape(starts)}")
+            free = self.motion.is_free(poses[:, :2])
+            if not free.all():
+                bad = int(np.flatnonzero(~free)[0])
+                raise ConfigError(f"start of robot {bad} {poses[bad].tolist()} is in collision with a wall")
+            poses[:, 2] = wrap_angle(poses[:, 2])
+        self.start_poses = poses.copy()
+        self.true_poses = poses.copy()
+        self.est_poses = np.zeros_like(poses)
+        self.maps = [
+            OccupancyMap(self.canvas_shape, self.resolution_m, self.canvas_origin) for _ in range(self.n_robots)
+        ]
+        seeds = self.motion.cell_index(poses[:, :2])
+        self.reachable_cspace = reachable_cspace(world, self.config.robot.radius_m, seeds)
+        self.reachable = reachable_free(world, self.config.robot.radius_m, seeds)
+        self.reachable_cells = int(np.count_nonzero(self.reachable))
+        self.observed[:] = False
+        self._team_observed[:] = False
+        self._team_covered = 0
+        self.time_s = 0.0
+        self.steps = 0
+        self._trails = [_Trail() for _ in range(self.n_robots)]
+        self._sense(rng)
+
+    def step(self, actions: NDArray[np.integer], rng: np.random.Generator) -> StepInfo:
+        """Advance one step of ``dt_s``: move, odometry, sense, map (see the module doc)."""
+        if not self.maps:
+            raise RuntimeError("Simulation.step() called before reset()")
+        act = np.asarray(actions).reshape(-1)
+        if act.shape[0] != self.n_robots:
+            raise ConfigError(f"expected {self.n_robots} actions, got {act.shape[0]}")
+        old = self.true_poses
+        new, collided = self.motion.step(old, act)
+        self._odometry(old, new, rng)
+        self.true_poses = new
+        newly = self._sense(rng)
+        self.time_s += self.config.robot.dt_s
+        self.steps += 1
+        return StepInfo(collided=collided, newly_observed=newly)
+
+    # ------------------------------------------------------------------ step parts
+    def _odometry(self, old: NDArray[np.float64], new: NDArray[np.float64], rng: np.random.Generator) -> None:
+        """Update ``est_poses`` from the true motion of this step (with drift noise if enabled)."""
+        cfg = self.config
+        if not cfg.odometry_noisy:
+            # Exact: the true pose seen from the start pose (no rounding drift over long runs).
+            self.est_poses = self._own_frame(new)
+            return
+        dist = np.hypot(new[:, 0] - old[:, 0], new[:, 1] - old[:, 1])
+        dth = wrap_angle(new[:, 2] - old[:, 2])
+        n = self.n_robots
+        dist_meas = dist * (1.0 + cfg.odom_noise_trans * rng.standard_normal(n))
+        rot_std = cfg.odom_noise_rot * np.abs(dth) + cfg.odom_noise_rot_per_m * dist
+        dth_meas = dth + rot_std * rng.standard_normal(n)
+        est = self.est_poses.copy()
+        # A step is a turn or a straight move: translate along the current estimate, then turn.
+        est[:, 0] += dist_meas * np.cos(est[:, 2])
+        est[:, 1] += dist_meas * np.sin(est[:, 2])
+        est[:, 2] = wrap_angle(est[:, 2] + dth_meas)
+        self.est_poses = est
+
+    def _own_frame(self, poses: NDArray[np.float64]) -> NDArray[np.float64]:
+        """True world poses (R, 3) -> each robot's own start frame."""
+        s = self.start_poses
+        dx, dy = poses[:, 0] - s[:, 0], poses[:, 1] - s[:, 1]
+        c, si = np.cos(s[:, 2]), np.sin(s[:, 2])
+        out = np.empty_like(poses)
+        out[:, 0] = c * dx + si * dy
+        out[:, 1] = -si * dx + c * dy
+        out[:, 2] = wrap_angle(poses[:, 2] - s[:, 2])
+        return out
+
+    def _sense(self, rng: np.random.Generator) -> NDArray[np.int64]:
+        """Cast all robots on the truth, update own maps and the observed cells."""
+        world = self.world
+        origins = world.cell_of(self.true_poses[:, :2])
+        scan = self.lidar.cast(
+            self._grid, origins, self.true_poses[:, 2], self.resolution_m, rng=rng, want_visible=True
+        )
+        self.last_scan = scan
+        newly = np.zeros(self.n_robots, dtype=np.int64)
+        assert scan.visible_flat is not None
+        team = self._team_observed.reshape(-1)
+        reach = self.reachable.reshape(-1)
+        for i in range(self.n_robots):
+            vis = scan.visible_flat[i]
+            obs = self.observed[i].reshape(-1)
+            fresh = vis[~obs[vis]]
+            if fresh.size:
+                fresh = np.unique(fresh)
+                obs[fresh] = True
+                newly[i] = fresh.size
+                team_new = fresh[~team[fresh]]
+                team[team_new] = True
+                self._team_covered += int(np.count_nonzero(reach[team_new]))
+            self.maps[i].update(self.est_poses[i], scan.angles, scan.ranges_m[i], scan.hit[i])
+            col, row, _ = self.pose_cell(i)
+            self._trails[i].append(col, row)
+        return newly
+
+    # ------------------------------------------------------------------ queries
+    def pose_cell(self, i: int) -> tuple[float, float, float]:
+        """Robot ``i``'s estimated pose in its own map cells: ``(col, row, theta_rad)``."""
+        x, y, th = self.est_poses[i]
+        c, r = self.maps[i].cell_of(float(x), float(y))
+        return (float(c), float(r), float(th))
+
+    def trail_cells(self, i: int) -> NDArray[np.float64]:
+        """Read-only (N, 2) own-frame cells ``(col, row)`` of robot ``i``'s estimated path."""
+        return self._trails[i].view()
+
+    @property
+    def trails(self) -> list[NDArray[np.float64]]:
+        """Every robot's :meth:`trail_cells`."""
+        return [t.view() for t in self._trails]
+
+    def world_from_map(self, i: int) -> Transform:
+        """3x3 transform from robot ``i``'s map cells to world cells (truth)."""
+        return T_world_from_map(self.start_poses[i], self.maps[i].origin_cell, self.resolution_m, self.world)
+
+    def true_transform(self, a: int, b: int) -> Transform:
+        """``T_ab``: robot b's map cells -> robot a's map cells (truth)."""
+        return _true_transform(
+            self.start_poses[a],
+            self.maps[a].origin_cell,
+            self.start_poses[b],
+            self.maps[b].origin_cell,
+            self.world,
+            self.resolution_m,
+        )
+
+    def coverage(self, robots: list[int] | None = None) -> float:
+        """Share of the reachable cells observed by the team (or by ``robots``), in [0, 1]."""
+        if self.reachable_cells == 0:
+            return 0.0
+        if robots is None:
+            return self._team_covered / self.reachable_cells
+        seen = self.observed[list(robots)].any(axis=0)
+        return float(np.count_nonzero(seen & self.reachable)) / self.reachable_cells

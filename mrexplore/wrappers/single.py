@@ -1,0 +1,96 @@
+"""``mrexplore/Explore-v0``: the single-robot case as a plain ``gymnasium.Env``.
+
+>>> import gymnasium, mrexplore
+>>> env = gymnasium.make("mrexplore/Explore-v0", world="small_office", max_cycles=5)
+>>> obs, info = env.reset(seed=0)
+>>> obs.shape, obs.dtype.name, env.action_space
+((8, 64, 64), 'uint8', Discrete(4))
+>>> env.close()
+
+One robot (``robot_0``) of :class:`mrexplore.env.MultiRobotExplorationEnv` with ``n_robots=1``:
+the same world, start pose (for a seed), sensing, observation, reward and termination as the
+team env, so single- and multi-robot task times compare directly. Options are those of
+:class:`mrexplore.env.EnvConfig` except ``n_robots`` (always 1). ``step`` returns
+``(obs, reward, terminated, truncated, info)`` with ``info`` the robot's info dict
+(``coverage``, ``task_time_s``, ...).
+"""
+
+from __future__ import annotations
+
+from typing import Any, SupportsFloat, cast
+
+import gymnasium
+import numpy as np
+from numpy.typing import NDArray
+
+from mrexplore.env.parallel_env import MultiRobotExplorationEnv
+from mrexplore.errors import ConfigError
+
+_AGENT = "robot_0"
+
+
+class SingleRobotExploreEnv(gymnasium.Env[NDArray[np.uint8], Any]):
+    """One robot exploring alone; see the module docstring.
+
+    Args:
+        render_mode: ``None``, ``"rgb_array"`` or ``"human"`` (passed to the multi-robot env).
+        **options: :class:`mrexplore.env.EnvConfig` fields other than ``n_robots``.
+
+    Raises:
+        ConfigError: ``n_robots`` other than 1, or a bad option.
+    """
+
+    # A class attribute as Gymnasium expects (read before an instance exists).
+    metadata: dict[str, Any] = {  # noqa: RUF012
+        "render_modes": list(cast(list[str], MultiRobotExplorationEnv.metadata["render_modes"])),
+        "render_fps": MultiRobotExplorationEnv.metadata["render_fps"],
+    }
+
+    def __init__(self, render_mode: str | None = None, **options: Any) -> None:
+        n = options.pop("n_robots", 1)
+        if n != 1:
+            raise ConfigError(
+                f"SingleRobotExploreEnv has exactly one robot, got n_robots={n!r}; use "
+                "mrexplore.parallel_env(n_robots=...) for teams"
+            )
+        self.penv = MultiRobotExplorationEnv(render_mode=render_mode, n_robots=1, **options)
+        self.render_mode = render_mode
+        self.observation_space = cast(
+            gymnasium.spaces.Space[NDArray[np.uint8]], self.penv.observation_space(_AGENT)
+        )
+        self.action_space = self.penv.action_space(_AGENT)
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[NDArray[np.uint8], dict[str, Any]]:
+        """Start an episode; ``seed`` re-seeds the env (None continues its random stream)."""
+        # Seeds self.np_random (Gymnasium's contract); the simulation draws from its own
+        # Generator, seeded with the same seed, so the env stays deterministic per seed.
+        super().reset(seed=seed)
+        obs, infos = self.penv.reset(seed=seed, options=options)
+        return obs[_AGENT], infos[_AGENT]
+
+    def step(
+        self, action: Any
+    ) -> tuple[NDArray[np.uint8], SupportsFloat, bool, bool, dict[str, Any]]:
+        """One step; ``action`` in ``Discrete(4)`` (see :class:`mrexplore.robot.Action`)."""
+        obs, rewards, terms, truncs, infos = self.penv.step({_AGENT: action})
+        return (
+            obs[_AGENT],
+            float(rewards[_AGENT]),
+            bool(terms[_AGENT]),
+            bool(truncs[_AGENT]),
+            infos[_AGENT],
+        )
+
+    def render(self) -> NDArray[np.uint8] | None:
+        """The frame of the multi-robot env (``"rgb_array"``), or None."""
+        return self.penv.render()
+
+    def close(self) -> None:
+        """Release the render window, if any."""
+        self.penv.close()
+
+    def robot_view(self) -> Any:
+        """The robot's :class:`~mrexplore.env.view.RobotView` (map, pose, goal), for scripts."""
+        return self.penv.robot_view(_AGENT)

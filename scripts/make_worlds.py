@@ -1,12 +1,13 @@
 #!/usr/bin/env python
 """Regenerate the ready worlds in ``envs/`` (seeded: rerunning writes the same bytes).
 
-Usage: ``python scripts/make_worlds.py [--out envs] [--preview DIR]``
+Usage: ``python scripts/make_worlds.py [--out envs] [--preview DIR] [--bench N]``
 
 Generated worlds (``symmetric_office``, ``twin_wings``, ``small_office``,
 ``symmetric_office_coarse``) are drawn from fixed seeds; the real maps (``tb3_office``, ``depot``)
 are copied from ``/work/shared/maps`` (or ``--maps``) with their licences. ``--preview`` also writes
 a PNG per world with the twin rooms outlined (red = first, blue = second), for a visual check.
+``--bench N`` only times N generations (seeds 0..N-1) of each generated world and prints figures.
 """
 
 from __future__ import annotations
@@ -70,12 +71,35 @@ def preview(world: World, path: Path, scale: int = 2) -> None:
     cv2.imwrite(str(path), img)
 
 
+def bench(n: int) -> None:
+    """Print generation time (ms) and redraw attempts over seeds 0..n-1 of each generated world."""
+    print(
+        f"{'world':24s} {'cells':>11s} {'mean ms':>8s} {'median':>7s} {'max':>7s} {'attempts':>9s}"
+    )
+    for name, (gen, _, opts) in GENERATED.items():
+        times, attempts = [], []
+        for seed in range(n):
+            t0 = time.perf_counter()
+            world = gen(np.random.default_rng(seed), **opts)
+            times.append((time.perf_counter() - t0) * 1e3)
+            attempts.append(world.meta["seed_info"]["attempts"])
+        cells = f"{world.shape[1]}x{world.shape[0]}"
+        print(
+            f"{name:24s} {cells:>11s} {np.mean(times):8.1f} {np.median(times):7.1f} "
+            f"{np.max(times):7.1f} {np.mean(attempts):9.2f}"
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=ROOT / "envs")
     parser.add_argument("--maps", type=Path, default=Path("/work/shared/maps"))
     parser.add_argument("--preview", type=Path, default=None)
+    parser.add_argument("--bench", type=int, default=0, metavar="N")
     args = parser.parse_args()
+    if args.bench:
+        bench(args.bench)
+        return
     args.out.mkdir(parents=True, exist_ok=True)
     if args.preview:
         args.preview.mkdir(parents=True, exist_ok=True)

@@ -99,9 +99,13 @@ def _number(doc: dict[str, Any], key: str, path: Path, default: float | None = N
         return default
     value = doc[key]
     # bool is an int in Python; "resolution: true" is a typo, not 1.0.
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
         raise MapFileError(f"map file {path}: '{key}' must be a number, got {value!r}")
-    out = float(value)
+    try:
+        # PyYAML (YAML 1.1) reads "1e-05" as a string where map_server's yaml-cpp reads a number.
+        out = float(value)
+    except ValueError:
+        raise MapFileError(f"map file {path}: '{key}' must be a number, got {value!r}") from None
     if not math.isfinite(out):
         raise MapFileError(f"map file {path}: '{key}' must be finite, got {value!r}")
     return out
@@ -249,6 +253,18 @@ def _grid_to_pixels(grid: Int8Grid) -> NDArray[np.uint8]:
     return pix
 
 
+def _yaml_float(x: float) -> str:
+    """Shortest exact text of a finite float that YAML 1.1 and 1.2 both read as that float.
+
+    ``repr`` is exact but writes ``1e-05``, which YAML 1.1 (PyYAML) reads as a string.
+    """
+    text = repr(float(x))
+    mantissa, e, exponent = text.partition("e")
+    if e and "." not in mantissa:
+        text = f"{mantissa}.0e{exponent}"
+    return text
+
+
 def write_map_yaml(
     path_yaml: str | Path,
     grid: Int8Grid,
@@ -293,12 +309,11 @@ def write_map_yaml(
     if not ok:  # pragma: no cover - OpenCV always encodes 8-bit grey PGM/PNG
         raise MapFileError(f"OpenCV could not encode {image_path}")
     image_path.write_bytes(encoded.tobytes())
-    # repr() of a float is the shortest exact form, so resolution/origin read back bit-identical.
     text = (
         f"image: {image_path.name}\n"
         f"mode: trinary\n"
-        f"resolution: {res!r}\n"
-        f"origin: [{origin[0]!r}, {origin[1]!r}, {origin[2]!r}]\n"
+        f"resolution: {_yaml_float(res)}\n"
+        f"origin: [{', '.join(_yaml_float(v) for v in origin)}]\n"
         f"negate: 0\n"
         f"occupied_thresh: {_SAVE_OCC_THRESH}\n"
         f"free_thresh: {_SAVE_FREE_THRESH}\n"

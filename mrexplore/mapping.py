@@ -114,7 +114,11 @@ class OccupancyMap:
 
     def known_bbox(self) -> tuple[int, int, int, int] | None:
         """``(row0, row1, col0, col1)`` inclusive bounds of the observed cells, None if none."""
-        return None if self._bbox is None else (self._bbox[0], self._bbox[1], self._bbox[2], self._bbox[3])
+        return (
+            None
+            if self._bbox is None
+            else (self._bbox[0], self._bbox[1], self._bbox[2], self._bbox[3])
+        )
 
     # ------------------------------------------------------------------ update
     def update(
@@ -174,13 +178,13 @@ class OccupancyMap:
         for group in (np.flatnonzero(short), np.flatnonzero(~short)):
             if group.size == 0:
                 continue
-            n_slots = int(math.ceil(float(t_end[group].max()))) + 1
+            n_slots = math.ceil(float(t_end[group].max())) + 1
             tr = traverse(
                 origins[group], d[group], 0, n_slots, w, float(n_slots) + 2.0, dtype=np.float32
             )
             counts = tr.count_before(t_end[group])
             slots = np.arange(n_slots)
-            for cnt, idx in zip(counts, (tr.idx_x, tr.idx_y)):
+            for cnt, idx in zip(counts, (tr.idx_x, tr.idx_y), strict=True):
                 flat_marks[idx[slots[None, :] < cnt[:, None]]] = 1
         marks[int(oy), int(ox)] = 1
         # The end cell of each hit beam (occupied wins: written after the free marks).
@@ -208,7 +212,12 @@ class OccupancyMap:
                 self._bbox = box
             else:
                 b = self._bbox
-                self._bbox = [min(b[0], box[0]), max(b[1], box[1]), min(b[2], box[2]), max(b[3], box[3])]
+                self._bbox = [
+                    min(b[0], box[0]),
+                    max(b[1], box[1]),
+                    min(b[2], box[2]),
+                    max(b[3], box[3]),
+                ]
 
     def save(self, path_yaml: str | Path) -> Path:
         """Write the int8 map as a map_server YAML + image (needs :mod:`mrexplore.world.map_io`).
@@ -222,14 +231,16 @@ class OccupancyMap:
         return Path(write_map_yaml(path_yaml, self._int8.copy(), res, origin_m=origin))
 
 
-def _exit_t(
-    ox: float, oy: float, d: NDArray[np.float64], w: int, h: int
-) -> NDArray[np.float64]:
+def _exit_t(ox: float, oy: float, d: NDArray[np.float64], w: int, h: int) -> NDArray[np.float64]:
     """Ray parameter (cells) where rays from (ox, oy) (corner coordinates) leave the box
     ``[1, w - 1) x [1, h - 1)``, minus a small margin."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        tx = np.where(d[:, 0] > 0, (w - 1 - ox) / d[:, 0], np.where(d[:, 0] < 0, (1.0 - ox) / d[:, 0], np.inf))
-        ty = np.where(d[:, 1] > 0, (h - 1 - oy) / d[:, 1], np.where(d[:, 1] < 0, (1.0 - oy) / d[:, 1], np.inf))
+        tx = np.where(
+            d[:, 0] > 0, (w - 1 - ox) / d[:, 0], np.where(d[:, 0] < 0, (1.0 - ox) / d[:, 0], np.inf)
+        )
+        ty = np.where(
+            d[:, 1] > 0, (h - 1 - oy) / d[:, 1], np.where(d[:, 1] < 0, (1.0 - oy) / d[:, 1], np.inf)
+        )
     return np.maximum(np.minimum(tx, ty) - 10.0 * CORNER_EPS, 0.0)
 
 

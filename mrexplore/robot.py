@@ -79,7 +79,7 @@ def wrap_angle(theta: NDArray[np.floating] | float) -> NDArray[np.float64]:
 
 def disc_kernel(radius_cells: float) -> NDArray[np.uint8]:
     """uint8 square kernel with ones on the cells whose centre is within ``radius_cells``."""
-    n = int(math.floor(radius_cells))
+    n = math.floor(radius_cells)
     yy, xx = np.mgrid[-n : n + 1, -n : n + 1]
     return (np.hypot(xx, yy) <= radius_cells + 1e-9).astype(np.uint8)
 
@@ -88,7 +88,7 @@ def configuration_space(walls: NDArray[np.bool_], radius_cells: float) -> NDArra
     """Blocked cells for the centre of a disc robot: ``walls`` dilated by a disc of
     ``radius_cells`` (cells whose centre lies within the radius of a wall cell's centre).
     Cells outside the grid count as walls (the border is dilated inwards too)."""
-    pad = int(math.floor(radius_cells)) + 1
+    pad = math.floor(radius_cells) + 1
     padded = cv2.copyMakeBorder(
         walls.astype(np.uint8), pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=1
     )
@@ -128,7 +128,7 @@ class Motion:
         self._blocked[1:-1, 1:-1] = self.cspace
         step_cells = self.config.step_m / world.resolution_m
         # Sub-steps of at most half a cell: a straight move then never skips a cell.
-        self._n_sub = max(1, int(math.ceil(step_cells / 0.5)))
+        self._n_sub = max(1, math.ceil(step_cells / 0.5))
 
     def cell_index(self, xy_m: NDArray[np.floating]) -> NDArray[np.int64]:
         """World metres (..., 2) -> integer cells (..., 2) as (col, row) (rounded centres)."""
@@ -140,7 +140,10 @@ class Motion:
     def is_free(self, xy_m: NDArray[np.floating]) -> NDArray[np.bool_]:
         """Whether robot centres at world metres (..., 2) are collision-free."""
         cr = self.cell_index(xy_m)
-        return ~self._blocked[cr[..., 1].clip(-1, self.world.shape[0]) + 1, cr[..., 0].clip(-1, self.world.shape[1]) + 1]
+        return ~self._blocked[
+            cr[..., 1].clip(-1, self.world.shape[0]) + 1,
+            cr[..., 0].clip(-1, self.world.shape[1]) + 1,
+        ]
 
     def step(
         self, poses: NDArray[np.floating], actions: NDArray[np.integer]
@@ -229,7 +232,9 @@ def sample_start_poses(
         raise ConfigError(f"reachable must be a bool array of shape {world.shape}")
     rows, cols = np.nonzero(reachable)
     if rows.size == 0:
-        raise WorldError(f"world '{world.name}' has no free cell for a robot of radius {radius_m} m")
+        raise WorldError(
+            f"world '{world.name}' has no free cell for a robot of radius {radius_m} m"
+        )
     centres = world.xy_of(np.stack([cols, rows], axis=1).astype(np.float64))  # (M, 2) metres
     poses = np.zeros((int(n), 3), dtype=np.float64)
     allowed = np.ones(rows.size, dtype=bool)

@@ -24,6 +24,7 @@ Cells outside the grid count as walls: a beam leaving the grid stops at the bord
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -391,7 +392,7 @@ class Lidar:
         origin_wall = grid.table[(oc[:, 1] + 1) * grid.padded_width + oc[:, 0] + 1]
         best[np.repeat(origin_wall, n_b)] = 0.0
 
-        k_total = int(math.ceil(max_cells)) + 1
+        k_total = math.ceil(max_cells) + 1
         bounds = [0, min(FIRST_SLICE_SLOTS, k_total), k_total]
         active = np.flatnonzero(~np.isfinite(best))
         t_cap = max_cells + 2.0
@@ -400,10 +401,12 @@ class Lidar:
         wp = grid.padded_width
         near = (grid.plane, 2 * grid.plane)
         kept: list[tuple[NDArray[np.int64], Traversal]] = []
-        for k_a, k_b in zip(bounds[:-1], bounds[1:]):
+        for k_a, k_b in itertools.pairwise(bounds):
             if k_b <= k_a or active.size == 0:
                 continue
-            tr = traverse(origins_p[active], dirs[active], k_a, k_b - k_a, wp, t_cap, near, self.dtype)
+            tr = traverse(
+                origins_p[active], dirs[active], k_a, k_b - k_a, wp, t_cap, near, self.dtype
+            )
             slice_best = np.full(active.size, np.inf)
             rows = np.arange(active.size)
             for fam_x, idx in ((True, tr.idx_x), (False, tr.idx_y)):
@@ -426,7 +429,7 @@ class Lidar:
         ranges_cells = np.where(hit, best, max_cells)
         ranges = (ranges_cells * resolution_m).astype(np.float32)
         if rng is not None and self.config.noise_std_m > 0.0:
-            noise = rng.normal(0.0, self.config.noise_std_m, size=n).astype(np.float32)
+            noise = np.asarray(rng.normal(0.0, self.config.noise_std_m, size=n), dtype=np.float32)
             ranges = np.where(hit, np.clip(ranges + noise, 0.0, self.config.max_range_m), ranges)
             ranges = ranges.astype(np.float32)
 
@@ -459,7 +462,7 @@ class Lidar:
             # A hair above the range so the hit cell (entered exactly at the range) counts.
             counts = tr.count_before(limit[active] + 1e-9)
             slots = np.arange(tr.idx_x.shape[1])
-            for cnt, idx in zip(counts, (tr.idx_x, tr.idx_y)):
+            for cnt, idx in zip(counts, (tr.idx_x, tr.idx_y), strict=True):
                 sel = slots[None, :] < cnt[:, None]
                 rays.append(np.broadcast_to(active[:, None], idx.shape)[sel])
                 # Reduce the corner planes back to plane 0 (the cell itself).

@@ -68,10 +68,19 @@ class SimConfig:
 
     def __post_init__(self) -> None:
         if not isinstance(self.robot, RobotConfig):
-            raise ConfigError(f"SimConfig.robot must be a RobotConfig, got {type(self.robot).__name__}")
+            raise ConfigError(
+                f"SimConfig.robot must be a RobotConfig, got {type(self.robot).__name__}"
+            )
         if not isinstance(self.lidar, LidarConfig):
-            raise ConfigError(f"SimConfig.lidar must be a LidarConfig, got {type(self.lidar).__name__}")
-        for name in ("odom_noise_trans", "odom_noise_rot", "odom_noise_rot_per_m", "min_start_separation_m"):
+            raise ConfigError(
+                f"SimConfig.lidar must be a LidarConfig, got {type(self.lidar).__name__}"
+            )
+        for name in (
+            "odom_noise_trans",
+            "odom_noise_rot",
+            "odom_noise_rot_per_m",
+            "min_start_separation_m",
+        ):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0.0):
                 raise ConfigError(f"SimConfig.{name} must be a non-negative number, got {v!r}")
@@ -79,7 +88,11 @@ class SimConfig:
     @property
     def odometry_noisy(self) -> bool:
         """Whether any odometry noise is enabled."""
-        return self.odom_noise_trans > 0.0 or self.odom_noise_rot > 0.0 or self.odom_noise_rot_per_m > 0.0
+        return (
+            self.odom_noise_trans > 0.0
+            or self.odom_noise_rot > 0.0
+            or self.odom_noise_rot_per_m > 0.0
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,12 +108,14 @@ class StepInfo:
     newly_observed: NDArray[np.int64]
 
 
-def canvas_for(world: World, map_resolution_m: float, noisy_odometry: bool = False) -> tuple[tuple[int, int], tuple[int, int]]:
+def canvas_for(
+    world: World, map_resolution_m: float, noisy_odometry: bool = False
+) -> tuple[tuple[int, int], tuple[int, int]]:
     """``((H, W), (c0, r0))``: a robot's canvas and the cell of its start (see the module doc)."""
     diag_m = math.hypot(*world.size_m)
-    half = int(math.ceil(diag_m / map_resolution_m)) + CANVAS_MARGIN_CELLS
+    half = math.ceil(diag_m / map_resolution_m) + CANVAS_MARGIN_CELLS
     if noisy_odometry:
-        half += int(math.ceil(0.5 * diag_m / map_resolution_m))
+        half += math.ceil(0.5 * diag_m / map_resolution_m)
     side = 2 * half + 1
     return (side, side), (half, half)
 
@@ -158,7 +173,9 @@ class Simulation:
         self.lidar = Lidar(self.config.lidar)
         self._grid = self.lidar.prepare(world.walls)
         self.resolution_m = world.resolution_m
-        self.canvas_shape, self.canvas_origin = canvas_for(world, self.resolution_m, self.config.odometry_noisy)
+        self.canvas_shape, self.canvas_origin = canvas_for(
+            world, self.resolution_m, self.config.odometry_noisy
+        )
         self._free_cspace_main = largest_component(~self.motion.cspace)
         r, h, w = self.n_robots, *world.shape
         self.true_poses = np.zeros((r, 3))
@@ -194,17 +211,23 @@ class Simulation:
         else:
             poses = np.array(starts, dtype=np.float64).reshape(-1, 3)
             if poses.shape[0] != self.n_robots or not np.isfinite(poses).all():
-                raise ConfigError(f"starts must be a finite ({self.n_robots}, 3) array, got shape {np.shape(starts)}")
+                raise ConfigError(
+                    f"starts must be a finite ({self.n_robots}, 3) array, "
+                    f"got shape {np.shape(starts)}"
+                )
             free = self.motion.is_free(poses[:, :2])
             if not free.all():
                 bad = int(np.flatnonzero(~free)[0])
-                raise ConfigError(f"start of robot {bad} {poses[bad].tolist()} is in collision with a wall")
+                raise ConfigError(
+                    f"start of robot {bad} {poses[bad].tolist()} is in collision with a wall"
+                )
             poses[:, 2] = wrap_angle(poses[:, 2])
         self.start_poses = poses.copy()
         self.true_poses = poses.copy()
         self.est_poses = np.zeros_like(poses)
         self.maps = [
-            OccupancyMap(self.canvas_shape, self.resolution_m, self.canvas_origin) for _ in range(self.n_robots)
+            OccupancyMap(self.canvas_shape, self.resolution_m, self.canvas_origin)
+            for _ in range(self.n_robots)
         ]
         seeds = self.motion.cell_index(poses[:, :2])
         self.reachable_cspace = reachable_cspace(world, self.config.robot.radius_m, seeds)
@@ -235,7 +258,9 @@ class Simulation:
         return StepInfo(collided=collided, newly_observed=newly)
 
     # ------------------------------------------------------------------ step parts
-    def _odometry(self, old: NDArray[np.float64], new: NDArray[np.float64], rng: np.random.Generator) -> None:
+    def _odometry(
+        self, old: NDArray[np.float64], new: NDArray[np.float64], rng: np.random.Generator
+    ) -> None:
         """Update ``est_poses`` from the true motion of this step (with drift noise if enabled)."""
         cfg = self.config
         if not cfg.odometry_noisy:
@@ -271,7 +296,12 @@ class Simulation:
         world = self.world
         origins = world.cell_of(self.true_poses[:, :2])
         scan = self.lidar.cast(
-            self._grid, origins, self.true_poses[:, 2], self.resolution_m, rng=rng, want_visible=True
+            self._grid,
+            origins,
+            self.true_poses[:, 2],
+            self.resolution_m,
+            rng=rng,
+            want_visible=True,
         )
         self.last_scan = scan
         newly = np.zeros(self.n_robots, dtype=np.int64)
@@ -312,7 +342,9 @@ class Simulation:
 
     def world_from_map(self, i: int) -> Transform:
         """3x3 transform from robot ``i``'s map cells to world cells (truth)."""
-        return T_world_from_map(self.start_poses[i], self.maps[i].origin_cell, self.resolution_m, self.world)
+        return T_world_from_map(
+            self.start_poses[i], self.maps[i].origin_cell, self.resolution_m, self.world
+        )
 
     def true_transform(self, a: int, b: int) -> Transform:
         """``T_ab``: robot b's map cells -> robot a's map cells (truth)."""

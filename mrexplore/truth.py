@@ -107,7 +107,9 @@ def reachable_free(
 def coverage(observed: NDArray[np.bool_], reachable: NDArray[np.bool_]) -> float:
     """Share in [0, 1] of the ``reachable`` cells that are ``observed`` (both bool (H, W))."""
     if observed.shape != reachable.shape:
-        raise GridError(f"observed {observed.shape} and reachable {reachable.shape} differ in shape")
+        raise GridError(
+            f"observed {observed.shape} and reachable {reachable.shape} differ in shape"
+        )
     n = int(np.count_nonzero(reachable))
     if n == 0:
         return 0.0

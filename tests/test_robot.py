@@ -65,7 +65,7 @@ def test_driving_at_a_one_cell_wall_stops_before_it() -> None:
     col = world.cell_of(pose[:, :2])[0, 0]
     # radius 1 cell: the centre may not be on col 11 (next to the wall): it ends on col 10.
     assert 9.5 <= col < 10.5
-    assert not motion.cspace[6, int(round(col))]
+    assert not motion.cspace[6, round(col)]
     # and never beyond the wall
     assert col < 12
 
@@ -93,7 +93,9 @@ def test_turns_wrap_and_stay_does_nothing() -> None:
     assert not col[0]
     assert -math.pi < left[0, 2] <= math.pi
     assert left[0, 2] == pytest.approx(wrap_angle(math.pi - 0.1 + math.pi / 8))
-    right, _ = motion.step(np.array([[*xy_of_cell(world, 5, 5), -math.pi + 0.1]]), np.array([Action.TURN_RIGHT]))
+    right, _ = motion.step(
+        np.array([[*xy_of_cell(world, 5, 5), -math.pi + 0.1]]), np.array([Action.TURN_RIGHT])
+    )
     assert right[0, 2] == pytest.approx(math.pi + 0.1 - math.pi / 8)
     still, _ = motion.step(pose, np.array([Action.STAY]))
     assert np.array_equal(still, pose)
@@ -108,7 +110,13 @@ def test_turns_wrap_and_stay_does_nothing() -> None:
 def test_step_is_vectorised_over_robots() -> None:
     world = corridor_world()
     motion = Motion(world, RobotConfig(radius_m=0.1))
-    poses = np.array([[*xy_of_cell(world, 3, 6), 0.0], [*xy_of_cell(world, 3, 3), math.pi / 2], [*xy_of_cell(world, 5, 5), 0.0]])
+    poses = np.array(
+        [
+            [*xy_of_cell(world, 3, 6), 0.0],
+            [*xy_of_cell(world, 3, 3), math.pi / 2],
+            [*xy_of_cell(world, 5, 5), 0.0],
+        ]
+    )
     new, col = motion.step(poses, np.array([Action.FORWARD, Action.FORWARD, Action.STAY]))
     assert new[0, 0] == pytest.approx(poses[0, 0] + 0.125)
     assert new[1, 1] == pytest.approx(poses[1, 1] + 0.125)

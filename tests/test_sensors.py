@@ -52,7 +52,9 @@ def test_cast_matches_reference_on_random_worlds() -> None:
         scan = lidar.cast(walls, origins, headings, resolution_m=1.0)
         for i in range(4):
             for b, a in enumerate(lidar.angles):
-                ref, ref_hit = cast_ray_reference(walls, tuple(origins[i]), headings[i] + a, max_range_m)
+                ref, ref_hit = cast_ray_reference(
+                    walls, tuple(origins[i]), headings[i] + a, max_range_m
+                )
                 assert scan.hit[i, b] == ref_hit
                 assert scan.ranges_m[i, b] == pytest.approx(ref, abs=1e-4)
                 n_rays += 1
@@ -164,7 +166,10 @@ def test_noise_only_on_hits_and_clipped() -> None:
     # (0.15 m: a hit); beam 1 points along -col at the border 17.5 cells away (1.75 m: no hit).
     origins = np.array([[17.0, 10.0]])
     clean = lidar.cast(walls, origins, np.array([math.pi / 2]), 0.1)
-    noisy = [lidar.cast(walls, origins, np.array([math.pi / 2]), 0.1, rng=np.random.default_rng(s)) for s in range(20)]
+    noisy = [
+        lidar.cast(walls, origins, np.array([math.pi / 2]), 0.1, rng=np.random.default_rng(s))
+        for s in range(20)
+    ]
     for b in range(2):
         vals = np.array([n.ranges_m[0, b] for n in noisy])
         if clean.hit[0, b]:
@@ -201,7 +206,9 @@ def test_visible_cells_match_the_traversal_of_a_full_scan() -> None:
         oc = np.floor(origins[i] + 0.5).astype(int)
         assert vis2[oc[1], oc[0]]
         ang = lidar.angles
-        ends = origins[i] + (scan.ranges_m[i, :, None] + 1e-3) * np.stack([np.cos(ang), np.sin(ang)], 1)
+        ends = origins[i] + (scan.ranges_m[i, :, None] + 1e-3) * np.stack(
+            [np.cos(ang), np.sin(ang)], 1
+        )
         ec = np.floor(ends + 0.5).astype(int)
         inside = (ec[:, 0] >= 0) & (ec[:, 0] < w) & (ec[:, 1] >= 0) & (ec[:, 1] < h)
         assert vis2[ec[inside, 1], ec[inside, 0]].all()
@@ -225,7 +232,7 @@ def test_traversal_enters_each_crossed_cell_once_in_order() -> None:
     tr = traverse(o, d, 0, 8, row_stride=100, t_cap=10.0)
     counts = tr.count_before(np.array([5.0]))
     entered = set()
-    for cnt, idx in zip(counts, (tr.idx_x, tr.idx_y)):
+    for cnt, idx in zip(counts, (tr.idx_x, tr.idx_y), strict=True):
         entered |= {int(v) for v in idx[0, : int(cnt[0])]}
     s = np.linspace(0.0, 5.0 - 1e-6, 20000)
     pts = o[0] + s[:, None] * d[0]

@@ -1,0 +1,165 @@
+"""The simulation core: determinism, start independence from the team size, bookkeeping."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mrexplore.errors import ConfigError
+from mrexplore.grid import UNKNOWN
+from mrexplore.robot import Action, RobotConfig
+from mrexplore.sensors import LidarConfig
+from mrexplore.sim import SimConfig, Simulation, canvas_for
+from mrexplore.world.world import World
+
+
+def office() -> World:
+    """A bordered 0.1 m grid (4 x 3 m) with an inner wall and a door: two rooms."""
+    walls = np.zeros((30, 40), dtype=bool)
+    walls[[0, -1], :] = True
+    walls[:, [0, -1]] = True
+    walls[:, 20] = True
+    walls[12:18, 20] = False  # a door
+    walls[5:8, 5:9] = True  # a pillar
+    return World(walls=walls, resolution_m=0.1, name="office")
+
+
+def small_config(**kwargs: object) -> SimConfig:
+    return SimConfig(
+        robot=RobotConfig(radius_m=0.15),
+        lidar=LidarConfig(n_beams=90, max_range_m=3.0, noise_std_m=0.01),
+        **kwargs,  # type: ignore[arg-type]
+    )
+
+
+def rollout(n_robots: int, seed: int, steps: int, cfg: SimConfig) -> Simulation:
+    sim = Simulation(office(), n_robots, cfg)
+    rng = np.random.default_rng(seed)
+    sim.reset(rng)
+    act_rng = np.random.default_rng(seed + 1)
+    for _ in range(steps):
+        # mostly forward, some turns: robots travel and hit walls
+        act = np.where(
+            act_rng.random(n_robots) < 0.6, Action.FORWARD, act_rng.integers(1, 4, n_robots)
+        )
+        sim.step(act, rng)
+    return sim
+
+
+def test_same_seed_same_everything_over_200_steps() -> None:
+    cfg = small_config(
+        aligned_headings=False,
+        odom_noise_trans=0.05,
+        odom_noise_rot=0.05,
+        odom_noise_rot_per_m=0.02,
+    )
+    a = rollout(2, 11, 200, cfg)
+    b = rollout(2, 11, 200, cfg)
+    assert np.array_equal(a.start_poses, b.start_poses)
+    assert np.array_equal(a.true_poses, b.true_poses)
+    assert np.array_equal(a.est_poses, b.est_poses)
+    for ma, mb in zip(a.maps, b.maps, strict=True):
+        assert np.array_equal(ma.logodds, mb.logodds)
+        assert np.array_equal(ma.to_int8(), mb.to_int8())
+    assert np.array_equal(a.observed, b.observed)
+    assert a.coverage() == b.coverage()
+    c = rollout(2, 12, 200, cfg)
+    assert not np.array_equal(a.true_poses, c.true_poses)
+
+
+def test_robot_0_start_does_not_depend_on_team_size() -> None:
+    for aligned in (True, False):
+        cfg = small_config(aligned_headings=aligned)
+        one = Simulation(office(), 1, cfg)
+        two = Simulation(office(), 2, cfg)
+        one.reset(np.random.default_rng(3))
+        two.reset(np.random.default_rng(3))
+        assert np.array_equal(one.start_poses[0], two.start_poses[0])
+
+
+def test_noise_free_odometry_matches_the_truth_in_the_own_frame() -> None:
+    sim = rollout(2, 5, 60, small_config(aligned_headings=False))
+    for i in range(2):
+        T = sim.world_from_map(i)
+        c, r, th = sim.pose_cell(i)
+        p = T @ np.array([c, r, 1.0])
+        true_cell = sim.world.cell_of(sim.true_poses[i : i + 1, :2])[0]
+        assert p[:2] == pytest.approx(true_cell, abs=1e-6)
+        dth = (th + sim.start_poses[i, 2] - sim.true_poses[i, 2] + math.pi) % (
+            2 * math.pi
+        ) - math.pi
+        assert abs(dth) < 1e-9
+
+
+def test_noisy_odometry_drifts() -> None:
+    sim = rollout(
+        1, 5, 120, small_config(odom_noise_trans=0.2, odom_noise_rot=0.2, odom_noise_rot_per_m=0.2)
+    )
+    exact = sim._own_frame(sim.true_poses)
+    assert not np.allclose(exact, sim.est_poses, atol=1e-3)
+
+
+def test_bookkeeping_after_steps() -> None:
+    cfg = small_config()
+    sim = Simulation(office(), 2, cfg)
+    rng = np.random.default_rng(0)
+    sim.reset(rng)
+    assert sim.steps == 0 and sim.time_s == 0.0
+    cov0 = sim.coverage()
+    assert 0.0 < cov0 <= 1.0
+    total_new = np.zeros(2, dtype=int)
+    collided_any = False
+    for _ in range(40):
+        info = sim.step(np.array([Action.FORWARD, Action.TURN_LEFT]), rng)
+        total_new += info.newly_observed
+        collided_any |= bool(info.collided[0])
+    assert collided_any  # forty forward steps in a 4 m world must hit a wall
+    assert sim.steps == 40 and sim.time_s == pytest.approx(10.0)
+    assert sim.coverage() >= cov0
+    # newly observed counts add up to the observed cells (after the first scan)
+    assert (total_new == sim.observed.reshape(2, -1).sum(axis=1) - _first_scan_counts(cfg)).all()
+    # team coverage equals the union computed from scratch
+    union = sim.observed.any(axis=0)
+    assert sim.coverage() == pytest.approx((union & sim.reachable).sum() / sim.reachable.sum())
+    assert sim.coverage([0]) <= sim.coverage()
+    assert sim.trail_cells(0).shape == (41, 2)
+    assert sim.last_scan is not None and sim.last_scan.ranges_m.shape == (2, 90)
+    for m in sim.maps:
+        assert (m.to_int8() != UNKNOWN).any()
+        assert m.known_bbox() is not None
+
+
+def _first_scan_counts(cfg: SimConfig) -> np.ndarray:
+    sim = Simulation(office(), 2, cfg)
+    sim.reset(np.random.default_rng(0))
+    return sim.observed.reshape(2, -1).sum(axis=1)
+
+
+def test_canvas_holds_any_start() -> None:
+    world = office()
+    (h, w), (c0, r0) = canvas_for(world, 0.1)
+    diag = math.ceil(math.hypot(4.0, 3.0) / 0.1)
+    assert h == w == 2 * (diag + 16) + 1
+    assert (c0, r0) == (diag + 16, diag + 16)
+
+
+def test_starts_option_and_errors() -> None:
+    world = office()
+    sim = Simulation(world, 2, small_config())
+    good = np.array([[1.0, 1.0, 0.5], [3.0, 2.0, -0.5]])
+    sim.reset(np.random.default_rng(0), starts=good)
+    assert np.array_equal(sim.start_poses, good)
+    with pytest.raises(ConfigError, match="collision"):
+        sim.reset(np.random.default_rng(0), starts=np.array([[2.05, 0.5, 0.0], [1.0, 1.0, 0.0]]))
+    with pytest.raises(ConfigError):
+        sim.reset(np.random.default_rng(0), starts=good[:1])
+    with pytest.raises(ConfigError):
+        sim.step(np.zeros(3, dtype=int), np.random.default_rng(0))
+    with pytest.raises(RuntimeError):
+        Simulation(world, 1, small_config()).step(np.zeros(1, dtype=int), np.random.default_rng(0))
+    with pytest.raises(ConfigError):
+        SimConfig(odom_noise_trans=-0.1)
+    with pytest.raises(ConfigError):
+        Simulation(world, 0)

@@ -1,0 +1,104 @@
+"""Ground truth: frame transforms, reachable space, coverage, transform errors."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mrexplore.errors import GridError
+from mrexplore.grid import apply_transform, make_transform
+from mrexplore.truth import (
+    T_world_from_map,
+    coverage,
+    reachable_cspace,
+    reachable_free,
+    transform_error,
+    true_transform,
+)
+from mrexplore.world.world import World
+
+
+def two_rooms() -> World:
+    """Two 8x8 rooms (0.1 m cells) side by side, separated by a wall with no door."""
+    walls = np.ones((10, 20), dtype=bool)
+    walls[1:9, 1:9] = False
+    walls[1:9, 11:19] = False
+    return World(walls=walls, resolution_m=0.1, origin_m=(1.0, -2.0))
+
+
+@pytest.mark.parametrize(
+    ("start", "map_cell", "world_cell"),
+    [
+        # heading 0, start at the centre of world cell (3, 4): map origin (50, 60) -> (3, 4)
+        ((1.35, -1.55, 0.0), (50, 60), (3.0, 4.0)),
+        # one map cell along +col is one world cell along +col
+        ((1.35, -1.55, 0.0), (51, 60), (4.0, 4.0)),
+        # heading 90 deg: map +col is world +row
+        ((1.35, -1.55, math.pi / 2), (52, 60), (3.0, 6.0)),
+        # heading 180 deg: map +row is world -row
+        ((1.35, -1.55, math.pi), (50, 61), (3.0, 3.0)),
+    ],
+)
+def test_T_world_from_map(
+    start: tuple[float, float, float], map_cell: tuple[int, int], world_cell: tuple[float, float]
+) -> None:
+    world = two_rooms()
+    T = T_world_from_map(start, (50, 60), world.resolution_m, world)
+    p = apply_transform(T, np.array([map_cell], dtype=float))[0]
+    assert p == pytest.approx(world_cell, abs=1e-9)
+
+
+def test_true_transform_composes_and_inverts() -> None:
+    world = two_rooms()
+    sa, sb, sc = (1.35, -1.55, 0.3), (1.75, -1.25, -2.0), (2.25, -1.35, 1.1)
+    oa, ob, oc = (40, 40), (41, 39), (30, 50)
+    res = world.resolution_m
+    t_ab = true_transform(sa, oa, sb, ob, world, res)
+    t_bc = true_transform(sb, ob, sc, oc, world, res)
+    t_ac = true_transform(sa, oa, sc, oc, world, res)
+    assert np.allclose(t_ab @ t_bc, t_ac)
+    assert np.allclose(true_transform(sb, ob, sa, oa, world, res), np.linalg.inv(t_ab))
+    # b's origin cell lands where b's start is in a's frame
+    p = apply_transform(t_ab, np.array([ob], dtype=float))[0]
+    dx, dy = sb[0] - sa[0], sb[1] - sa[1]
+    c, s = math.cos(-sa[2]), math.sin(-sa[2])
+    expect = (oa[0] + (c * dx - s * dy) / res, oa[1] + (s * dx + c * dy) / res)
+    assert p == pytest.approx(expect)
+
+
+def test_reachable_is_the_room_of_the_starts() -> None:
+    world = two_rooms()
+    left = reachable_free(world, 0.1, np.array([[4, 4]]))
+    assert left[1:9, 1:9].all()  # the whole left room, walls' neighbours included
+    assert not left[:, 10:].any()
+    both = reachable_free(world, 0.1, np.array([[4, 4], [14, 4]]))
+    assert both.sum() == 2 * 64
+    assert not (both & world.walls).any()
+    cs = reachable_cspace(world, 0.1, np.array([[4, 4]]))
+    assert cs.sum() == 6 * 6  # centres keep one cell from the walls
+    with pytest.raises(GridError):
+        reachable_free(world, 0.1, np.array([[40, 4]]))
+
+
+def test_coverage() -> None:
+    reach = np.zeros((4, 4), dtype=bool)
+    reach[:2] = True
+    seen = np.zeros((4, 4), dtype=bool)
+    seen[0] = True
+    seen[3] = True  # not reachable: does not count
+    assert coverage(seen, reach) == pytest.approx(0.5)
+    assert coverage(seen, np.zeros_like(reach)) == 0.0
+    with pytest.raises(GridError):
+        coverage(seen, reach[:3])
+
+
+def test_transform_error() -> None:
+    T = make_transform(0.2, 5.0, -3.0)
+    pts = np.array([[0.0, 0.0], [10.0, 4.0]])
+    assert transform_error(T, T, pts) == pytest.approx((0.0, 0.0))
+    shifted = make_transform(0.2, 7.0, -3.0)
+    assert transform_error(shifted, T, pts) == pytest.approx((2.0, 0.0))
+    rotated = make_transform(0.2 + math.radians(10.0), 5.0, -3.0)
+    assert transform_error(rotated, T, pts)[1] == pytest.approx(10.0)

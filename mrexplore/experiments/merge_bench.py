@@ -1,0 +1,254 @@
+"""The merge benchmark: a table like the seed paper's Table 1, with the truth known.
+
+For every method x detector, over seeded cases from the symmetric worlds and from real maps
+(:mod:`mrexplore.experiments.merge_cases`), it counts:
+
+- **correct**: accepted and the mean displacement of b's known cells (estimate vs truth) < 2 cells;
+- **WRONG**: accepted, yet >= 5 cells off: a wrong merge;
+- **imprecise**: accepted, between 2 and 5 cells off;
+- **refused**: not matched;
+- **correct >= 30 %**: correct among the cases whose true overlap is at least 30 %;
+- **median ms**: median wall-clock time of one ``merge_maps`` call (one core).
+
+Run: ``python scripts/merge_bench.py --n 30 --out results/merge_bench`` (or ``mrexplore bench
+merge ...``); ``--tracker`` also times :class:`~mrexplore.merge.MapMergeTracker` per step.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mrexplore.errors import ConfigError
+from mrexplore.experiments.merge_cases import MergeCase, real_cases, symmetric_cases
+from mrexplore.merge import MapMergeTracker, merge_maps
+from mrexplore.merge.common import mean_displacement
+
+#: (method, detector) pairs run by default; detector None = the method's default / none.
+DEFAULT_CONFIGS: tuple[tuple[str, str | None], ...] = (
+    ("semantic", None),
+    ("paper", "harris"),
+    ("paper", "shi-tomasi"),
+    ("paper", "fast"),
+    ("paper", "sift"),
+    ("orb", "orb"),
+    ("orb", "sift"),
+)
+CORRECT_CELLS = 2.0
+WRONG_CELLS = 5.0
+
+
+def classify(case: MergeCase, matched: bool, transform: np.ndarray | None) -> tuple[str, float]:
+    """("correct" | "imprecise" | "wrong" | "refused", error in cells (inf when refused))."""
+    if not matched or transform is None:
+        return "refused", float("inf")
+    err = mean_displacement(np.asarray(transform), case.T_ab, case.b)
+    if err < CORRECT_CELLS:
+        return "correct", err
+    if err >= WRONG_CELLS:
+        return "wrong", err
+    return "imprecise", err
+
+
+def evaluate(
+    cases: Sequence[MergeCase], method: str, detector: str | None, **options: Any
+) -> dict[str, Any]:
+    """Run one method x detector over ``cases``; returns one table row (plus per-case records)."""
+    kw = dict(options)
+    if detector is not None:
+        kw["detector"] = detector
+    counts = {"correct": 0, "wrong": 0, "imprecise": 0, "refused": 0}
+    times, records = [], []
+    big = big_ok = 0
+    for c in cases:
+        res = merge_maps(c.a, c.b, method=method, **kw)
+        kind, err = classify(c, res.matched, res.transform)
+        counts[kind] += 1
+        times.append(res.time_s)
+        if c.overlap >= 0.3:
+            big += 1
+            big_ok += kind == "correct"
+        records.append(
+            {
+                "case": c.name,
+                "overlap": round(c.overlap, 3),
+                "kind": kind,
+                "error_cells": None if not np.isfinite(err) else round(err, 2),
+                "score": round(res.score, 3),
+                "reason": res.reason,
+                "ms": round(res.time_s * 1e3, 1),
+            }
+        )
+    return {
+        "method": method,
+        "detector": detector or "-",
+        "n": len(cases),
+        **counts,
+        "correct_overlap30": f"{big_ok}/{big}",
+        "median_ms": round(float(np.median(times)) * 1e3, 1) if times else float("nan"),
+        "cases": records,
+    }
+
+
+def run_bench(
+    n_cases: int,
+    methods: Sequence[str] | None = None,
+    detectors: Sequence[str] | None = None,
+    seed: int = 0,
+    families: Sequence[str] = ("symmetric", "real"),
+    configs: Sequence[tuple[str, str | None]] | None = None,
+) -> list[dict[str, Any]]:
+    """Rows ``{family, method, detector, n, correct, wrong, imprecise, refused,
+    correct_overlap30, median_ms, cases}`` for every configuration and family.
+
+    ``methods``/``detectors`` filter :data:`DEFAULT_CONFIGS` (None = all); ``configs`` replaces
+    it. ``n_cases`` cases per family, seeded by ``seed``.
+    """
+    if n_cases < 1:
+        raise ConfigError(f"run_bench: n_cases must be >= 1, got {n_cases}")
+    cfgs = (
+        list(configs)
+        if configs is not None
+        else [
+            (m, d)
+            for m, d in DEFAULT_CONFIGS
+            if (methods is None or m in methods)
+            and (detectors is None or d is None or d in detectors)
+        ]
+    )
+    rows: list[dict[str, Any]] = []
+    for fam in families:
+        if fam == "symmetric":
+            cases = symmetric_cases(n_cases, seed)
+        elif fam == "real":
+            cases = real_cases(n_cases, seed)
+        else:
+            raise ConfigError(f"run_bench: unknown family {fam!r} (symmetric, real)")
+        for m, d in cfgs:
+            row = evaluate(cases, m, d)
+            row["family"] = fam
+            rows.append(row)
+    return rows
+
+
+COLUMNS = (
+    "method",
+    "detector",
+    "correct",
+    "wrong",
+    "imprecise",
+    "refused",
+    "correct_overlap30",
+    "median_ms",
+)
+HEADERS = (
+    "method",
+    "detector",
+    "correct",
+    "WRONG",
+    "imprecise",
+    "refused",
+    "correct (overlap>=30%)",
+    "median ms",
+)
+
+
+def to_markdown(rows: Sequence[dict[str, Any]]) -> str:
+    """One Markdown table per family."""
+    out = []
+    for fam in dict.fromkeys(r["family"] for r in rows):
+        sel = [r for r in rows if r["family"] == fam]
+        n = sel[0]["n"] if sel else 0
+        out.append(f"### {fam} ({n} cases)\n")
+        out.append("| " + " | ".join(HEADERS) + " |")
+        out.append("|" + "---|" * len(HEADERS))
+        for r in sel:
+            out.append("| " + " | ".join(str(r[c]) for c in COLUMNS) + " |")
+        out.append("")
+    return "\n".join(out)
+
+
+def tracker_timing(
+    n_steps: int = 200, canvas: int = 1500, known: int = 400, seed: int = 0
+) -> dict[str, float]:
+    """Time ``MapMergeTracker.update`` + ``fused`` for 2 robots on steps without a merge attempt.
+
+    Two ``canvas`` x ``canvas`` maps with a ``known`` x ``known`` known area cut from a real map,
+    merged once (truth-free: the merger finds it), then each step a few cells change in both
+    maps (as a lidar update would) and both fused maps are read.
+    """
+    from mrexplore.experiments.merge_cases import load_real_map
+
+    rng = np.random.default_rng(seed)
+    full = load_real_map("nav2/depot.yaml")
+    h, w = full.shape
+    k = min(known, h, w)
+    maps = []
+    for off in (0, 40):
+        m = np.full((canvas, canvas), -1, dtype=np.int8)
+        sub = full[:k, off : off + min(k, w - 40)]
+        r0 = (canvas - sub.shape[0]) // 2
+        c0 = (canvas - sub.shape[1]) // 2
+        m[r0 : r0 + sub.shape[0], c0 : c0 + sub.shape[1]] = sub
+        maps.append(m)
+    tr = MapMergeTracker(2, merge_every=10**9, recheck_every=0)
+    tr.update(maps, step=0)
+    merged = tr.merged(0)
+    times = []
+    for step in range(1, n_steps + 1):
+        for m in maps:  # a small local change, as one lidar update
+            r, c = (int(x) for x in rng.integers(canvas // 2 - 50, canvas // 2 + 50, size=2))
+            m[r, c] = 0 if m[r, c] != 0 else 100
+        t0 = time.perf_counter()
+        tr.update(maps, step=step)
+        tr.fused(0)
+        tr.fused(1)
+        times.append(time.perf_counter() - t0)
+    return {
+        "merged": float(merged),
+        "median_ms": float(np.median(times) * 1e3),
+        "p95_ms": float(np.percentile(times, 95) * 1e3),
+    }
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """CLI: ``merge_bench [--n N] [--seed S] [--methods m,..] [--families f,..] [--out STEM] [--tracker]``."""
+    p = argparse.ArgumentParser(prog="mrexplore bench merge", description=__doc__.split("\n\n")[0])
+    p.add_argument("--n", type=int, default=30, help="cases per family (default 30)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--methods", default=None, help="comma list of semantic,paper,orb (default all)")
+    p.add_argument("--detectors", default=None, help="comma list filter of detectors")
+    p.add_argument("--families", default="symmetric,real")
+    p.add_argument("--out", default=None, help="write STEM.json and STEM.md")
+    p.add_argument("--tracker", action="store_true", help="also time the tracker per step")
+    args = p.parse_args(list(argv) if argv is not None else None)
+    try:
+        rows = run_bench(
+            args.n,
+            methods=args.methods.split(",") if args.methods else None,
+            detectors=args.detectors.split(",") if args.detectors else None,
+            seed=args.seed,
+            families=args.families.split(","),
+        )
+    except ConfigError as e:
+        print(f"error: {e}")
+        return 2
+    md = to_markdown(rows)
+    print(md)
+    extra: dict[str, Any] = {}
+    if args.tracker:
+        extra["tracker"] = tracker_timing()
+        print(f"tracker update+fused, 2 robots, 1500x1500 canvases: {extra['tracker']}")
+    if args.out:
+        stem = Path(args.out)
+        stem.parent.mkdir(parents=True, exist_ok=True)
+        stem.with_suffix(".json").write_text(json.dumps({"rows": rows, **extra}, indent=1))
+        stem.with_suffix(".md").write_text(md + "\n")
+        print(f"wrote {stem.with_suffix('.json')} and {stem.with_suffix('.md')}")
+    return 0

@@ -1,0 +1,349 @@
+"""Seeded map-merge cases with the true transform known: the merge benchmark's and tests' inputs.
+
+Two families:
+
+- :func:`real_map_case`: two overlapping crops of a real map from ``/work/shared/maps`` (or any
+  int8 map), the second rotated by a random angle, their borders damaged a little (random unknown
+  blobs near the crop edges, as partial SLAM maps fray at their rims).
+- :func:`symmetric_case`: two robots explore overlapping parts of a generated symmetric world
+  (``symmetric_office`` or ``twin_wings``: two cell-for-cell identical rooms) with the lidar and
+  their own-frame maps; half the cases rotate b's map by a random angle on top of the robots'
+  own start headings.
+
+Every case carries ``T_ab`` (b's cells -> a's cells, truth) and ``overlap``: the share of b's
+known cells that land on a's known cells under the truth.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from mrexplore.errors import ConfigError
+from mrexplore.grid import UNKNOWN, Int8Grid, Transform, invert_transform, make_transform
+from mrexplore.merge.common import translation, warp_into
+
+#: Real maps used for cases (paths relative to the shared maps folder), with crop sizes in cells.
+REAL_MAPS: dict[str, tuple[int, int]] = {
+    "nav2/depot.yaml": (170, 300),
+    "turtlebot3/office_raw.yaml": (120, 200),
+    "nav2/tb3_sandbox.yaml": (120, 200),
+    "nav2/warehouse.yaml": (250, 450),
+}
+SHARED_MAPS = Path("/work/shared/maps")
+
+
+@dataclass(eq=False)
+class MergeCase:
+    """One merge problem with its answer.
+
+    Attributes:
+        a, b: int8 maps (each in its own frame).
+        T_ab: 3x3 float64 truth, b's cells -> a's cells.
+        overlap: share of b's known cells on a's known cells under the truth, in [0, 1].
+        family: "real" or "symmetric".
+        name: source map / world and seed, for tables.
+        meta: extras (rotation applied in degrees, whether b sees both twin rooms, ...).
+    """
+
+    a: Int8Grid
+    b: Int8Grid
+    T_ab: Transform
+    overlap: float
+    family: str
+    name: str
+    meta: dict[str, Any] = field(default_factory=dict)
+
+
+def overlap_share(a: Int8Grid, b: Int8Grid, T_ab: Transform) -> float:
+    """Share of b's known cells that land (nearest cell) on a known cell of a under ``T_ab``."""
+    rows, cols = np.nonzero(b != UNKNOWN)
+    if rows.size == 0:
+        return 0.0
+    p = np.stack([cols, rows], axis=1).astype(np.float64) @ T_ab[:2, :2].T + T_ab[:2, 2]
+    c, r = np.rint(p[:, 0]).astype(np.int64), np.rint(p[:, 1]).astype(np.int64)
+    h, w = a.shape
+    inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
+    known = np.zeros(rows.size, dtype=bool)
+    known[inside] = a[r[inside], c[inside]] != UNKNOWN
+    return float(known.mean())
+
+
+def rotate_map(grid: Int8Grid, theta_rad: float) -> tuple[Int8Grid, Transform]:
+    """Rotate a map by ``theta_rad`` about its centre (nearest neighbour) onto a canvas that holds
+    it all; returns (rotated map, T mapping original cells -> rotated cells)."""
+    h, w = grid.shape
+    R = make_transform(theta_rad, 0.0, 0.0)
+    corners = np.array([[0, 0], [w - 1, 0], [0, h - 1], [w - 1, h - 1]], dtype=np.float64)
+    q = corners @ R[:2, :2].T
+    lo, hi = np.floor(q.min(axis=0)), np.ceil(q.max(axis=0))
+    T = translation(-lo[0] + 2, -lo[1] + 2) @ R
+    shape = (int(hi[1] - lo[1]) + 5, int(hi[0] - lo[0]) + 5)
+    return warp_into(grid, T, shape), T
+
+
+def damage_borders(grid: Int8Grid, rng: np.random.Generator, n_blobs: int = 6) -> Int8Grid:
+    """Copy of ``grid`` with ``n_blobs`` random unknown discs (radius 3-12 cells) centred near the
+    edges of its known area (within 12 % of its size from the known bounding box's rim)."""
+    out = grid.copy()
+    rows, cols = np.nonzero(grid != UNKNOWN)
+    if rows.size == 0:
+        return out
+    r0, r1, c0, c1 = rows.min(), rows.max(), cols.min(), cols.max()
+    h, w = max(r1 - r0, 1), max(c1 - c0, 1)
+    rr, cc = np.mgrid[0 : grid.shape[0], 0 : grid.shape[1]]
+    for _ in range(n_blobs):
+        side = int(rng.integers(4))
+        u = rng.uniform(0, 1)
+        d = rng.uniform(0, 0.12)
+        if side == 0:
+            cr, ccol = r0 + d * h, c0 + u * w
+        elif side == 1:
+            cr, ccol = r1 - d * h, c0 + u * w
+        elif side == 2:
+            cr, ccol = r0 + u * h, c0 + d * w
+        else:
+            cr, ccol = r0 + u * h, c1 - d * w
+        rad = rng.uniform(3, 12)
+        out[(rr - cr) ** 2 + (cc - ccol) ** 2 <= rad * rad] = UNKNOWN
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# symmetric worlds: lidar scans along random waypoint paths
+# --------------------------------------------------------------------------------------------
+
+
+def _bfs_distance(free: NDArray[np.bool_], start: tuple[int, int]) -> NDArray[np.int32]:
+    """4-connected BFS distance (cells) from ``start`` (row, col) over ``free``; -1 unreachable.
+
+    Vectorised wavefront: one dilation of the frontier per distance step.
+    """
+    dist = np.full(free.shape, -1, dtype=np.int32)
+    if not free[start]:
+        return dist
+    dist[start] = 0
+    frontier = np.zeros(free.shape, dtype=np.uint8)
+    frontier[start] = 1
+    cross = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=np.uint8)
+    d = 0
+    while True:
+        d += 1
+        grown = cv2.dilate(frontier, cross).astype(bool) & free & (dist < 0)
+        if not grown.any():
+            return dist
+        dist[grown] = d
+        frontier = grown.view(np.uint8)
+
+
+def _path(dist: NDArray[np.int32], goal: tuple[int, int]) -> list[tuple[int, int]]:
+    """Cells (row, col) from the BFS source to ``goal`` by steepest descent of ``dist``."""
+    r, c = goal
+    out = [(r, c)]
+    h, w = dist.shape
+    while dist[r, c] > 0:
+        for dr, dc in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            rr, cc = r + dr, c + dc
+            if 0 <= rr < h and 0 <= cc < w and dist[rr, cc] == dist[r, c] - 1:
+                r, c = rr, cc
+                break
+        out.append((r, c))
+    return out[::-1]
+
+
+def explore_partial_map(
+    walls: NDArray[np.bool_],
+    rng: np.random.Generator,
+    resolution_m: float,
+    n_waypoints: int = 3,
+    scan_every: int = 8,
+    max_range_m: float = 4.0,
+    radius_m: float = 0.2,
+    start: tuple[int, int] | None = None,
+) -> Int8Grid:
+    """World-frame partial map of one robot: lidar scans every ``scan_every`` cells along shortest
+    paths through ``n_waypoints`` random reachable waypoints (cells visible to the beams become
+    free or occupied, everything else stays unknown). int8 (H, W) like ``walls``."""
+    from mrexplore.sensors import Lidar, LidarConfig
+
+    inflated = cv2.dilate(
+        walls.view(np.uint8),
+        np.ones((3, 3), np.uint8),
+        iterations=max(1, int(round(radius_m / resolution_m))),
+    )
+    free = ~inflated.astype(bool)
+    cells = np.argwhere(free)
+    if start is None:
+        start = tuple(int(x) for x in cells[rng.integers(len(cells))])
+    views: list[tuple[int, int]] = []
+    cur = start
+    for _ in range(n_waypoints):
+        dist = _bfs_distance(free, cur)
+        reach = np.argwhere(dist > 0)
+        if reach.size == 0:
+            break
+        goal = tuple(int(x) for x in reach[rng.integers(len(reach))])
+        views += _path(dist, goal)[::scan_every]
+        cur = goal
+    views.append(cur)
+    org = np.array([[c, r] for r, c in views], dtype=np.float64)
+    lidar = Lidar(LidarConfig(n_beams=360, max_range_m=max_range_m, noise_std_m=0.0))
+    scan = lidar.cast(walls, org, np.zeros(len(org)), resolution_m)
+    # Visible area of one scan = the star-shaped polygon of its beam end points (filled by
+    # OpenCV: much cheaper than collecting every traversed cell), plus the wall cells hit.
+    ang = scan.angles[None, :]
+    rng_cells = scan.ranges_m.astype(np.float64) / resolution_m
+    ends_c = org[:, :1] + rng_cells * np.cos(ang)
+    ends_r = org[:, 1:] + rng_cells * np.sin(ang)
+    seen = np.zeros(walls.shape, dtype=np.uint8)
+    polys = [
+        np.rint(np.stack([ends_c[k], ends_r[k]], axis=1)).astype(np.int32) for k in range(len(org))
+    ]
+    cv2.fillPoly(seen, polys, 1)
+    # The cell just beyond each hit end point is the wall that stopped the beam.
+    hc = np.rint(org[:, :1] + (rng_cells + 0.5) * np.cos(ang)).astype(np.int64)[scan.hit]
+    hr = np.rint(org[:, 1:] + (rng_cells + 0.5) * np.sin(ang)).astype(np.int64)[scan.hit]
+    h, w = walls.shape
+    ok = (hc >= 0) & (hc < w) & (hr >= 0) & (hr < h)
+    seen[hr[ok], hc[ok]] = 1
+    known = seen.astype(bool)
+    out = np.full(walls.shape, UNKNOWN, dtype=np.int8)
+    out[known] = np.where(walls[known], 100, 0).astype(np.int8)
+    return out
+
+
+def _crop_known(grid: Int8Grid, margin: int = 3) -> tuple[Int8Grid, tuple[int, int]]:
+    rows, cols = np.nonzero(grid != UNKNOWN)
+    r0, c0 = max(0, rows.min() - margin), max(0, cols.min() - margin)
+    r1, c1 = rows.max() + margin + 1, cols.max() + margin + 1
+    return grid[r0:r1, c0:c1].copy(), (int(c0), int(r0))
+
+
+def symmetric_case(
+    rng: np.random.Generator, generator: str = "symmetric_office", rotate: bool = True
+) -> MergeCase:
+    """Two robots' partial maps of a fresh symmetric world (``symmetric_office`` / ``twin_wings``).
+
+    Robot A and robot B start at random free cells and each follows 2-4 random waypoints, so
+    the overlap ranges from none to most of the map and often includes one or both twin rooms.
+    a is A's map cropped to its known box (a translated frame); b is B's map cropped and, when
+    ``rotate``, rotated by a uniform random angle. ``meta["twins_seen"]`` gives, per twin room,
+    the share of its cells known in (a, b).
+    """
+    from mrexplore.world import generators
+
+    make = {"symmetric_office": generators.symmetric_office, "twin_wings": generators.twin_wings}
+    if generator not in make:
+        raise ConfigError(
+            f"symmetric_case: unknown generator {generator!r}; choose one of {tuple(make)}"
+        )
+    world = make[generator](rng)
+    walls = world.walls
+    ma = explore_partial_map(walls, rng, world.resolution_m, n_waypoints=int(rng.integers(2, 5)))
+    mb = explore_partial_map(walls, rng, world.resolution_m, n_waypoints=int(rng.integers(2, 5)))
+    a, (ca, ra) = _crop_known(ma)
+    bc, (cb, rb) = _crop_known(mb)
+    theta = float(rng.uniform(-np.pi, np.pi)) if rotate else 0.0
+    if rotate:
+        b, T_rot = rotate_map(bc, theta)
+    else:
+        b, T_rot = bc, np.eye(3)
+    T_ab = translation(cb - ca, rb - ra) @ invert_transform(T_rot)
+    twins = []
+    for c0, r0, w, h in world.meta.get("twin_rooms", []):
+        box = (slice(r0, r0 + h), slice(c0, c0 + w))
+        twins.append((float((ma[box] != UNKNOWN).mean()), float((mb[box] != UNKNOWN).mean())))
+    return MergeCase(
+        a=a,
+        b=b,
+        T_ab=T_ab,
+        overlap=overlap_share(a, b, T_ab),
+        family="symmetric",
+        name=generator,
+        meta={"rotation_deg": float(np.degrees(theta)), "twins_seen": twins},
+    )
+
+
+def symmetric_cases(n: int, seed: int) -> list[MergeCase]:
+    """``n`` symmetric-world cases alternating the two generators; every other pair rotated."""
+    if n < 0:
+        raise ConfigError(f"symmetric_cases: n must be >= 0, got {n}")
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        gen = "symmetric_office" if i % 4 < 2 else "twin_wings"
+        case = symmetric_case(rng, gen, rotate=i % 2 == 1)
+        case.name = f"{gen}#{i}"
+        out.append(case)
+    return out
+
+
+def load_real_map(rel: str, maps_dir: Path = SHARED_MAPS) -> Int8Grid:
+    """A shared real map as int8, row 0 = lowest y (via :func:`mrexplore.world.map_io.read_map_yaml`)."""
+    from mrexplore.world.map_io import read_map_yaml
+
+    return read_map_yaml(maps_dir / rel).grid
+
+
+def real_map_case(
+    full: Int8Grid,
+    rng: np.random.Generator,
+    crop: tuple[int, int] = (120, 200),
+    rotate: bool = True,
+    name: str = "map",
+    min_known: float = 0.25,
+) -> MergeCase:
+    """Two overlapping square-ish crops of ``full``; b rotated (uniform angle) when ``rotate``.
+
+    Crop edges are drawn in ``crop`` (min, max) cells; b's crop is a's shifted by up to 70 % of
+    the crop size, so the overlap ranges from large to small. Crops are re-drawn (up to 50 times)
+    until each is at least ``min_known`` known.
+    """
+    H, W = full.shape
+    lo, hi = crop
+    for _ in range(50):
+        ha, wa = (int(x) for x in rng.integers(lo, min(hi, H, W) + 1, size=2))
+        ra, ca = int(rng.integers(0, H - ha + 1)), int(rng.integers(0, W - wa + 1))
+        hb, wb = (int(x) for x in rng.integers(lo, min(hi, H, W) + 1, size=2))
+        rb = int(np.clip(ra + rng.uniform(-0.7, 0.7) * ha, 0, H - hb))
+        cb = int(np.clip(ca + rng.uniform(-0.7, 0.7) * wa, 0, W - wb))
+        a = full[ra : ra + ha, ca : ca + wa]
+        mb = full[rb : rb + hb, cb : cb + wb]
+        if (a != UNKNOWN).mean() >= min_known and (mb != UNKNOWN).mean() >= min_known:
+            break
+    theta = float(rng.uniform(-np.pi, np.pi)) if rotate else 0.0
+    if rotate:
+        b, T_rot = rotate_map(mb, theta)
+    else:
+        b, T_rot = mb.copy(), np.eye(3)
+    a = damage_borders(a, rng)
+    b = damage_borders(b, rng)
+    T_ab = translation(cb - ca, rb - ra) @ invert_transform(T_rot)
+    return MergeCase(
+        a=np.ascontiguousarray(a),
+        b=b,
+        T_ab=T_ab,
+        overlap=overlap_share(a, b, T_ab),
+        family="real",
+        name=name,
+        meta={"rotation_deg": float(np.degrees(theta))},
+    )
+
+
+def real_cases(n: int, seed: int, maps_dir: Path = SHARED_MAPS) -> list[MergeCase]:
+    """``n`` real-map cases, cycling over :data:`REAL_MAPS`; half of them rotated."""
+    if n < 0:
+        raise ConfigError(f"real_cases: n must be >= 0, got {n}")
+    rng = np.random.default_rng(seed)
+    fulls = {k: load_real_map(k, maps_dir) for k in REAL_MAPS}
+    keys = list(REAL_MAPS)
+    out = []
+    for i in range(n):
+        k = keys[i % len(keys)]
+        out.append(real_map_case(fulls[k], rng, REAL_MAPS[k], rotate=i % 2 == 0, name=f"{k}#{i}"))
+    return out

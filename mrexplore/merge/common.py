@@ -1,0 +1,389 @@
+"""Pieces every merge method shares: the result type, option checking, map -> image conversion,
+the acceptance index (global verification of a transform) and the composition of two maps.
+
+Conventions (see :mod:`mrexplore.grid`): maps are int8 ``(H, W)`` with ``UNKNOWN`` / ``FREE`` /
+``OCCUPIED``; points are ``(col, row)``; a transform ``T_ab`` is 3x3 float64 mapping b's cells
+``(col, row, 1)`` into a's cells.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from mrexplore.errors import ConfigError
+from mrexplore.grid import (
+    FREE_THRESHOLD,
+    OCCUPIED_THRESHOLD,
+    UNKNOWN,
+    Int8Grid,
+    Transform,
+)
+
+#: Detectors a method may use. ``sift`` stands in for the paper's SURF (non-free, absent from
+#: OpenCV's PyPI builds); ``akaze`` is named so that asking for it gives a clear error, because
+#: the OpenCV 5.0 build this project targets does not ship it.
+DETECTORS: tuple[str, ...] = ("harris", "shi-tomasi", "fast", "sift", "orb", "akaze")
+
+# Cell codes used by the verifier: one small integer per cell so that a (b code, a code) pair
+# indexes a 4x4 agreement table. "near wall" = free within one cell (8-neighbourhood) of a wall:
+# the one-cell tolerance of the acceptance index lives in these codes.
+CODE_UNKNOWN = 0
+CODE_FREE = 1
+CODE_FREE_NEAR_WALL = 2
+CODE_WALL = 3
+
+
+@dataclass(eq=False)
+class MergeResult:
+    """The outcome of merging map ``b`` into map ``a``.
+
+    Attributes:
+        matched: True when a transform was accepted.
+        transform: 3x3 float64 ``T_ab`` mapping b's cells ``(col, row, 1)`` into a's cells, or
+            None when not matched.
+        score: acceptance index in [0, 1] (agreement / (agreement + disagreement) over cells known
+            in both maps, one-cell tolerance on walls) of the accepted transform; when not
+            matched, that of the best hypothesis examined, or 0 when there was none.
+        merged: int8 fused map in a's frame on a canvas grown to hold b, or None when not matched.
+        offset: (dcol, drow) of a's cell (0, 0) in the ``merged`` canvas: a's cell (c, r) is
+            ``merged[r + drow, c + dcol]``.
+        method: "semantic", "paper" or "orb".
+        detector: the keypoint detector used, or None.
+        reason: why the merge was refused ("" when matched).
+        time_s: wall-clock time of the call, seconds.
+        n_hypotheses: how many candidate transforms were examined.
+        runner_up_score: score of the best hypothesis far from the chosen one (semantic), or of
+            the second-best match (paper); None when there was none.
+        matches: (K, 4) float64 point pairs ``(col_a, row_a, col_b, row_b)`` that support the
+            result (keypoint matches, or wall points for the semantic method), for figures.
+        overlap_cells: number of cells known in both maps under the transform.
+        info: method-specific extras (e.g. the candidate rotations), for debugging.
+    """
+
+    matched: bool
+    transform: Transform | None
+    score: float
+    merged: Int8Grid | None = None
+    offset: tuple[int, int] = (0, 0)
+    method: str = ""
+    detector: str | None = None
+    reason: str = ""
+    time_s: float = 0.0
+    n_hypotheses: int = 0
+    runner_up_score: float | None = None
+    matches: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 4)))
+    overlap_cells: int = 0
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+class Options:
+    """Typed option reader that insists every keyword argument is consumed (the VMAS habit).
+
+    ``get(name, default)`` pops an option, converting it to the default's type;
+    ``finish()`` raises :class:`ConfigError` naming any option nobody asked for.
+    """
+
+    def __init__(self, options: Mapping[str, Any], where: str) -> None:
+        self._left = dict(options)
+        self._where = where
+
+    def get_float(
+        self, name: str, default: float, lo: float | None = None, hi: float | None = None
+    ) -> float:
+        """Pop a float option, check ``lo <= value <= hi``."""
+        value = self._left.pop(name, default)
+        try:
+            out = float(value)
+        except (TypeError, ValueError):
+            raise ConfigError(f"{self._where}: option {name}={value!r} must be a number") from None
+        if not np.isfinite(out) or (lo is not None and out < lo) or (hi is not None and out > hi):
+            raise ConfigError(f"{self._where}: option {name}={value!r} must be in [{lo}, {hi}]")
+        return out
+
+    def get_int(self, name: str, default: int, lo: int | None = None, hi: int | None = None) -> int:
+        """Pop an integer option, check ``lo <= value <= hi``."""
+        value = self._left.pop(name, default)
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            raise ConfigError(f"{self._where}: option {name}={value!r} must be an integer")
+        out = int(value)
+        if (lo is not None and out < lo) or (hi is not None and out > hi):
+            raise ConfigError(f"{self._where}: option {name}={value!r} must be in [{lo}, {hi}]")
+        return out
+
+    def get_bool(self, name: str, default: bool) -> bool:
+        """Pop a boolean option."""
+        value = self._left.pop(name, default)
+        if not isinstance(value, (bool, np.bool_)):
+            raise ConfigError(f"{self._where}: option {name}={value!r} must be True or False")
+        return bool(value)
+
+    def get_choice(self, name: str, default: str | None, choices: tuple[str, ...]) -> str | None:
+        """Pop a string option that must be one of ``choices`` (None keeps the default)."""
+        value = self._left.pop(name, default)
+        if value is None:
+            return default
+        if not isinstance(value, str) or value.lower() not in choices:
+            raise ConfigError(f"{self._where}: option {name}={value!r} must be one of {choices}")
+        return value.lower()
+
+    def get_detector(self, default: str, allowed: tuple[str, ...]) -> str:
+        """Pop the ``detector`` option and validate it with :func:`check_detector`."""
+        value = self._left.pop("detector", None)
+        return check_detector(value, allowed, self._where) or default
+
+    def finish(self) -> None:
+        """Raise :class:`ConfigError` if an option was passed that no code read."""
+        if self._left:
+            names = ", ".join(sorted(self._left))
+            raise ConfigError(f"{self._where}: unknown option(s) {names}")
+
+
+def check_detector(detector: str | None, allowed: tuple[str, ...], where: str) -> str | None:
+    """Validate a detector name; AKAZE gets its own message since OpenCV 5.0 lacks it."""
+    if detector is None:
+        return None
+    if not isinstance(detector, str):
+        raise ConfigError(f"{where}: detector must be a string, got {detector!r}")
+    d = detector.lower().replace("_", "-")
+    if d == "shitomasi":
+        d = "shi-tomasi"
+    if d == "akaze":
+        raise ConfigError(
+            f"{where}: detector 'akaze' is not available: this OpenCV build ({cv2.__version__}) "
+            "has no AKAZE; use 'orb' or 'sift'"
+        )
+    if d == "surf":
+        raise ConfigError(
+            f"{where}: detector 'surf' is not available (non-free, absent from OpenCV's PyPI "
+            "builds); use 'sift', which stands in for it"
+        )
+    if d not in allowed:
+        raise ConfigError(f"{where}: unknown detector {detector!r}; choose one of {allowed}")
+    return d
+
+
+# --------------------------------------------------------------------------------------------
+# map -> image / masks
+# --------------------------------------------------------------------------------------------
+
+
+def to_gray(grid: Int8Grid) -> NDArray[np.uint8]:
+    """The map as a map_server-like gray image: free 254, occupied 0, unknown 205, uint8 (H, W).
+
+    Feature detectors see what a person sees in a PGM; intermediate probabilities are linearly
+    mapped between free and occupied.
+    """
+    g = grid.astype(np.int16)
+    out = (254 - np.clip(g, 0, 100) * 254 // 100).astype(np.uint8)
+    out[g == UNKNOWN] = 205
+    return out
+
+
+def cell_codes(grid: Int8Grid) -> NDArray[np.uint8]:
+    """Verifier codes (H, W) uint8: unknown / free / free within one cell of a wall / wall."""
+    wall = grid >= OCCUPIED_THRESHOLD
+    free = (grid >= 0) & (grid <= FREE_THRESHOLD)
+    near = cv2.dilate(wall.view(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    codes = np.zeros(grid.shape, dtype=np.uint8)
+    codes[free] = CODE_FREE
+    codes[free & near] = CODE_FREE_NEAR_WALL
+    codes[wall] = CODE_WALL
+    return codes
+
+
+def known_bbox(grid: Int8Grid, margin: int = 0) -> tuple[int, int, int, int] | None:
+    """Bounding box ``(r0, r1, c0, c1)`` (half-open) of known cells grown by ``margin``, or None.
+
+    Uses row/column maxima of the int8 array (``UNKNOWN`` is the minimum value), which numpy
+    reduces with SIMD: much cheaper than building a boolean mask of the whole canvas.
+    """
+    rows = np.flatnonzero(grid.max(axis=1) > UNKNOWN)
+    if rows.size == 0:
+        return None
+    r0, r1 = int(rows[0]), int(rows[-1]) + 1
+    cols = np.flatnonzero(grid[r0:r1].max(axis=0) > UNKNOWN)
+    c0, c1 = int(cols[0]), int(cols[-1]) + 1
+    h, w = grid.shape
+    return (max(0, r0 - margin), min(h, r1 + margin), max(0, c0 - margin), min(w, c1 + margin))
+
+
+def translation(dc: float, dr: float) -> Transform:
+    """3x3 float64 translation by ``(dc, dr)`` cells."""
+    return np.array([[1.0, 0.0, dc], [0.0, 1.0, dr], [0.0, 0.0, 1.0]])
+
+
+# --------------------------------------------------------------------------------------------
+# verification: Birk & Carpin's acceptance index
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Agreement:
+    """Agreement counts of one transform: ``score = agree / (agree + disagree)``.
+
+    ``share`` is the fraction of b's (sampled) wall cells that landed on known cells of a.
+    """
+
+    agree: int
+    disagree: int
+    share: float = 0.0
+
+    @property
+    def overlap(self) -> int:
+        """Wall cells that took part (landed on known cells of the other map)."""
+        return self.agree + self.disagree
+
+    @property
+    def score(self) -> float:
+        """Acceptance index in [0, 1]; 0 when nothing overlaps."""
+        n = self.agree + self.disagree
+        return self.agree / n if n else 0.0
+
+
+def _sample(mask: NDArray[np.bool_], max_samples: int) -> tuple[NDArray[np.float64], float]:
+    """(col, row) points of ``mask`` on a regular stride (<= ~max_samples), and cells per point."""
+    rows, cols = np.nonzero(mask)
+    n = rows.size
+    if max_samples and n > max_samples:
+        stride = int(np.ceil(n / max_samples))
+        rows, cols = rows[::stride], cols[::stride]
+    return np.stack([cols, rows], axis=1).astype(np.float64), n / max(rows.size, 1)
+
+
+class Verifier:
+    """Scores transforms ``T_ab`` by Birk & Carpin's acceptance index, ``agr / (agr + dis)``,
+    evaluated where it is informative: on the *wall* cells of both maps.
+
+    Every wall cell of b is mapped into a (nearest cell) and every wall cell of a is mapped into
+    b (through the inverse): a wall landing on a wall, or on free space within one cell of a wall
+    (the one-cell tolerance), agrees; a wall landing on open free space disagrees; a wall landing
+    on unknown (or outside) does not count. Checking both directions catches both kinds of
+    conflict of the plain index (b's wall in a's free space, b's free space over a's wall),
+    while free-on-free cells, which agree for almost any pose inside a big room and would drown
+    the signal, are left out.
+
+    Each call costs two gathers and two 16-bin ``bincount`` over at most ``max_samples`` points
+    per map: a few hundred microseconds, so dozens of hypotheses cost milliseconds.
+    """
+
+    def __init__(self, a: Int8Grid, b: Int8Grid, max_samples: int = 20000) -> None:
+        self.codes_a = cell_codes(a)
+        self.codes_b = cell_codes(b)
+        self.points_b, self.cells_per_sample = _sample(self.codes_b == CODE_WALL, max_samples)
+        self.points_a, _ = _sample(self.codes_a == CODE_WALL, max_samples)
+
+    @staticmethod
+    def _count(
+        pts: NDArray[np.float64], T: Transform, codes: NDArray[np.uint8]
+    ) -> tuple[int, int, int]:
+        if pts.shape[0] == 0:
+            return 0, 0, 0
+        p = pts @ T[:2, :2].T + T[:2, 2]
+        c = np.rint(p[:, 0]).astype(np.int64)
+        r = np.rint(p[:, 1]).astype(np.int64)
+        h, w = codes.shape
+        inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
+        hit = np.bincount(codes[r[inside], c[inside]], minlength=4)
+        agree = int(hit[CODE_WALL] + hit[CODE_FREE_NEAR_WALL])
+        disagree = int(hit[CODE_FREE])
+        return agree, disagree, agree + disagree
+
+    def overlap_ok(self, ag: Agreement, min_share: float, min_cells: int) -> bool:
+        """True when at least ``min_share`` of b's wall cells and ``min_cells`` wall cells in all
+        (both maps) took part."""
+        return ag.share >= min_share and ag.overlap * self.cells_per_sample >= min_cells
+
+    def __call__(self, T: Transform) -> Agreement:
+        """Agreement counts of ``T`` (3x3, b cells -> a cells)."""
+        T = np.asarray(T, dtype=np.float64)
+        det = float(np.linalg.det(T[:2, :2]))
+        if not np.isfinite(T).all() or abs(det) < 1e-9:
+            return Agreement(0, 0, 0.0)  # a degenerate transform agrees with nothing
+        ab, db, nb = self._count(self.points_b, T, self.codes_a)
+        aa, da, _ = self._count(self.points_a, np.linalg.inv(T), self.codes_b)
+        share = nb / self.points_b.shape[0] if self.points_b.shape[0] else 0.0
+        return Agreement(ab + aa, db + da, share)
+
+
+# --------------------------------------------------------------------------------------------
+# composition
+# --------------------------------------------------------------------------------------------
+
+
+def warp_into(
+    src: Int8Grid,
+    T_dst_src: Transform,
+    dst_shape: tuple[int, int],
+    dst_origin: tuple[int, int] = (0, 0),
+) -> Int8Grid:
+    """Warp ``src`` with nearest neighbour into a ``dst_shape`` canvas; outside src -> unknown.
+
+    ``T_dst_src`` maps src cells to destination cells; ``dst_origin`` (col, row) is the cell of the
+    destination frame at canvas index (0, 0) (to warp into a sub-window of a larger frame).
+    """
+    M = np.asarray(T_dst_src, dtype=np.float64).copy()
+    M[0, 2] -= dst_origin[0]
+    M[1, 2] -= dst_origin[1]
+    # OpenCV's nearest-neighbour warp of CV_8S is not supported everywhere: shift to uint8
+    # (unknown -> 0) so the constant border means "unknown", and shift back.
+    shifted = (src.astype(np.int16) + 1).astype(np.uint8)
+    out = cv2.warpAffine(
+        shifted,
+        M[:2],
+        (int(dst_shape[1]), int(dst_shape[0])),
+        flags=cv2.INTER_NEAREST,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=0,
+    )
+    return (out.astype(np.int16) - 1).astype(np.int8)
+
+
+def fuse(a: Int8Grid, b: Int8Grid) -> Int8Grid:
+    """Cell-wise fusion of two aligned maps: occupied beats free beats unknown.
+
+    With -1 < 0 < 100 this is simply the maximum, which also keeps the higher of two
+    occupancy probabilities: a wall seen by either robot stays a wall (safe for planning).
+    """
+    return np.maximum(a, b)
+
+
+def compose(a: Int8Grid, b: Int8Grid, T_ab: Transform) -> tuple[Int8Grid, tuple[int, int]]:
+    """Fuse b into a's frame on a canvas grown to hold b's known cells.
+
+    Returns ``(merged, (dcol, drow))`` where a's cell (c, r) is ``merged[r + drow, c + dcol]``.
+    """
+    h, w = a.shape
+    bb = known_bbox(b)
+    if bb is None:
+        return a.copy(), (0, 0)
+    r0, r1, c0, c1 = bb
+    corners = np.array([[c0, r0], [c1 - 1, r0], [c0, r1 - 1], [c1 - 1, r1 - 1]], dtype=np.float64)
+    q = corners @ T_ab[:2, :2].T + T_ab[:2, 2]
+    cmin = min(0, int(np.floor(q[:, 0].min())) - 1)
+    rmin = min(0, int(np.floor(q[:, 1].min())) - 1)
+    cmax = max(w, int(np.ceil(q[:, 0].max())) + 2)
+    rmax = max(h, int(np.ceil(q[:, 1].max())) + 2)
+    shape = (rmax - rmin, cmax - cmin)
+    canvas = np.full(shape, UNKNOWN, dtype=np.int8)
+    canvas[-rmin : -rmin + h, -cmin : -cmin + w] = a
+    warped = warp_into(b, T_ab, shape, dst_origin=(cmin, rmin))
+    return fuse(canvas, warped), (-cmin, -rmin)
+
+
+def mean_displacement(T_est: Transform, T_true: Transform, b: Int8Grid) -> float:
+    """Mean distance (cells) between b's known cells mapped by ``T_est`` and by ``T_true``.
+
+    The benchmark's error measure: under 2 cells is "correct", 5 or more "wrong".
+    """
+    rows, cols = np.nonzero(b != UNKNOWN)
+    if rows.size == 0:
+        return float("inf")
+    p = np.stack([cols, rows], axis=1).astype(np.float64)
+    d = (p @ T_est[:2, :2].T + T_est[:2, 2]) - (p @ T_true[:2, :2].T + T_true[:2, 2])
+    return float(np.mean(np.hypot(d[:, 0], d[:, 1])))

@@ -1,0 +1,503 @@
+"""The verified merger (``method="semantic"``, the default): any rotation, many hypotheses, each
+checked over the whole overlap, refusal when ambiguous, sub-cell / sub-degree refinement.
+
+Pipeline (all on the maps cropped to their known bounding boxes):
+
+1. **Rotation candidates** from wall orientations: a histogram of wall-normal directions (axial,
+   modulo 90 degrees, 1 degree bins, weighted by gradient magnitude) for each map; their
+   circular cross-correlation peaks at the relative rotation modulo 90 degrees. Indoor maps are
+   mostly Manhattan, so each of the best ``max_rotation_peaks`` peaks gives the 4 candidates
+   theta0 + k 90; ``rotation_step_deg`` adds a uniform sweep for maps that are not.
+2. **Translation candidates**, coarse: per rotation, b is rotated (nearest neighbour) and both
+   maps are pooled to 1/``scale`` (a block is "wall" if it holds a wall, "free" if it is all
+   free); one FFT cross-correlation scores every translation by wall-wall agreement plus a
+   little free-free agreement minus wall-free disagreement; the ``peaks_per_rotation`` best
+   separated peaks become hypotheses. Optionally (``paper_candidates=True``) the seed paper's
+   trusted-point gradient-window correlation adds its best pairs as extra hypotheses.
+3. **Local alignment**: every hypothesis is polished by a few iterations of trimmed
+   point-to-point ICP of b's wall cells onto a's nearest wall cells (distance transform with
+   labels, closed-form 2-D Kabsch), which also moves it below a cell and a degree.
+4. **Global verification**: each polished hypothesis is scored by Birk & Carpin's acceptance
+   index ``agree / (agree + disagree)`` over every (sampled) cell known in both maps, with a
+   one-cell tolerance on walls (:class:`mrexplore.merge.common.Verifier`).
+5. **Decision**: accept the best only if its index is at least ``min_score``, it overlaps at
+   least ``min_overlap`` of b's known cells, and it beats the best hypothesis *far* from it
+   (b's cells displaced by ``far_cells`` or more on average) by at least ``min_margin``.
+   Two look-alike rooms give two far-apart hypotheses that agree equally well: refused, to be
+   merged later once more of the map is known.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from mrexplore.grid import FREE_THRESHOLD, OCCUPIED_THRESHOLD, Int8Grid, Transform, make_transform
+from mrexplore.merge.common import (
+    Agreement,
+    MergeResult,
+    Options,
+    Verifier,
+    compose,
+    known_bbox,
+    translation,
+    warp_into,
+)
+
+F32 = NDArray[np.float32]
+
+
+@dataclass
+class _Hypothesis:
+    T: Transform  # cropped-b cells -> cropped-a cells
+    source: str
+    agreement: Agreement | None = None
+
+    @property
+    def score(self) -> float:
+        return self.agreement.score if self.agreement is not None else 0.0
+
+
+# --------------------------------------------------------------------------------------------
+# 1. rotation candidates
+# --------------------------------------------------------------------------------------------
+
+
+def orientation_histogram(
+    wall: NDArray[np.bool_], bins: int = 90, period_deg: float = 90.0
+) -> NDArray[np.float64]:
+    """Histogram (bins,) of wall-normal directions modulo ``period_deg``, magnitude-weighted,
+    normalised to sum 1 (zeros when there is no wall).
+
+    Modulo 90 degrees, the two wall families of a Manhattan map fall in one peak, so the relative
+    rotation mod 90 shows even when the two maps happen to hold mostly different families
+    (a corridor along x in one, along y in the other). The walls are blurred first (sigma 1.5
+    cells) so that staircase walls of a rotated grid still give their true direction.
+    """
+    img = cv2.GaussianBlur(wall.astype(np.float32), (0, 0), 1.5)
+    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3)
+    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3)
+    mag = np.hypot(gx, gy)
+    top = float(mag.max()) if mag.size else 0.0
+    keep = mag > 0.05 * top if top > 0 else mag > 0
+    ang = np.degrees(np.arctan2(gy[keep], gx[keep])) % period_deg
+    idx = (ang * bins / period_deg).astype(np.int64) % bins
+    hist = np.bincount(idx, weights=mag[keep], minlength=bins)
+    # A little circular smoothing so that a wall at 0.5 deg does not split between two bins.
+    hist = 0.25 * np.roll(hist, 1) + 0.5 * hist + 0.25 * np.roll(hist, -1)
+    s = hist.sum()
+    return np.asarray(hist / s if s > 0 else hist, dtype=np.float64)
+
+
+def _circular_peaks(
+    R: NDArray[np.float64], max_peaks: int, min_rel: float, sep: int
+) -> list[float]:
+    """Up to ``max_peaks`` local maxima of the circular signal R (bin units, parabola-refined),
+    each at least ``min_rel`` of the highest and ``sep`` bins from the others."""
+    bins = R.size
+    order = np.argsort(R)[::-1]
+    peaks: list[float] = []
+    for d in order:
+        if len(peaks) >= max_peaks or R[d] <= 0 or R[d] < min_rel * R[order[0]]:
+            break
+        left, right = R[(d - 1) % bins], R[(d + 1) % bins]
+        if R[d] < left or R[d] < right:
+            continue
+        if any(min(abs(d - p) % bins, bins - abs(d - p) % bins) < sep for p in peaks):
+            continue
+        den = left - 2 * R[d] + right
+        frac = 0.5 * (left - right) / den if den < 0 else 0.0
+        peaks.append(float(d) + float(np.clip(frac, -0.5, 0.5)))
+    return peaks
+
+
+def rotation_candidates(
+    wall_a: NDArray[np.bool_], wall_b: NDArray[np.bool_], max_peaks: int = 2, step_deg: float = 0.0
+) -> list[float]:
+    """Candidate rotations (radians, in (-pi, pi]) of b relative to a, best first.
+
+    The circular cross-correlation ``R(d) = sum_phi h_a(phi) h_b(phi - d)`` of the two
+    orientation histograms modulo 90 degrees peaks at the relative rotation modulo 90; each of
+    the ``max_peaks`` best peaks (at least half the highest) yields d + k 90, k = 0..3: the
+    verifier decides which. ``step_deg > 0`` appends a uniform sweep (maps that are not
+    Manhattan; the ICP refinement then closes the remaining gap).
+    """
+    bins = 90
+    ha = orientation_histogram(wall_a, bins)
+    hb = orientation_histogram(wall_b, bins)
+    idx = (np.arange(bins)[None, :] - np.arange(bins)[:, None]) % bins  # [d, phi] -> phi - d
+    R = hb[idx] @ ha
+    out: list[float] = []
+    for p in _circular_peaks(R, max_peaks, 0.5, 8):
+        out += [np.radians(p + 90.0 * k) for k in range(4)]
+    if step_deg > 0:
+        out += [float(x) for x in np.radians(np.arange(0.0, 360.0, step_deg))]
+    return [float(np.arctan2(np.sin(t), np.cos(t))) for t in out]
+
+
+# --------------------------------------------------------------------------------------------
+# 2. coarse translation candidates
+# --------------------------------------------------------------------------------------------
+
+
+def _pool(grid: Int8Grid, s: int) -> tuple[F32, F32]:
+    """(wall, free) block maps at 1/s: wall = block holds a wall; free = all known and free.
+
+    Block means by ``cv2.resize(INTER_AREA)`` on the padded masks (exact block averages since
+    the padded size is a multiple of s), far cheaper than numpy reductions over a 4-D view.
+    """
+    h, w = grid.shape
+    H, W = -(-h // s), -(-w // s)
+    wall = np.zeros((H * s, W * s), dtype=np.float32)
+    free = np.zeros((H * s, W * s), dtype=np.float32)
+    wall[:h, :w] = grid >= OCCUPIED_THRESHOLD
+    free[:h, :w] = (grid >= 0) & (grid <= FREE_THRESHOLD)
+    wm = cv2.resize(wall, (W, H), interpolation=cv2.INTER_AREA)
+    fm = cv2.resize(free, (W, H), interpolation=cv2.INTER_AREA)
+    return (wm > 1e-6).astype(np.float32), (fm > 1.0 - 1e-4).astype(np.float32)
+
+
+def _dilate(img: F32) -> F32:
+    return np.asarray(cv2.dilate(img, np.ones((3, 3), np.uint8)), dtype=np.float32)
+
+
+class _CoarseMatcher:
+    """FFT cross-correlation of a's pooled maps against any (rotated) b's pooled maps.
+
+    ``S(t) = sum_x A1(x + t) B1(x) + A2(x + t) B2(x)`` with ``B1`` = b walls, ``B2`` = b free,
+    ``A1 = dil(a walls) - a free`` (wall agreement with one block of tolerance, minus wall-in-free
+    disagreement) and ``A2 = w_free * a free - a walls`` (a little free agreement, minus
+    free-on-wall disagreement). a's spectra are computed once.
+    """
+
+    def __init__(
+        self, a: Int8Grid, s: int, max_b_shape: tuple[int, int], w_free: float, w_dis: float = 1.0
+    ) -> None:
+        self.s = s
+        wa, fa = _pool(a, s)
+        self.ha, self.wa = wa.shape
+        hb = -(-max_b_shape[0] // s)
+        wb = -(-max_b_shape[1] // s)
+        self.H = cv2.getOptimalDFTSize(self.ha + hb)
+        self.W = cv2.getOptimalDFTSize(self.wa + wb)
+        a1 = _dilate(wa) - w_dis * fa
+        a2 = w_free * fa - w_dis * wa
+        self.FA1 = np.fft.rfft2(a1, (self.H, self.W))
+        self.FA2 = np.fft.rfft2(a2, (self.H, self.W))
+
+    def peaks(self, b: Int8Grid, k: int, nms: int = 2) -> list[tuple[float, float, float]]:
+        """The ``k`` best separated translations ``(dc, dr, S)`` (cells, full resolution) that map
+        b's cells onto a's cells."""
+        s = self.s
+        wb, fb = _pool(b, s)
+        spec = self.FA1 * np.conj(np.fft.rfft2(wb, (self.H, self.W)))
+        spec += self.FA2 * np.conj(np.fft.rfft2(fb, (self.H, self.W)))
+        S = np.fft.irfft2(spec, (self.H, self.W)).astype(np.float32)
+        # Only translations where the maps can overlap: t in (-hb, ha) x (-wb, wa), circular.
+        hb, wbw = wb.shape
+        S = np.roll(S, (hb, wbw), axis=(0, 1))[: hb + self.ha, : wbw + self.wa]
+        mx = cv2.dilate(S, np.ones((2 * nms + 1, 2 * nms + 1), np.uint8))
+        cand = np.flatnonzero((mx <= S).ravel() & (S.ravel() > 0))
+        if cand.size == 0:
+            return []
+        vals = S.ravel()[cand]
+        top = cand[np.argsort(vals)[::-1][:k]]
+        rows, cols = np.unravel_index(top, S.shape)
+        # Block t -> cells: b's block j covers cells [s j, s j + s); same for a, so t * s.
+        return [
+            (float((c - wbw) * s), float((r - hb) * s), float(S[r, c]))
+            for r, c in zip(rows, cols, strict=True)
+        ]
+
+
+# --------------------------------------------------------------------------------------------
+# 3. ICP on wall cells
+# --------------------------------------------------------------------------------------------
+
+
+class _WallICP:
+    """Trimmed point-to-point ICP of b's wall cells onto a's nearest wall cells."""
+
+    def __init__(
+        self, wall_a: NDArray[np.bool_], wall_b: NDArray[np.bool_], max_points: int
+    ) -> None:
+        self.h, self.w = wall_a.shape
+        _, labels = cv2.distanceTransformWithLabels(
+            (~wall_a).astype(np.uint8), cv2.DIST_L2, 5, labelType=cv2.DIST_LABEL_PIXEL
+        )
+        # Labels number a's wall cells in row-major order starting at 1.
+        rr, cc = np.nonzero(wall_a)
+        self.lut = np.concatenate([[[0.0, 0.0]], np.stack([cc, rr], axis=1)]).astype(np.float64)
+        self.labels = labels
+        rb, cb = np.nonzero(wall_b)
+        if max_points and rb.size > max_points:
+            stride = int(np.ceil(rb.size / max_points))
+            rb, cb = rb[::stride], cb[::stride]
+        self.pb = np.stack([cb, rb], axis=1).astype(np.float64)
+        self.has_walls = rr.size > 0 and rb.size > 0
+
+    def __call__(self, T: Transform, iters: int, max_dist: float, n_points: int = 0) -> Transform:
+        """Refine ``T`` (b cells -> a cells); pairs farther than ``max_dist`` cells are ignored.
+
+        ``n_points > 0`` uses only about that many of b's wall cells (a cheap first polish).
+        """
+        if not self.has_walls:
+            return T
+        p = self.pb
+        if n_points and p.shape[0] > n_points:
+            p = p[:: int(np.ceil(p.shape[0] / n_points))]
+        px, py = p[:, 0], p[:, 1]
+        labels = self.labels.ravel()
+        lut_c, lut_r = self.lut[:, 0], self.lut[:, 1]
+        w, h = self.w, self.h
+        md2 = max_dist * max_dist
+        for _ in range(iters):
+            qx = T[0, 0] * px + T[0, 1] * py + T[0, 2]
+            qy = T[1, 0] * px + T[1, 1] * py + T[1, 2]
+            c = np.rint(qx).astype(np.int64)
+            r = np.rint(qy).astype(np.int64)
+            inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
+            lab = labels[(r * w + c)[inside]]
+            mx, my = lut_c[lab], lut_r[lab]
+            keep = (qx[inside] - mx) ** 2 + (qy[inside] - my) ** 2 <= md2
+            n = int(np.count_nonzero(keep))
+            if n < 10:
+                return T
+            sx, sy = px[inside][keep], py[inside][keep]
+            mx, my = mx[keep], my[keep]
+            psx, psy, msx, msy = sx.sum() / n, sy.sum() / n, mx.sum() / n, my.sum() / n
+            ax, ay, bx, by = sx - psx, sy - psy, mx - msx, my - msy
+            th = float(np.arctan2((ax * by - ay * bx).sum(), (ax * bx + ay * by).sum()))
+            co, si = np.cos(th), np.sin(th)
+            T_new = make_transform(th, msx - (co * psx - si * psy), msy - (si * psx + co * psy))
+            done = (
+                abs(T_new[0, 2] - T[0, 2]) + abs(T_new[1, 2] - T[1, 2]) < 1e-2
+                and abs(T_new[1, 0] - T[1, 0]) < 1e-4
+            )
+            T = T_new
+            if done:
+                break
+        return T
+
+
+# --------------------------------------------------------------------------------------------
+# the method
+# --------------------------------------------------------------------------------------------
+
+
+def _rotation_about(theta: float, shape: tuple[int, int]) -> tuple[Transform, tuple[int, int]]:
+    """Rotation of a (h, w) grid by ``theta`` about its centre, shifted so the result fits in a
+    canvas starting at (0, 0); returns (T_rot, canvas shape)."""
+    h, w = shape
+    R = make_transform(theta, 0.0, 0.0)
+    corners = np.array([[0, 0], [w - 1, 0], [0, h - 1], [w - 1, h - 1]], dtype=np.float64)
+    q = corners @ R[:2, :2].T
+    lo = np.floor(q.min(axis=0))
+    hi = np.ceil(q.max(axis=0))
+    T = translation(-lo[0], -lo[1]) @ R
+    return T, (int(hi[1] - lo[1]) + 1, int(hi[0] - lo[0]) + 1)
+
+
+def _mean_shift(T1: Transform, T2: Transform, pts: NDArray[np.float64]) -> float:
+    d = pts @ (T1[:2, :2] - T2[:2, :2]).T + (T1[:2, 2] - T2[:2, 2])
+    return float(np.mean(np.hypot(d[:, 0], d[:, 1])))
+
+
+def _paper_hypotheses(
+    a: Int8Grid, b_rot: Int8Grid, T_rot: Transform, n: int, k: int
+) -> list[Transform]:
+    """The seed paper's Algorithm 1 + 2 as a candidate generator on rotated b: the ``k`` best
+    trusted-point pairs by gradient-window correlation, each giving a translation."""
+    from mrexplore.merge.common import to_gray
+    from mrexplore.merge.features import detect_points
+    from mrexplore.merge.paper import correlation_matrix, gradient_windows, trusted_points
+
+    f = 41  # smaller than Eq. (5)'s 60: cropped partial maps are small
+    pa = detect_points(to_gray(a), "harris", n)
+    pb = detect_points(to_gray(b_rot), "harris", n)
+    ta = pa[trusted_points(a, pa, f, 0.3)]
+    tb = pb[trusted_points(b_rot, pb, f, 0.3)]
+    if len(ta) == 0 or len(tb) == 0:
+        return []
+    C = correlation_matrix(gradient_windows(a, ta, f), gradient_windows(b_rot, tb, f))
+    top = np.argsort(C, axis=None)[::-1][:k]
+    ii, jj = np.unravel_index(top, C.shape)
+    return [translation(*(ta[i] - tb[j])) @ T_rot for i, j in zip(ii, jj, strict=True)]
+
+
+def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
+    """Verified merge of b into a. Options (all validated; defaults tuned on the merge bench):
+
+    - ``min_score`` (0.9): acceptance index the best hypothesis must reach.
+    - ``min_margin`` (0.03): by how much it must beat the best hypothesis far from it ...
+    - ``min_evidence_cells`` (20): ... which must also disagree on at least this many more wall
+      cells than the best (a margin from a handful of cells is noise, not evidence).
+    - ``far_cells`` (5.0): mean displacement of b's cells (cells) that makes a hypothesis "far".
+    - ``min_overlap`` (0.15): share of b's wall cells that must land on a's known cells.
+    - ``min_overlap_cells`` (80): and at least this many wall cells of both maps must take part.
+    - ``scale`` (4): coarse search pooling factor (cells per block).
+    - ``peaks_per_rotation`` (6): coarse translation peaks kept per rotation.
+    - ``max_rotation_peaks`` (3): histogram cross-correlation peaks (each -> 4 rotations).
+    - ``rotation_step_deg`` (0.0): add a uniform rotation sweep with this step (0 = none).
+    - ``n_refine`` (6): hypotheses that get the full ICP refinement and full verification.
+    - ``paper_candidates`` (False): add the seed paper's trusted-point matches as hypotheses.
+    - ``max_samples`` (20000): wall cells per map sampled by the verifier.
+    - ``w_free`` (0.2): weight of free-free agreement in the coarse score.
+    - ``w_disagree`` (1.0): weight of wall-on-free disagreement in the coarse score.
+    """
+    t0 = time.perf_counter()
+    where = "merge_maps(method='semantic')"
+    opt = Options(options, where)
+    detector = opt.get_detector("harris", ("harris",))
+    min_score = opt.get_float("min_score", 0.9, lo=0.0, hi=1.0)
+    min_margin = opt.get_float("min_margin", 0.03, lo=0.0, hi=1.0)
+    min_evidence = opt.get_int("min_evidence_cells", 20, lo=0)
+    far_cells = opt.get_float("far_cells", 5.0, lo=0.0)
+    min_overlap = opt.get_float("min_overlap", 0.15, lo=0.0, hi=1.0)
+    min_overlap_cells = opt.get_int("min_overlap_cells", 80, lo=0)
+    scale = opt.get_int("scale", 4, lo=1, hi=32)
+    k_peaks = opt.get_int("peaks_per_rotation", 6, lo=1, hi=1000)
+    max_rot_peaks = opt.get_int("max_rotation_peaks", 3, lo=1, hi=45)
+    rot_step = opt.get_float("rotation_step_deg", 0.0, lo=0.0, hi=360.0)
+    n_refine = opt.get_int("n_refine", 6, lo=1, hi=1000)
+    use_paper = opt.get_bool("paper_candidates", False)
+    max_samples = opt.get_int("max_samples", 20000, lo=0)
+    w_free = opt.get_float("w_free", 0.2, lo=0.0, hi=10.0)
+    w_dis = opt.get_float("w_disagree", 1.0, lo=0.0, hi=100.0)
+    opt.finish()
+    info: dict[str, Any] = {}
+
+    def refuse(reason: str, score: float = 0.0, **kw: Any) -> MergeResult:
+        return MergeResult(
+            matched=False,
+            transform=None,
+            score=score,
+            method="semantic",
+            detector=detector if use_paper else None,
+            reason=reason,
+            time_s=time.perf_counter() - t0,
+            info=info,
+            **kw,
+        )
+
+    # --- crop to the known bounding boxes (all the work below is on the crops) ---
+    bba, bbb = known_bbox(a, margin=1), known_bbox(b, margin=1)
+    if bba is None or bbb is None:
+        return refuse(f"map {'a' if bba is None else 'b'} is all unknown")
+    ac = a[bba[0] : bba[1], bba[2] : bba[3]]
+    bc = b[bbb[0] : bbb[1], bbb[2] : bbb[3]]
+    wall_a, wall_b = ac >= OCCUPIED_THRESHOLD, bc >= OCCUPIED_THRESHOLD
+    n_wall_a, n_wall_b = int(wall_a.sum()), int(wall_b.sum())
+    if min(n_wall_a, n_wall_b) < 20:
+        return refuse(f"too few wall cells to align (a: {n_wall_a}, b: {n_wall_b}; need 20)")
+
+    verify = Verifier(ac, bc, max_samples=max_samples)
+    quick = Verifier(ac, bc, max_samples=min(max_samples, 2000) if max_samples else 2000)
+
+    # --- 1. rotations ---
+    thetas = rotation_candidates(wall_a, wall_b, max_rot_peaks, rot_step)
+    info["rotations_deg"] = [round(float(np.degrees(t)), 2) for t in thetas]
+
+    # --- 2. coarse translations per rotation ---
+    rots = [_rotation_about(t, bc.shape) for t in thetas]
+    max_shape = (max(s[0] for _, s in rots), max(s[1] for _, s in rots))
+    coarse = _CoarseMatcher(ac, scale, max_shape, w_free, w_dis)
+    hyps: list[_Hypothesis] = []
+    for T_rot, shape in rots:
+        b_rot = warp_into(bc, T_rot, shape)
+        for dc, dr, _ in coarse.peaks(b_rot, k_peaks):
+            # pooled blocks are anchored at the corner: half a block of ambiguity, which ICP removes
+            hyps.append(_Hypothesis(translation(dc, dr) @ T_rot, "coarse"))
+        if use_paper:
+            hyps += [_Hypothesis(T, "paper") for T in _paper_hypotheses(ac, b_rot, T_rot, 150, 3)]
+    if not hyps:
+        return refuse("no candidate alignment (the maps share no structure)")
+
+    # --- 3. polish every hypothesis a little, verify cheaply; 4. refine the best fully ---
+    icp = _WallICP(wall_a, wall_b, max_points=1500)
+    for hyp in hyps:
+        hyp.T = icp(hyp.T, iters=4, max_dist=1.5 * scale, n_points=400)
+        hyp.agreement = quick(hyp.T)
+    ok = [
+        h
+        for h in hyps
+        if h.agreement is not None and quick.overlap_ok(h.agreement, min_overlap, min_overlap_cells)
+    ]
+    ok.sort(key=lambda h: -h.score)
+    # keep distinct hypotheses only (ICP often pulls several peaks to the same pose)
+    pts = verify.points_b
+    chosen: list[_Hypothesis] = []
+    for h in ok:
+        if all(_mean_shift(h.T, c.T, pts) >= 1.0 for c in chosen):
+            chosen.append(h)
+        if len(chosen) >= n_refine:
+            break
+    for h in chosen:
+        h.T = icp(h.T, iters=15, max_dist=3.0)
+        h.T = icp(h.T, iters=10, max_dist=1.5)
+        h.agreement = verify(h.T)
+    chosen = [
+        h
+        for h in chosen
+        if h.agreement is not None
+        and verify.overlap_ok(h.agreement, min_overlap, min_overlap_cells)
+    ]
+    info["n_candidates"] = len(hyps)
+    if not chosen:
+        best_any = max((h.score for h in hyps), default=0.0)
+        return refuse(
+            f"no hypothesis overlaps enough (need {min_overlap:.0%} of b's known cells)",
+            score=best_any,
+            n_hypotheses=len(hyps),
+        )
+    chosen.sort(key=lambda h: -h.score)
+    best = chosen[0]
+    rivals = [h for h in chosen[1:] if _mean_shift(h.T, best.T, pts) >= far_cells]
+    runner = rivals[0].score if rivals else None
+    T_full = translation(bba[2], bba[0]) @ best.T @ translation(-bbb[2], -bbb[0])
+    assert best.agreement is not None
+    overlap_cells = int(best.agreement.overlap * verify.cells_per_sample)
+    common = dict(n_hypotheses=len(hyps), runner_up_score=runner, overlap_cells=overlap_cells)
+    info["best_source"] = best.source
+    if best.score < min_score:
+        return refuse(
+            f"best hypothesis agrees only {best.score:.2f} < {min_score:.2f}",
+            score=best.score,
+            **common,
+        )
+    evidence = 0
+    if rivals and rivals[0].agreement is not None:
+        evidence = int(
+            (rivals[0].agreement.disagree - best.agreement.disagree) * verify.cells_per_sample
+        )
+    if runner is not None and (best.score - runner < min_margin or evidence < min_evidence):
+        return refuse(
+            f"ambiguous: best {best.score:.3f} vs {runner:.3f} for a pose "
+            f"{_mean_shift(rivals[0].T, best.T, pts):.0f} cells away (margin {best.score - (runner or 0):.3f}, "
+            f"{evidence} more disagreeing wall cells; need {min_margin} and {min_evidence})",
+            score=best.score,
+            **common,
+        )
+    merged, offset = compose(a, b, T_full)
+    # wall cells of b that support the result, as point pairs for figures
+    pb = icp.pb[:: max(1, len(icp.pb) // 60)]
+    pb_full = pb + np.array([bbb[2], bbb[0]])
+    pa_full = pb_full @ T_full[:2, :2].T + T_full[:2, 2]
+    return MergeResult(
+        matched=True,
+        transform=T_full,
+        score=best.score,
+        merged=merged,
+        offset=offset,
+        method="semantic",
+        detector=detector if use_paper else None,
+        time_s=time.perf_counter() - t0,
+        matches=np.concatenate([pa_full, pb_full], axis=1),
+        info=info,
+        **common,  # type: ignore[arg-type]
+    )

@@ -1,0 +1,367 @@
+"""``MapMergeTracker``: map merging for N robots, every time step.
+
+Each step the caller hands over the robots' own-frame maps. The tracker
+
+- every ``merge_every`` steps tries to merge each pair of robots that are in communication range
+  and not yet connected (directly or through a chain of merged pairs), calling the merger on the
+  maps cropped to their known bounding boxes;
+- keeps an accepted transform; every ``recheck_every`` steps re-runs the merger on merged pairs
+  and replaces the transform only when the new one scores clearly better (by
+  ``replace_margin``) than the kept one does *on the same current maps*: no flip-flopping;
+- chains transforms through merged pairs (0-1 and 1-2 merged => 0-2 known);
+- composes robot i's fused map in its own canvas: each teammate's map, cropped to its known
+  bounding box, warped (nearest neighbour) into i's frame and fused by "occupied beats free
+  beats unknown" (cell-wise maximum of -1 < 0 < 100, so a wall seen by anyone stays a wall).
+  The warped patches are cached until the teammate's map changes, and maps travel only over
+  links that are up: a teammate out of range contributes the last map received from it.
+
+Cost on steps without a merge attempt (2 robots, 1500 x 1500 canvases, ~400 x 400 known):
+about 0.1 ms per map to find its known box, a copy of the own canvas and one ~0.1 ms warp per
+changed teammate (see ``scripts/merge_bench.py --tracker``).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mrexplore.errors import ConfigError, GridError
+from mrexplore.grid import Int8Grid, Transform, invert_transform
+from mrexplore.merge.api import METHODS, merge_maps
+from mrexplore.merge.common import MergeResult, Verifier, known_bbox, translation, warp_into
+
+Merger = Callable[[Int8Grid, Int8Grid], MergeResult]
+
+
+@dataclass
+class _Patch:
+    """Teammate j's map warped into robot i's canvas, restricted to a window."""
+
+    r0: int
+    c0: int
+    data: Int8Grid
+    version: int  # j's map version it was made from
+
+
+def _resolve_merger(merger: Any, options: dict[str, Any]) -> Merger:
+    if isinstance(merger, str):
+        if merger.lower() not in METHODS:
+            raise ConfigError(
+                f"MapMergeTracker: unknown merger {merger!r}; choose one of {tuple(METHODS)} or pass a callable"
+            )
+        method = merger.lower()
+        # Validate the options now (a typo should fail at construction, not 10 steps later):
+        # every method reads all its options before it looks at the maps.
+        probe = np.full((4, 4), -1, dtype=np.int8)
+        merge_maps(probe, probe, method=method, **options)
+
+        def run(a: Int8Grid, b: Int8Grid) -> MergeResult:
+            return merge_maps(a, b, method=method, **options)
+
+        return run
+    if options:
+        raise ConfigError(
+            f"MapMergeTracker: options {sorted(options)} only apply to a named merger, not {merger!r}"
+        )
+    if hasattr(merger, "merge") and callable(merger.merge):
+        return merger.merge  # type: ignore[no-any-return]
+    if callable(merger):
+        return merger  # type: ignore[no-any-return]
+    raise ConfigError(
+        f"MapMergeTracker: merger must be a method name, a callable or have .merge(), got {merger!r}"
+    )
+
+
+class MapMergeTracker:
+    """Holds N robots' maps, merges pairs over time, and fuses maps every step.
+
+    Args:
+        n_robots: number of robots (>= 1).
+        merger: a method name for :func:`~mrexplore.merge.merge_maps` (default "semantic"), a
+            callable ``(a, b) -> MergeResult`` or an object with ``.merge(a, b)``.
+        merge_every: try to merge unconnected pairs every this many steps (>= 1).
+        recheck_every: re-check accepted transforms every this many steps (0 = never).
+        replace_margin: a re-check replaces the kept transform only if its score beats the kept
+            transform's score on the current maps by at least this (default 0.05).
+        **merge_options: options for the named merger (validated at construction).
+
+    >>> import numpy as np
+    >>> tr = MapMergeTracker(2)
+    >>> m = np.full((50, 50), -1, dtype=np.int8); m[10:20, 10:20] = 0
+    >>> tr.update([m, m], step=0)
+    >>> tr.merged(0), tr.fused(0).shape
+    (False, (50, 50))
+    """
+
+    def __init__(
+        self,
+        n_robots: int,
+        merger: str | Merger | Any = "semantic",
+        merge_every: int = 10,
+        recheck_every: int = 50,
+        replace_margin: float = 0.05,
+        **merge_options: Any,
+    ) -> None:
+        if (
+            isinstance(n_robots, bool)
+            or not isinstance(n_robots, (int, np.integer))
+            or n_robots < 1
+        ):
+            raise ConfigError(
+                f"MapMergeTracker: n_robots must be a positive integer, got {n_robots!r}"
+            )
+        if (
+            isinstance(merge_every, bool)
+            or not isinstance(merge_every, (int, np.integer))
+            or merge_every < 1
+        ):
+            raise ConfigError(
+                f"MapMergeTracker: merge_every must be an integer >= 1, got {merge_every!r}"
+            )
+        if (
+            isinstance(recheck_every, bool)
+            or not isinstance(recheck_every, (int, np.integer))
+            or recheck_every < 0
+        ):
+            raise ConfigError(
+                f"MapMergeTracker: recheck_every must be an integer >= 0, got {recheck_every!r}"
+            )
+        if not 0.0 <= float(replace_margin) <= 1.0:
+            raise ConfigError(
+                f"MapMergeTracker: replace_margin must be in [0, 1], got {replace_margin!r}"
+            )
+        self.n = int(n_robots)
+        self.merge_every = int(merge_every)
+        self.recheck_every = int(recheck_every)
+        self.replace_margin = float(replace_margin)
+        self._merge = _resolve_merger(merger, dict(merge_options))
+        self.reset()
+
+    # ------------------------------------------------------------------ state
+    def reset(self) -> None:
+        """Forget every map, transform and result (call at episode start)."""
+        self._maps: list[Int8Grid | None] = [None] * self.n
+        self._bbox: list[tuple[int, int, int, int] | None] = [None] * self.n
+        self._snap: list[Int8Grid | None] = [None] * self.n  # copy of the known box, change test
+        self._version = [0] * self.n
+        self._edges: dict[tuple[int, int], Transform] = {}  # (i, j), i < j: T_ij direct
+        self._edge_score: dict[tuple[int, int], float] = {}
+        self._results: dict[tuple[int, int], MergeResult] = {}
+        self._patches: dict[tuple[int, int], _Patch] = {}
+        self._fused: list[Int8Grid | None] = [None] * self.n
+        self._fused_key: list[tuple[Any, ...] | None] = [None] * self.n
+        self._paths: dict[tuple[int, int], Transform | None] | None = None
+        self._links: NDArray[np.bool_] | None = None
+
+    # ------------------------------------------------------------------ step
+    def update(
+        self,
+        maps: Sequence[Int8Grid],
+        step: int,
+        links: NDArray[np.bool_] | None = None,
+    ) -> None:
+        """Take the robots' current maps (own frames) at time step ``step``.
+
+        Args:
+            maps: N int8 arrays (H_i, W_i); sizes may differ per robot.
+            step: the environment's step counter (merge attempts at multiples of merge_every).
+            links: (N, N) bool, ``links[i, j]`` False when robots i and j cannot communicate
+                (no merge attempt, no map exchange); None = all linked.
+        """
+        if len(maps) != self.n:
+            raise GridError(f"MapMergeTracker.update: expected {self.n} maps, got {len(maps)}")
+        if links is not None:
+            links = np.asarray(links, dtype=bool)
+            if links.shape != (self.n, self.n):
+                raise ConfigError(
+                    f"MapMergeTracker.update: links must be ({self.n}, {self.n}) bool, got shape {links.shape}"
+                )
+        self._links = links
+        for i, m in enumerate(maps):
+            # Cheap checks only: a full value-range scan of a 1500 x 1500 canvas every step
+            # would cost more than everything else here; merge_maps validates fully.
+            if not isinstance(m, np.ndarray) or m.dtype != np.int8 or m.ndim != 2 or m.size == 0:
+                raise GridError(
+                    f"MapMergeTracker.update: map {i} must be a non-empty 2-D int8 array, got "
+                    f"{getattr(m, 'dtype', type(m).__name__)} {getattr(m, 'shape', '')}"
+                )
+            self._observe(i, m)
+        if step % self.merge_every == 0:
+            self._attempt_merges()
+        if self.recheck_every and step % self.recheck_every == 0 and step > 0:
+            self._recheck()
+
+    def _observe(self, i: int, m: Int8Grid) -> None:
+        bb = known_bbox(m)
+        prev = self._maps[i]
+        changed = True
+        if prev is not None and bb == self._bbox[i] and prev.shape == m.shape:
+            snap = self._snap[i]
+            if bb is None:
+                changed = False
+            elif snap is not None:
+                changed = not np.array_equal(snap, m[bb[0] : bb[1], bb[2] : bb[3]])
+        self._maps[i] = m
+        if changed:
+            self._bbox[i] = bb
+            self._snap[i] = None if bb is None else m[bb[0] : bb[1], bb[2] : bb[3]].copy()
+            self._version[i] += 1
+
+    def _linked(self, i: int, j: int) -> bool:
+        return self._links is None or bool(self._links[i, j] and self._links[j, i])
+
+    def _crop(self, i: int) -> tuple[Int8Grid, tuple[int, int]] | None:
+        bb, m = self._bbox[i], self._maps[i]
+        if bb is None or m is None:
+            return None
+        return m[bb[0] : bb[1], bb[2] : bb[3]], (bb[2], bb[0])
+
+    def _run(self, i: int, j: int) -> tuple[MergeResult, Transform | None] | None:
+        """Merge j into i on cropped maps; returns the result and T_ij in full-canvas cells."""
+        ci, cj = self._crop(i), self._crop(j)
+        if ci is None or cj is None:
+            return None
+        (a, (ca, ra)), (b, (cb, rb)) = ci, cj
+        res = self._merge(a, b)
+        self._results[(i, j)] = res
+        T = None
+        if res.matched and res.transform is not None:
+            T = (
+                translation(ca, ra)
+                @ np.asarray(res.transform, dtype=np.float64)
+                @ translation(-cb, -rb)
+            )
+        return res, T
+
+    def _attempt_merges(self) -> None:
+        for i in range(self.n):
+            for j in range(i + 1, self.n):
+                if not self._linked(i, j) or self.transform(i, j) is not None:
+                    continue
+                out = self._run(i, j)
+                if out is not None and out[1] is not None:
+                    self._edges[(i, j)] = out[1]
+                    self._edge_score[(i, j)] = out[0].score
+                    self._paths = None
+
+    def _recheck(self) -> None:
+        for (i, j), T_old in list(self._edges.items()):
+            if not self._linked(i, j):
+                continue
+            out = self._run(i, j)
+            if out is None or out[1] is None:
+                continue  # a failed re-check never drops an accepted transform
+            res, T_new = out
+            ci, cj = self._crop(i), self._crop(j)
+            assert ci is not None and cj is not None
+            (a, (ca, ra)), (b, (cb, rb)) = ci, cj
+            old_now = Verifier(a, b)(translation(-ca, -ra) @ T_old @ translation(cb, rb)).score
+            if res.score >= old_now + self.replace_margin:
+                self._edges[(i, j)] = T_new
+                self._edge_score[(i, j)] = res.score
+                self._paths = None
+                self._patches = {
+                    k: p for k, p in self._patches.items() if i not in k and j not in k
+                }
+
+    # ------------------------------------------------------------------ queries
+    def _all_paths(self) -> dict[tuple[int, int], Transform | None]:
+        """T_ij for every connected (i, j), by breadth-first search over accepted edges."""
+        if self._paths is not None:
+            return self._paths
+        adj: dict[int, list[tuple[int, Transform]]] = {k: [] for k in range(self.n)}
+        for (i, j), T in self._edges.items():
+            adj[i].append((j, T))  # T_ij: j -> i
+            adj[j].append((i, invert_transform(T)))
+        paths: dict[tuple[int, int], Transform | None] = {}
+        for s in range(self.n):
+            seen = {s: np.eye(3)}
+            q = deque([s])
+            while q:
+                u = q.popleft()
+                for v, T_uv in adj[u]:
+                    if v not in seen:
+                        seen[v] = seen[u] @ T_uv  # T_sv = T_su @ T_uv
+                        q.append(v)
+            for v, T in seen.items():
+                if v != s:
+                    paths[(s, v)] = T
+        self._paths = paths
+        return paths
+
+    def transform(self, i: int, j: int) -> Transform | None:
+        """3x3 float64 ``T_ij`` mapping robot j's cells into robot i's cells, or None."""
+        if i == j:
+            return np.eye(3)
+        T = self._all_paths().get((i, j))
+        return None if T is None else T.copy()
+
+    def merged(self, i: int) -> bool:
+        """True once robot i's map is connected to at least one teammate's."""
+        return len(self.group(i)) > 1
+
+    def group(self, i: int) -> set[int]:
+        """Robots whose maps are merged with robot i's (including i)."""
+        return {i} | {v for (s, v) in self._all_paths() if s == i}
+
+    def last_result(self, i: int, j: int) -> MergeResult | None:
+        """The last :class:`MergeResult` of merging j into i (or i into j), or None."""
+        return self._results.get((min(i, j), max(i, j)))
+
+    def fused(self, i: int) -> Int8Grid:
+        """Robot i's fused map: int8, same shape and frame as its own map.
+
+        Read-only and cached: the same array is returned until a map or transform changes.
+        Copy it before writing.
+        """
+        own = self._maps[i]
+        if own is None:
+            raise GridError("MapMergeTracker.fused: call update() first")
+        mates = sorted(self.group(i) - {i})
+        patches = [p for p in (self._patch(i, j) for j in mates) if p is not None]
+        key = (self._version[i], id(own), tuple((id(p), p.version) for p in patches))
+        if self._fused[i] is not None and self._fused_key[i] == key:
+            return self._fused[i]  # type: ignore[return-value]
+        if not patches:
+            out = own.copy()
+        else:
+            out = own.copy()
+            for p in patches:
+                h, w = p.data.shape
+                win = out[p.r0 : p.r0 + h, p.c0 : p.c0 + w]
+                np.maximum(win, p.data, out=win)
+        out.flags.writeable = False
+        self._fused[i], self._fused_key[i] = out, key
+        return out
+
+    def _patch(self, i: int, j: int) -> _Patch | None:
+        """j's map warped into i's canvas (cached); stale copy when the link is down."""
+        old = self._patches.get((i, j))
+        if not self._linked(i, j) or (old is not None and old.version == self._version[j]):
+            return old
+        T = self.transform(i, j)
+        cj = self._crop(j)
+        own = self._maps[i]
+        if T is None or cj is None or own is None:
+            return old
+        b, (cb, rb) = cj
+        T_crop = T @ translation(cb, rb)  # cropped j cells -> i cells
+        h, w = b.shape
+        corners = np.array([[0, 0], [w - 1, 0], [0, h - 1], [w - 1, h - 1]], dtype=np.float64)
+        q = corners @ T_crop[:2, :2].T + T_crop[:2, 2]
+        H, W = own.shape
+        c0 = max(0, int(np.floor(q[:, 0].min())))
+        r0 = max(0, int(np.floor(q[:, 1].min())))
+        c1 = min(W, int(np.ceil(q[:, 0].max())) + 1)
+        r1 = min(H, int(np.ceil(q[:, 1].max())) + 1)
+        if c1 <= c0 or r1 <= r0:
+            return old  # j's known part falls outside i's canvas
+        data = warp_into(b, T_crop, (r1 - r0, c1 - c0), dst_origin=(c0, r0))
+        p = _Patch(r0, c0, data, self._version[j])
+        self._patches[(i, j)] = p
+        return p

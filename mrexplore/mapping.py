@@ -169,43 +169,49 @@ class OccupancyMap:
             t_end[out] = np.minimum(t_end[out], _exit_t(ox, oy, d[out], w, h))
             hits[out] = False
 
-        marks = self._marks
-        flat_marks = marks.reshape(-1)
+        flat_marks = self._marks.reshape(-1)
         origins = np.empty_like(d)
         origins[:, 0] = ox
         origins[:, 1] = oy
+        touched = [np.array([int(oy) * w + int(ox)], dtype=np.int64)]  # the robot's own cell
         short = t_end < SHORT_BEAM_CELLS
         for group in (np.flatnonzero(short), np.flatnonzero(~short)):
             if group.size == 0:
                 continue
             n_slots = math.ceil(float(t_end[group].max())) + 1
             tr = traverse(
-                origins[group], d[group], 0, n_slots, w, float(n_slots) + 2.0, dtype=np.float32
+                origins[group],
+                d[group],
+                0,
+                n_slots,
+                w,
+                float(n_slots) + 2.0,
+                dtype=np.float32,
+                index_bound=h * w,
             )
-            counts = tr.count_before(t_end[group])
-            slots = np.arange(n_slots)
-            for cnt, idx in zip(counts, (tr.idx_x, tr.idx_y), strict=True):
-                flat_marks[idx[slots[None, :] < cnt[:, None]]] = 1
-        marks[int(oy), int(ox)] = 1
+            touched.append(tr.selected(tr.count_before(t_end[group])))
+        free_idx = np.concatenate(touched)
+        flat_marks[free_idx] = 1
         # The end cell of each hit beam (occupied wins: written after the free marks).
+        occ_idx = np.zeros(0, dtype=np.int64)
         if hits.any():
             te = t_end[hits] + _END_NUDGE_CELLS
             ec = np.floor(ox + te * d[hits, 0]).astype(np.int64)
             er = np.floor(oy + te * d[hits, 1]).astype(np.int64)
-            marks[er, ec] = 2
-        # Only a window around the scan can hold marks: read them there, apply once per cell.
-        reach = float(t_end.max()) + 2.0 if t_end.size else 2.0
-        r0, r1 = max(0, int(oy - reach)), min(h, int(oy + reach) + 2)
-        c0, c1 = max(0, int(ox - reach)), min(w, int(ox + reach) + 2)
-        win = marks[r0:r1, c0:c1]
-        rr, cc = np.nonzero(win)
-        code = win[rr, cc]
-        win[rr, cc] = 0
-        rr += r0
-        cc += c0
-        lo = np.clip(self.logodds[rr, cc] + self._delta[code], self.l_min, self.l_max)
-        self.logodds[rr, cc] = lo
-        self._int8[rr, cc] = _logodds_to_int8(lo)
+            occ_idx = er * w + ec
+            flat_marks[occ_idx] = 2
+        # Apply once per cell: duplicates in idx all read the same old value and write the same
+        # new one, so no sort / unique is needed.
+        idx = np.concatenate([free_idx, occ_idx])
+        code = flat_marks[idx]
+        flat_marks[idx] = 0
+        flat_lo = self.logodds.reshape(-1)
+        lo = np.clip(flat_lo[idx] + self._delta[code], self.l_min, self.l_max)
+        flat_lo[idx] = lo
+        self._int8.reshape(-1)[idx] = _logodds_to_int8(lo)
+        # Rows by a float multiply (exact for these sizes; int64 division is slower).
+        rr = np.floor((idx + 0.5) * (1.0 / w)).astype(np.int64)
+        cc = idx - rr * w
         if rr.size:
             box = [int(rr.min()), int(rr.max()), int(cc.min()), int(cc.max())]
             if self._bbox is None:
@@ -244,11 +250,19 @@ def _exit_t(ox: float, oy: float, d: NDArray[np.float64], w: int, h: int) -> NDA
     return np.maximum(np.minimum(tx, ty) - 10.0 * CORNER_EPS, 0.0)
 
 
+#: Log-odds at the int8 thresholds of :mod:`mrexplore.grid` (logit of 25 % and 65 %).
+_L_FREE_MAX: float = math.log(FREE_THRESHOLD / (100.0 - FREE_THRESHOLD))
+_L_OCC_MIN: float = math.log(OCCUPIED_THRESHOLD / (100.0 - OCCUPIED_THRESHOLD))
+
+
 def _logodds_to_int8(lo: NDArray[np.float32]) -> NDArray[np.int8]:
     """Observed cells' log-odds -> int8 occupancy: FREE / OCCUPIED past the thresholds of
-    :mod:`mrexplore.grid`, else the probability in percent (never UNKNOWN: they were observed)."""
-    pct = 100.0 / (1.0 + np.exp(-lo.astype(np.float64)))
-    out = np.clip(np.rint(pct), FREE_THRESHOLD + 1, OCCUPIED_THRESHOLD - 1).astype(np.int8)
-    out[pct <= FREE_THRESHOLD] = FREE
-    out[pct >= OCCUPIED_THRESHOLD] = OCCUPIED
+    :mod:`mrexplore.grid`, else the probability in percent (never UNKNOWN: they were observed).
+    The thresholds are compared in log-odds; the percentage is only computed for the (few)
+    undecided cells."""
+    out = np.where(lo >= _L_OCC_MIN, np.int8(OCCUPIED), np.int8(FREE))
+    mid = (lo > _L_FREE_MAX) & (lo < _L_OCC_MIN)
+    if mid.any():
+        pct = 100.0 / (1.0 + np.exp(-lo[mid].astype(np.float64)))
+        out[mid] = np.clip(np.rint(pct), FREE_THRESHOLD + 1, OCCUPIED_THRESHOLD - 1).astype(np.int8)
     return out

@@ -42,7 +42,7 @@ CORNER_EPS: float = 1e-4
 #: Crossing slots (per line family) of the first slice of a cast. Beams are traversed in two
 #: slices: most indoor beams meet a wall within the first one and drop out, so the second
 #: (up to the maximum range) only runs on the long beams. See ``scripts/bench_sensor.py``.
-FIRST_SLICE_SLOTS: int = 24
+FIRST_SLICE_SLOTS: int = 40
 
 
 @dataclass(frozen=True)
@@ -151,102 +151,60 @@ def prepare_walls(walls: NDArray[np.bool_]) -> PaddedGrid:
 class Traversal:
     """The cells N rays enter at grid-line crossing slots ``k = k0 .. k0 + K - 1``.
 
-    Family x are the crossings of vertical grid lines (integer corner x), family y of
-    horizontal ones. For family x, slot k is the crossing at ray parameter
-    ``t = t0_x + k * dt_x`` (cells; ``t0_x = inf`` for rays parallel to those lines) and
-    ``idx_x[n, k - k0]`` is the flat index ``row * stride + col`` of the cell entered there.
+    Both line families are stacked as 2N "columns": column ``j < N`` holds the crossings of ray
+    ``j`` with vertical grid lines (integer corner x), column ``N + j`` those with horizontal
+    lines. In column j, slot k is the crossing at ray parameter ``t = t0[j] + k * dt[j]``
+    (cells; ``t0 = inf`` when the ray is parallel to that family) and ``idx[k - k0, j]`` is the
+    flat index ``row * stride + col`` of the cell the ray enters there.
 
     Attributes:
-        idx_x, idx_y: int64 (N, K) flat cell indices (garbage, but finite, for slots of rays
-            parallel to that family: their t is inf).
-        t0_x, dt_x, t0_y, dt_y: float64 (N,) arithmetic sequences of the crossing t.
+        idx: int64 (K, 2N) flat cell indices, slot-major (garbage, but finite, for slots with
+            ``t`` beyond the traversal's ``t_cap`` and for parallel columns).
+        t0, dt: float64 (2N,) the arithmetic sequence of each column's crossing t.
         k0: first slot.
     """
 
-    idx_x: NDArray[np.int64]
-    idx_y: NDArray[np.int64]
-    t0_x: NDArray[np.float64]
-    dt_x: NDArray[np.float64]
-    t0_y: NDArray[np.float64]
-    dt_y: NDArray[np.float64]
+    idx: NDArray[np.int64]
+    t0: NDArray[np.float64]
+    dt: NDArray[np.float64]
     k0: int
 
-    def t_at(self, family_x: bool, k: NDArray[np.integer]) -> NDArray[np.float64]:
-        """Ray parameter of absolute slot ``k`` (N,) of one family."""
-        if family_x:
-            return self.t0_x + k * self.dt_x
-        return self.t0_y + k * self.dt_y
+    @property
+    def n_rays(self) -> int:
+        """N, the number of rays (half the columns)."""
+        return self.idx.shape[1] // 2
 
-    def count_before(self, t_end: NDArray[np.float64]) -> tuple[NDArray[np.int64], ...]:
-        """Per family, the number of slots of this traversal with ``t < t_end`` (N,)."""
+    def t_at(self, k: NDArray[np.integer] | int) -> NDArray[np.float64]:
+        """Ray parameter of absolute slot ``k`` (scalar or (2N,)) in every column, (2N,)."""
+        return self.t0 + k * self.dt
+
+    def count_before(self, t_end: NDArray[np.float64]) -> NDArray[np.int64]:
+        """Per column (2N,), the number of this traversal's slots with ``t < t_end`` (N,)."""
+        t2 = np.concatenate([t_end, t_end])
+        # Slot k is before t_end iff k < (t_end - t0) / dt. Parallel columns (dt = 0, t0 = inf)
+        # have none: a huge finite t0 and a unit dt give a negative count, clipped to 0.
+        par = self.dt == 0.0
+        n_all = np.ceil((t2 - np.where(par, 1e30, self.t0)) / np.where(par, 1.0, self.dt))
+        return np.clip(n_all - self.k0, 0, self.idx.shape[0]).astype(np.int64)
+
+    def selected(
+        self, counts: NDArray[np.int64], lo: int = 0, hi: int | None = None
+    ) -> NDArray[np.int64]:
+        """Flat indices of the first ``counts[j]`` slots of the columns of rays ``lo..hi-1``
+        (both families), as one 1-D array (order: slot-major)."""
+        n = self.n_rays
+        hi = n if hi is None else hi
+        slots = np.arange(self.idx.shape[0])[:, None]
         out = []
-        for t0, dt in ((self.t0_x, self.dt_x), (self.t0_y, self.dt_y)):
-            with np.errstate(invalid="ignore", divide="ignore"):
-                n_all = np.where(
-                    np.isfinite(t0) & (t_end > t0),
-                    np.ceil((t_end - t0) / np.where(dt > 0, dt, 1.0)),
-                    0.0,
-                )
-            n_all = np.where(dt > 0, n_all, np.where(t_end > t0, np.inf, 0.0))
-            k = np.clip(n_all - self.k0, 0, self.idx_x.shape[1])
-            out.append(k.astype(np.int64))
-        return tuple(out)
+        for c0 in (lo, n + lo):
+            c1 = c0 + (hi - lo)
+            sel = slots < counts[None, c0:c1]
+            out.append(self.idx[:, c0:c1][sel])
+        return np.concatenate(out)
 
 
-def _family(
-    o: NDArray[np.float64],
-    d: NDArray[np.float64],
-    o_other: NDArray[np.float64],
-    d_other: NDArray[np.float64],
-    k: NDArray[np.float32],
-    stride_self: int,
-    stride_other: int,
-    near_offset: int | None,
-    dtype: type[np.floating],
-    t_cap: float,
-) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
-    """Cells entered at the crossings of lines ``coordinate = integer`` by rays ``o + t d``.
-
-    ``stride_self`` is the flat-index step of one cell along this coordinate (1 for columns,
-    the row stride for rows), ``stride_other`` along the other one.
-    """
-    fo = np.floor(o)
-    pos = d > 0.0
-    step = np.where(pos, 1, -1)
-    ad = np.abs(d)
-    moving = ad > 0.0
-    # A ray parallel to these lines never crosses one: t0 = inf and the slope is taken as 0 so
-    # that the (unused) positions stay finite.
-    inv = np.where(moving, 1.0 / np.where(moving, ad, 1.0), 0.0)
-    t0 = np.where(moving, np.where(pos, fo + 1.0 - o, o - fo) * inv, np.inf)
-    # Other coordinate at slot k, relative to the origin's cell, plus an offset so that
-    # truncation to int is floor: a = start, s = slope per slot. Relative values keep float32
-    # within ~1e-5 cells. Slots with t > t_cap are never used, so t0 and the slope are clipped
-    # to t_cap: positions stay bounded (no int overflow for near-parallel rays).
-    offset = math.ceil(t_cap) + 2
-    t0_pos = np.where(moving, np.minimum(t0, t_cap), 0.0)
-    fo_other = np.floor(o_other)
-    a = (o_other - fo_other) + t0_pos * d_other - CORNER_EPS + offset
-    s = np.clip(inv * d_other, -t_cap, t_cap)
-    pos_other = np.multiply.outer(s.astype(dtype), k)
-    pos_other += a.astype(dtype)[:, None]
-    cell_other = pos_other.astype(np.int64)
-    # Flat index: (origin cell) + (k + 1) steps along this axis + cell_other along the other.
-    base = (
-        fo.astype(np.int64) * stride_self
-        + (fo_other.astype(np.int64) - offset) * stride_other
-        + step * stride_self
-    )
-    idx = cell_other * stride_other
-    idx += np.multiply.outer(step * stride_self, k.astype(np.int64))
-    idx += base[:, None]
-    if near_offset is not None:
-        # Within 2 * CORNER_EPS below the next line too: the crossing is at a corner, test the
-        # "pair" plane (both cells beside it) with the same gather.
-        pos_other -= cell_other
-        near = pos_other >= (1.0 - 2.0 * CORNER_EPS)
-        idx += near * near_offset
-    return idx, t0, inv
+#: Flat indices are computed in float32 when every index is below this (exact integers).
+_FLOAT32_EXACT: int = 1 << 24
 
 
 def traverse(
@@ -258,6 +216,7 @@ def traverse(
     t_cap: float,
     near_offsets: tuple[int, int] | None = None,
     dtype: type[np.floating] = np.float64,
+    index_bound: int | None = None,
 ) -> Traversal:
     """Cells entered by N rays at crossing slots ``k0 .. k0 + n_slots - 1`` of each line family.
 
@@ -275,18 +234,62 @@ def traverse(
         near_offsets: when given ``(off_x, off_y)``, a crossing within :data:`CORNER_EPS` of a
             corner gets ``off_x`` (vertical lines) or ``off_y`` (horizontal lines) added to its
             index: the sensor points those at planes that test both cells beside the corner.
-            When None, the entered cell is ``floor`` of the position (exact up to rounding).
-        dtype: float type of the per-slot positions (float32 is faster; relative coordinates
-            keep it within ~1e-5 cells for beams of a few hundred cells).
+            When None, the entered cell is ``floor`` of the position (biased by -CORNER_EPS).
+        dtype: float type of the per-slot positions and index arithmetic (float32 is faster;
+            relative coordinates keep it within ~1e-5 cells for beams of a few hundred cells).
+        index_bound: an upper bound of the flat indices (the size of the gathered table);
+            float32 is only used when it is below 2**24 (integers exact), else float64.
+
+    Cost: about ten elementwise passes over (K, 2N) in ``dtype`` and one conversion to int64.
+    Both families are stacked into one set of arrays and laid out slot-major, because numpy's
+    per-call overhead and its slow broadcasting along short inner axes dominated the first,
+    per-family (N, K) version (measured: ~2x slower).
     """
-    k = np.arange(k0, k0 + n_slots, dtype=dtype)
-    ox, oy = origins[:, 0], origins[:, 1]
-    dx, dy = directions[:, 0], directions[:, 1]
-    nx = near_offsets[0] if near_offsets is not None else None
-    ny = near_offsets[1] if near_offsets is not None else None
-    idx_x, t0_x, dt_x = _family(ox, dx, oy, dy, k, 1, row_stride, nx, dtype, t_cap)
-    idx_y, t0_y, dt_y = _family(oy, dy, ox, dx, k, row_stride, 1, ny, dtype, t_cap)
-    return Traversal(idx_x=idx_x, idx_y=idx_y, t0_x=t0_x, dt_x=dt_x, t0_y=t0_y, dt_y=dt_y, k0=k0)
+    if index_bound is None or index_bound >= _FLOAT32_EXACT:
+        dtype = np.float64
+    n = origins.shape[0]
+    o = np.concatenate([origins[:, 0], origins[:, 1]])  # coordinate across the lines
+    o_other = np.concatenate([origins[:, 1], origins[:, 0]])
+    d = np.concatenate([directions[:, 0], directions[:, 1]])
+    d_other = np.concatenate([directions[:, 1], directions[:, 0]])
+    stride_self = np.repeat(np.array([1.0, float(row_stride)]), n)
+    stride_other = np.repeat(np.array([float(row_stride), 1.0]), n)
+
+    fo = np.floor(o)
+    ad = np.abs(d)
+    moving = ad > 0.0
+    # A ray parallel to a family never crosses its lines: t0 = inf and the slope is taken as 0
+    # so that the (unused) positions stay finite.
+    inv = 1.0 / np.where(moving, ad, np.inf)
+    first = np.where(d > 0.0, fo + 1.0 - o, o - fo)
+    t0 = np.where(moving, first * inv, np.inf)
+    # Other coordinate at slot k, relative to the origin's cell, plus an offset so it stays
+    # positive and small (float32 keeps ~1e-5 cells): a = start, s = slope per slot. Slots with
+    # t > t_cap are never used, so t0 and the slope are capped: no overflow near parallel.
+    offset = math.ceil(t_cap) + 2
+    fo_other = np.floor(o_other)
+    a = (o_other - fo_other) + np.minimum(first * inv, t_cap) * d_other + (offset - CORNER_EPS)
+    s = np.minimum(np.maximum(inv * d_other, -t_cap), t_cap)
+    k = np.arange(k0, k0 + n_slots, dtype=dtype)[:, None]
+    pos = k * s.astype(dtype)
+    pos += a.astype(dtype)
+    cell = np.floor(pos)
+    # Flat index = origin cell + (k + 1) steps across the lines + cell along them: small
+    # integers, exact in float32 (float64 is picked above for huge tables).
+    step = np.where(d > 0.0, stride_self, -stride_self)
+    base = fo * stride_self + (fo_other - offset) * stride_other + step
+    idx_f = k * step.astype(dtype)
+    idx_f += base.astype(dtype)
+    if near_offsets is not None:
+        # Within 2 * CORNER_EPS below the next line too: the crossing is at a corner, test the
+        # "pair" plane (both cells beside it) with the same gather.
+        pos -= cell
+        near = pos >= (1.0 - 2.0 * CORNER_EPS)
+        off = np.repeat(np.array(near_offsets, dtype=dtype), n)
+        np.add(idx_f, off, out=idx_f, where=near)
+    cell *= stride_other.astype(dtype)
+    idx_f += cell
+    return Traversal(idx=idx_f.astype(np.int64), t0=t0, dt=inv, k0=k0)
 
 
 def _beam_angles(cfg: LidarConfig) -> NDArray[np.float64]:
@@ -296,16 +299,6 @@ def _beam_angles(cfg: LidarConfig) -> NDArray[np.float64]:
     if cfg.n_beams == 1:
         return np.zeros(1, dtype=np.float64)
     return np.linspace(-cfg.fov_rad / 2.0, cfg.fov_rad / 2.0, cfg.n_beams, dtype=np.float64)
-
-
-def _grid_flat_of(padded: NDArray[np.int64], shape: tuple[int, int]) -> NDArray[np.int64]:
-    """Padded plane-0 flat indices -> flat indices of the unpadded (H, W) grid, -1 outside."""
-    h, w = shape
-    wp = w + 2
-    r = padded // wp - 1
-    c = padded % wp - 1
-    inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
-    return np.where(inside, r * w + c, -1)
 
 
 class Lidar:
@@ -405,23 +398,28 @@ class Lidar:
             if k_b <= k_a or active.size == 0:
                 continue
             tr = traverse(
-                origins_p[active], dirs[active], k_a, k_b - k_a, wp, t_cap, near, self.dtype
+                origins_p[active],
+                dirs[active],
+                k_a,
+                k_b - k_a,
+                wp,
+                t_cap,
+                near,
+                self.dtype,
+                index_bound=grid.table.size,
             )
-            slice_best = np.full(active.size, np.inf)
-            rows = np.arange(active.size)
-            for fam_x, idx in ((True, tr.idx_x), (False, tr.idx_y)):
-                wall = np.take(grid.table, idx, mode="clip")
-                # Crossing t grows with k, so the first wall slot is the nearest wall.
-                k_first = wall.argmax(axis=1)
-                has = wall[rows, k_first]
-                t_first = tr.t_at(fam_x, k_first + k_a)
-                slice_best = np.minimum(slice_best, np.where(has, t_first, np.inf))
-            best[active] = np.minimum(best[active], slice_best)
+            m = active.size
+            wall = np.take(grid.table, tr.idx, mode="clip")  # (K, 2m)
+            # Crossing t grows with the slot, so a column's first wall slot is its nearest wall.
+            k_first = wall.argmax(axis=0)
+            has = wall[k_first, np.arange(2 * m)]
+            t_first = np.where(has, tr.t_at(k_first + k_a), np.inf)
+            best[active] = np.minimum(best[active], np.minimum(t_first[:m], t_first[m:]))
             if want_visible:
                 kept.append((active, tr))
             # Every crossing with t <= covered has been tested for these rays.
-            last = np.full(active.size, k_b - 1)
-            covered = np.minimum(tr.t_at(True, last), tr.t_at(False, last))
+            t_last = tr.t_at(k_b - 1)
+            covered = np.minimum(t_last[:m], t_last[m:])
             done = (best[active] <= covered) | (covered >= max_cells)
             active = active[~done]
 
@@ -456,29 +454,29 @@ class Lidar:
         (the free cells it crossed and the wall cell it hit), plus the robot's own cell."""
         h, w = grid.shape
         wp = grid.padded_width
-        rays: list[NDArray[np.int64]] = []
-        cells: list[NDArray[np.int64]] = []
+        parts: list[list[NDArray[np.int64]]] = [[] for _ in range(n_rob)]
         for active, tr in kept:
             # A hair above the range so the hit cell (entered exactly at the range) counts.
             counts = tr.count_before(limit[active] + 1e-9)
-            slots = np.arange(tr.idx_x.shape[1])
-            for cnt, idx in zip(counts, (tr.idx_x, tr.idx_y), strict=True):
-                sel = slots[None, :] < cnt[:, None]
-                rays.append(np.broadcast_to(active[:, None], idx.shape)[sel])
-                # Reduce the corner planes back to plane 0 (the cell itself).
-                cells.append(idx[sel] % grid.plane)
-        ray_idx = np.concatenate(rays) if rays else np.zeros(0, dtype=np.int64)
-        padded = np.concatenate(cells) if cells else np.zeros(0, dtype=np.int64)
-        r = padded // wp - 1
-        c = padded % wp - 1
-        ok = (r >= 0) & (r < h) & (c >= 0) & (c < w)
-        flat = r * w + c
-        robot = ray_idx // n_b
+            # active is sorted: each robot's rays are one contiguous block of columns.
+            cuts = np.searchsorted(active, np.arange(n_rob + 1) * n_b)
+            for i in range(n_rob):
+                if cuts[i + 1] > cuts[i]:
+                    parts[i].append(tr.selected(counts, int(cuts[i]), int(cuts[i + 1])))
         out = []
         for i in range(n_rob):
-            own = flat[ok & (robot == i)]
+            e = np.concatenate(parts[i]) if parts[i] else np.zeros(0, dtype=np.int64)
+            # Corner crossings point into the pair planes: back to plane 0 (rare).
+            big = e >= grid.plane
+            if big.any():
+                e[big] %= grid.plane
+            r_p = e // wp
+            c_p = e - r_p * wp
+            # Pad cells (the hit cell of a beam leaving the grid) are not world cells.
+            ok = (r_p >= 1) & (r_p <= h) & (c_p >= 1) & (c_p <= w)
+            flat = (e - 2 * r_p - (w + 1))[ok]
             oc = origin_cells[i]
-            out.append(np.concatenate([own, np.array([oc[1] * w + oc[0]], dtype=np.int64)]))
+            out.append(np.concatenate([flat, np.array([oc[1] * w + oc[0]], dtype=np.int64)]))
         return tuple(out)
 
 

@@ -69,23 +69,19 @@ def bench(world: World, max_range_m: float, n_robots: int, steps: int, seed: int
         f"{n_robots} robots x 360 beams, range {max_range_m} m "
         f"(mean range {mean_range:.2f} m, {hit_share:.0%} hits), canvas {shape[0]}x{shape[1]}"
     )
-    print(
-        f"  cast only             : {n_upd / t_cast:8.0f} robot scans/s   ({1e3 * t_cast / steps:.3f} ms per step)"
-    )
-    print(
-        f"  cast + visible cells  : {n_upd / t_cast_vis:8.0f} robot scans/s   ({1e3 * t_cast_vis / steps:.3f} ms per step)"
-    )
-    print(
-        f"  map update only       : {n_upd / t_map:8.0f} robot updates/s ({1e3 * t_map / n_upd:.3f} ms per robot)"
-    )
     total = t_cast + t_map
-    print(
-        f"  cast + map update     : {n_upd / total:8.0f} robot updates/s ({1e3 * total / steps:.3f} ms per step)"
-    )
     total_v = t_cast_vis + t_map
-    print(
-        f"  + visible (simulator) : {n_upd / total_v:8.0f} robot updates/s ({1e3 * total_v / steps:.3f} ms per step)"
-    )
+    table = [
+        ("cast only", t_cast, "robot scans/s"),
+        ("cast + visible cells", t_cast_vis, "robot scans/s"),
+        ("map update only", t_map, "robot updates/s"),
+        ("cast + map update", total, "robot updates/s"),
+        ("+ visible (simulator)", total_v, "robot updates/s"),
+    ]
+    for label, secs, unit in table:
+        print(
+            f"  {label:22s}: {n_upd / secs:8.0f} {unit:16s} ({1e3 * secs / steps:.3f} ms per step)"
+        )
 
 
 def main() -> None:

@@ -224,20 +224,21 @@ def test_visible_cells_match_the_traversal_of_a_full_scan() -> None:
 
 
 def test_traversal_enters_each_crossed_cell_once_in_order() -> None:
-    # A ray from (0.2, 0.3) (corner coords) at 30 deg: the cells entered at crossings with
-    # t < 5, gathered by family, are the cells a dense sampling of the segment visits.
+    # A ray from (0.7, 0.8) (corner coords) at 30 deg: the cells entered at crossings with
+    # t < 5 are exactly the cells a dense sampling of the segment visits (minus the start).
     o = np.array([[0.7, 0.8]])
     a = math.radians(30.0)
     d = np.array([[math.cos(a), math.sin(a)]])
     tr = traverse(o, d, 0, 8, row_stride=100, t_cap=10.0)
-    counts = tr.count_before(np.array([5.0]))
-    entered = set()
-    for cnt, idx in zip(counts, (tr.idx_x, tr.idx_y), strict=True):
-        entered |= {int(v) for v in idx[0, : int(cnt[0])]}
+    entered = tr.selected(tr.count_before(np.array([5.0])))
+    assert len(entered) == len(set(entered.tolist()))  # each cell once
     s = np.linspace(0.0, 5.0 - 1e-6, 20000)
     pts = o[0] + s[:, None] * d[0]
     dense = {int(r) * 100 + int(c) for c, r in np.floor(pts)}
-    assert entered | {0} == dense
+    assert set(entered.tolist()) | {0} == dense
+    # and in order of t within each family: the x-family cells step +1 column at a time
+    x_cells = tr.idx[: int(tr.count_before(np.array([5.0]))[0]), 0]
+    assert np.all(np.diff(x_cells % 100) == 1)
 
 
 @pytest.mark.parametrize(

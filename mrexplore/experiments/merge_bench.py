@@ -218,7 +218,8 @@ def tracker_timing(
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """CLI: ``merge_bench [--n N] [--seed S] [--methods m,..] [--families f,..] [--out STEM] [--tracker]``."""
+    """CLI: ``merge_bench [--n N] [--seed S] [--methods m,..] [--families f,..] [--out STEM]
+    [--tracker]``; returns the exit code."""
     p = argparse.ArgumentParser(prog="mrexplore bench merge", description=__doc__.split("\n\n")[0])
     p.add_argument("--n", type=int, default=30, help="cases per family (default 30)")
     p.add_argument("--seed", type=int, default=0)

@@ -174,20 +174,22 @@ def explore_partial_map(
     inflated = cv2.dilate(
         walls.view(np.uint8),
         np.ones((3, 3), np.uint8),
-        iterations=max(1, int(round(radius_m / resolution_m))),
+        iterations=max(1, round(radius_m / resolution_m)),
     )
     free = ~inflated.astype(bool)
     cells = np.argwhere(free)
     if start is None:
-        start = tuple(int(x) for x in cells[rng.integers(len(cells))])
+        k = int(rng.integers(len(cells)))
+        start = (int(cells[k, 0]), int(cells[k, 1]))
     views: list[tuple[int, int]] = []
-    cur = start
+    cur: tuple[int, int] = start
     for _ in range(n_waypoints):
         dist = _bfs_distance(free, cur)
         reach = np.argwhere(dist > 0)
         if reach.size == 0:
             break
-        goal = tuple(int(x) for x in reach[rng.integers(len(reach))])
+        k = int(rng.integers(len(reach)))
+        goal = (int(reach[k, 0]), int(reach[k, 1]))
         views += _path(dist, goal)[::scan_every]
         cur = goal
     views.append(cur)
@@ -284,7 +286,7 @@ def symmetric_cases(n: int, seed: int) -> list[MergeCase]:
 
 
 def load_real_map(rel: str, maps_dir: Path = SHARED_MAPS) -> Int8Grid:
-    """A shared real map as int8, row 0 = lowest y (via :func:`mrexplore.world.map_io.read_map_yaml`)."""
+    """A shared real map as int8, row 0 = lowest y (read by ``map_io.read_map_yaml``)."""
     from mrexplore.world.map_io import read_map_yaml
 
     return read_map_yaml(maps_dir / rel).grid

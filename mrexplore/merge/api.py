@@ -25,7 +25,8 @@ def merge_maps(a: Int8Grid, b: Int8Grid, method: str = "semantic", **options: An
 
     Args:
         a, b: int8 (H, W) maps, -1 unknown / 0 free / 100 occupied; any sizes, each in its own
-            frame, same resolution (the caller checks; files: :mod:`mrexplore.experiments.merge_files`).
+            frame, same resolution (the caller checks; for files see
+            :mod:`mrexplore.experiments.merge_files`).
         method: ``"semantic"`` (default; verified, any rotation, refuses ambiguous cases),
             ``"paper"`` (Durdu & Korkmaz 2019, translation only) or ``"orb"`` (m-explore baseline).
         **options: method options (see :func:`~mrexplore.merge.semantic.merge_semantic`,

@@ -185,11 +185,13 @@ def to_gray(grid: Int8Grid) -> NDArray[np.uint8]:
     return out
 
 
-def cell_codes(grid: Int8Grid) -> NDArray[np.uint8]:
-    """Verifier codes (H, W) uint8: unknown / free / free within one cell of a wall / wall."""
+def cell_codes(grid: Int8Grid, tolerance: int = 1) -> NDArray[np.uint8]:
+    """Verifier codes (H, W) uint8: unknown / free / free within ``tolerance`` cells of a wall
+    (8-neighbourhood, i.e. a square window) / wall."""
     wall = grid >= OCCUPIED_THRESHOLD
     free = (grid >= 0) & (grid <= FREE_THRESHOLD)
-    near = cv2.dilate(wall.view(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    k = 2 * int(tolerance) + 1
+    near = cv2.dilate(wall.view(np.uint8), np.ones((k, k), np.uint8)).astype(bool)
     codes = np.zeros(grid.shape, dtype=np.uint8)
     codes[free] = CODE_FREE
     codes[free & near] = CODE_FREE_NEAR_WALL
@@ -268,13 +270,18 @@ class Verifier:
     while free-on-free cells, which agree for almost any pose inside a big room and would drown
     the signal, are left out.
 
+    ``tolerance`` widens the one-cell tolerance (the semantic method screens coarse hypotheses,
+    which may be a few cells off, with a wider one).
+
     Each call costs two gathers and two 16-bin ``bincount`` over at most ``max_samples`` points
     per map: a few hundred microseconds, so dozens of hypotheses cost milliseconds.
     """
 
-    def __init__(self, a: Int8Grid, b: Int8Grid, max_samples: int = 20000) -> None:
-        self.codes_a = cell_codes(a)
-        self.codes_b = cell_codes(b)
+    def __init__(
+        self, a: Int8Grid, b: Int8Grid, max_samples: int = 20000, tolerance: int = 1
+    ) -> None:
+        self.codes_a = cell_codes(a, tolerance)
+        self.codes_b = cell_codes(b, tolerance)
         self.points_b, self.cells_per_sample = _sample(self.codes_b == CODE_WALL, max_samples)
         self.points_a, _ = _sample(self.codes_a == CODE_WALL, max_samples)
 
@@ -306,7 +313,9 @@ class Verifier:
         if not np.isfinite(T).all() or abs(det) < 1e-9:
             return Agreement(0, 0, 0.0)  # a degenerate transform agrees with nothing
         ab, db, nb = self._count(self.points_b, T, self.codes_a)
-        aa, da, _ = self._count(self.points_a, np.linalg.inv(T), self.codes_b)
+        aa, da, _ = self._count(
+            self.points_a, np.asarray(np.linalg.inv(T), np.float64), self.codes_b
+        )
         share = nb / self.points_b.shape[0] if self.points_b.shape[0] else 0.0
         return Agreement(ab + aa, db + da, share)
 
@@ -365,10 +374,11 @@ def compose(a: Int8Grid, b: Int8Grid, T_ab: Transform) -> tuple[Int8Grid, tuple[
     r0, r1, c0, c1 = bb
     corners = np.array([[c0, r0], [c1 - 1, r0], [c0, r1 - 1], [c1 - 1, r1 - 1]], dtype=np.float64)
     q = corners @ T_ab[:2, :2].T + T_ab[:2, 2]
-    cmin = min(0, int(np.floor(q[:, 0].min())) - 1)
-    rmin = min(0, int(np.floor(q[:, 1].min())) - 1)
-    cmax = max(w, int(np.ceil(q[:, 0].max())) + 2)
-    rmax = max(h, int(np.ceil(q[:, 1].max())) + 2)
+    # nearest-neighbour cells of the corners (a small epsilon keeps exact integers exact)
+    cmin = min(0, int(np.floor(q[:, 0].min() + 0.5 - 1e-6)))
+    rmin = min(0, int(np.floor(q[:, 1].min() + 0.5 - 1e-6)))
+    cmax = max(w, int(np.floor(q[:, 0].max() + 0.5 + 1e-6)) + 1)
+    rmax = max(h, int(np.floor(q[:, 1].max() + 0.5 + 1e-6)) + 1)
     shape = (rmax - rmin, cmax - cmin)
     canvas = np.full(shape, UNKNOWN, dtype=np.int8)
     canvas[-rmin : -rmin + h, -cmin : -cmin + w] = a

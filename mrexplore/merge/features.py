@@ -7,17 +7,37 @@ OpenCV's PyPI builds; SIFT is its closest available relative. ``akaze`` is refus
 
 from __future__ import annotations
 
+from typing import Any
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
+
+#: cv2 seen as untyped: the type stubs shipped with OpenCV 5.0 lack the feature factories
+#: (``SIFT_create``, ``ORB_create``) although the module has them.
+_cv2: Any = cv2
+
+#: OpenCV's ORB/SIFT pyramids fail on images smaller than their border (an OpenCV assertion, not
+#: a clear error): tiny maps are padded to this size with the unknown grey, which is flat and
+#: adds no keypoint; coordinates are unchanged (padding on the right and bottom).
+MIN_IMAGE = 64
+
+
+def _pad_small(gray: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    h, w = gray.shape
+    if h >= MIN_IMAGE and w >= MIN_IMAGE:
+        return gray
+    out = np.full((max(h, MIN_IMAGE), max(w, MIN_IMAGE)), 205, dtype=np.uint8)
+    out[:h, :w] = gray
+    return out
 
 
 def detect_points(gray: NDArray[np.uint8], detector: str, n: int) -> NDArray[np.float64]:
     """The best ``n`` keypoints of ``gray`` (H, W) uint8, as (K, 2) float64 ``(col, row)``, K <= n.
 
     ``harris`` / ``shi-tomasi`` use ``cv2.goodFeaturesToTrack`` with / without
-    ``useHarrisDetector`` (quality level 0.01, minimum distance 3 cells); ``fast``, ``sift``, ``orb``
-    keep the ``n`` strongest responses. Never raises on featureless images: returns (0, 2).
+    ``useHarrisDetector`` (quality level 0.01, minimum distance 3 cells); ``fast``, ``sift``,
+    ``orb`` keep the ``n`` strongest responses. Never raises on featureless images: returns (0, 2).
     """
     if detector in ("harris", "shi-tomasi"):
         pts = cv2.goodFeaturesToTrack(
@@ -41,11 +61,11 @@ def detect_points(gray: NDArray[np.uint8], detector: str, n: int) -> NDArray[np.
 
 def _keypoint_detector(detector: str) -> cv2.Feature2D:
     if detector == "fast":
-        return cv2.FastFeatureDetector_create(threshold=20)
+        return _cv2.FastFeatureDetector_create(threshold=20)
     if detector == "sift":
-        return cv2.SIFT_create()
+        return _cv2.SIFT_create()
     if detector == "orb":
-        return cv2.ORB_create(nfeatures=2000)
+        return _cv2.ORB_create(nfeatures=2000)
     raise ValueError(f"no keypoint detector {detector!r}")  # guarded by check_detector
 
 
@@ -58,12 +78,13 @@ def detect_and_describe(
     descriptors (Hamming), as m-explore pairs detectors with a binary descriptor.
     Returns descriptors None when there is no keypoint.
     """
+    gray = _pad_small(gray)
     if detector == "sift":
-        sift = cv2.SIFT_create(nfeatures=int(n))
+        sift = _cv2.SIFT_create(nfeatures=int(n))
         kps, desc = sift.detectAndCompute(gray, None)
         norm = cv2.NORM_L2
     else:
-        orb = cv2.ORB_create(nfeatures=int(n))
+        orb = _cv2.ORB_create(nfeatures=int(n))
         if detector == "orb":
             kps, desc = orb.detectAndCompute(gray, None)
         else:

@@ -59,7 +59,7 @@ def merge_orb(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     pb, db, _ = detect_and_describe(to_gray(b), detector, n)
     if da is None or db is None or len(pa) < 2 or len(pb) < 2:
         return refuse(f"too few features (a: {len(pa)}, b: {len(pb)})")
-    knn = cv2.BFMatcher(norm).knnMatch(db, da, k=2)
+    knn = cv2.BFMatcher(norm).knnMatch(np.asarray(db), np.asarray(da), k=2)
     good = [m[0] for m in knn if len(m) == 2 and m[0].distance < ratio * m[1].distance]
     if len(good) < 3:
         return refuse(f"too few matches after the ratio test ({len(good)})")

@@ -60,7 +60,7 @@ def window_size(
             f"window_size: corridor width ({corridor_width_m} m) and resolution "
             f"({resolution_m} m/cell) must be positive"
         )
-    f = int(round(corridor_width_m / resolution_m)) + int(alpha_px)
+    f = round(corridor_width_m / resolution_m) + int(alpha_px)
     if f < 3:
         raise ConfigError(f"window_size: f = {f} cells is too small (need >= 3)")
     return f
@@ -78,7 +78,7 @@ def _window_index(points: NDArray[np.float64], f: int) -> tuple[NDArray[np.intp]
 
 
 def unknown_share(grid: Int8Grid, points: NDArray[np.float64], f: int) -> NDArray[np.float64]:
-    """Share (K,) of unknown cells in the f x f window around each point; outside counts as unknown."""
+    """Share (K,) of unknown cells in the f x f window around each point (outside = unknown)."""
     if len(points) == 0:
         return np.zeros(0)
     unknown = np.pad(grid == UNKNOWN, f, constant_values=True)
@@ -89,7 +89,8 @@ def unknown_share(grid: Int8Grid, points: NDArray[np.float64], f: int) -> NDArra
 def trusted_points(
     grid: Int8Grid, points: NDArray[np.float64], f: int, max_unknown: float = 0.3
 ) -> NDArray[np.bool_]:
-    """Algorithm 1 / Eq. (4): mask (K,) of points whose window's unknown share <= ``max_unknown``."""
+    """Algorithm 1 / Eq. (4): mask (K,) of points whose window's unknown share is at most
+    ``max_unknown``."""
     return unknown_share(grid, points, f) <= max_unknown
 
 

@@ -268,17 +268,34 @@ class _WallICP:
             n = int(np.count_nonzero(keep))
             if n < 10:
                 return T
-            sx, sy = px[inside][keep], py[inside][keep]
+            # Point-to-line step (Gauss-Newton on the distance to the nearest wall cell, i.e.
+            # on a's distance field): unlike point-to-point ICP it does not stall when walls
+            # slide along each other (a 2-cell offset across a long wall is fixed in one step).
+            qxk, qyk = qx[inside][keep], qy[inside][keep]
             mx, my = mx[keep], my[keep]
-            psx, psy, msx, msy = sx.sum() / n, sy.sum() / n, mx.sum() / n, my.sum() / n
-            ax, ay, bx, by = sx - psx, sy - psy, mx - msx, my - msy
-            th = float(np.arctan2((ax * by - ay * bx).sum(), (ax * bx + ay * by).sum()))
-            co, si = np.cos(th), np.sin(th)
-            T_new = make_transform(th, msx - (co * psx - si * psy), msy - (si * psx + co * psy))
-            done = (
-                abs(T_new[0, 2] - T[0, 2]) + abs(T_new[1, 2] - T[1, 2]) < 1e-2
-                and abs(T_new[1, 0] - T[1, 0]) < 1e-4
+            ex, ey = qxk - mx, qyk - my
+            d = np.sqrt(ex * ex + ey * ey)
+            ok = d > 1e-6
+            if np.count_nonzero(ok) < 10:
+                return T
+            nx, ny, dd = ex[ok] / d[ok], ey[ok] / d[ok], d[ok]
+            ux, uy = qxk[ok], qyk[ok]
+            cx, cy = float(ux.mean()), float(uy.mean())
+            J = np.empty((dd.size, 3))
+            J[:, 0], J[:, 1] = nx, ny
+            J[:, 2] = ny * (ux - cx) - nx * (uy - cy)
+            # residual = distance to the nearest wall-cell centre, along the normal
+            dtx, dty, dth = (
+                float(x) for x in np.linalg.solve(J.T @ J + 1e-6 * np.eye(3), -(J.T @ dd))
             )
+            step = (
+                translation(cx + dtx, cy + dty)
+                @ make_transform(dth, 0.0, 0.0)
+                @ translation(-cx, -cy)
+            )
+            T_new = step @ T
+            # nearest-cell residuals jitter at the sub-cell level: stop at 0.05 cell / 0.03 deg
+            done = abs(dtx) + abs(dty) < 0.05 and abs(dth) < 5e-4
             T = T_new
             if done:
                 break
@@ -344,7 +361,8 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     - ``peaks_per_rotation`` (6): coarse translation peaks kept per rotation.
     - ``max_rotation_peaks`` (3): histogram cross-correlation peaks (each -> 4 rotations).
     - ``rotation_step_deg`` (0.0): add a uniform rotation sweep with this step (0 = none).
-    - ``n_refine`` (6): hypotheses that get the full ICP refinement and full verification.
+    - ``n_polish`` (12): hypotheses (best by a wide-tolerance screening) that get a short ICP.
+    - ``n_refine`` (5): of those, the best distinct ones get the full ICP and verification.
     - ``paper_candidates`` (False): add the seed paper's trusted-point matches as hypotheses.
     - ``max_samples`` (20000): wall cells per map sampled by the verifier.
     - ``w_free`` (0.2): weight of free-free agreement in the coarse score.
@@ -364,7 +382,8 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     k_peaks = opt.get_int("peaks_per_rotation", 6, lo=1, hi=1000)
     max_rot_peaks = opt.get_int("max_rotation_peaks", 3, lo=1, hi=45)
     rot_step = opt.get_float("rotation_step_deg", 0.0, lo=0.0, hi=360.0)
-    n_refine = opt.get_int("n_refine", 6, lo=1, hi=1000)
+    n_refine = opt.get_int("n_refine", 5, lo=1, hi=1000)
+    n_polish = opt.get_int("n_polish", 12, lo=1, hi=10000)
     use_paper = opt.get_bool("paper_candidates", False)
     max_samples = opt.get_int("max_samples", 20000, lo=0)
     w_free = opt.get_float("w_free", 0.2, lo=0.0, hi=10.0)
@@ -402,6 +421,8 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     # --- 1. rotations ---
     thetas = rotation_candidates(wall_a, wall_b, max_rot_peaks, rot_step)
     info["rotations_deg"] = [round(float(np.degrees(t)), 2) for t in thetas]
+    if not thetas:
+        return refuse("no wall edges to estimate a rotation from (add rotation_step_deg to sweep)")
 
     # --- 2. coarse translations per rotation ---
     rots = [_rotation_about(t, bc.shape) for t in thetas]
@@ -418,14 +439,19 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     if not hyps:
         return refuse("no candidate alignment (the maps share no structure)")
 
-    # --- 3. polish every hypothesis a little, verify cheaply; 4. refine the best fully ---
-    icp = _WallICP(wall_a, wall_b, max_points=1500)
+    # --- 3. screen the raw hypotheses with a wide tolerance (they are up to ~scale/2 cells off),
+    # polish the best few with a short ICP, re-verify; 4. refine the best fully ---
+    screen = Verifier(ac, bc, max_samples=2000, tolerance=max(1, scale // 2 + 1))
     for hyp in hyps:
+        hyp.agreement = screen(hyp.T)
+    hyps.sort(key=lambda h: -(h.agreement.agree - h.agreement.disagree if h.agreement else 0))
+    icp = _WallICP(wall_a, wall_b, max_points=1500)
+    for hyp in hyps[:n_polish]:
         hyp.T = icp(hyp.T, iters=4, max_dist=1.5 * scale, n_points=400)
         hyp.agreement = quick(hyp.T)
     ok = [
         h
-        for h in hyps
+        for h in hyps[:n_polish]
         if h.agreement is not None and quick.overlap_ok(h.agreement, min_overlap, min_overlap_cells)
     ]
     ok.sort(key=lambda h: -h.score)
@@ -438,8 +464,8 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
         if len(chosen) >= n_refine:
             break
     for h in chosen:
-        h.T = icp(h.T, iters=15, max_dist=3.0)
-        h.T = icp(h.T, iters=10, max_dist=1.5)
+        h.T = icp(h.T, iters=10, max_dist=3.0)
+        h.T = icp(h.T, iters=5, max_dist=1.5)
         h.agreement = verify(h.T)
     chosen = [
         h
@@ -478,16 +504,23 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     if runner is not None and (best.score - runner < min_margin or evidence < min_evidence):
         return refuse(
             f"ambiguous: best {best.score:.3f} vs {runner:.3f} for a pose "
-            f"{_mean_shift(rivals[0].T, best.T, pts):.0f} cells away (margin {best.score - (runner or 0):.3f}, "
+            f"{_mean_shift(rivals[0].T, best.T, pts):.0f} cells away "
+            f"(margin {best.score - (runner or 0):.3f}, "
             f"{evidence} more disagreeing wall cells; need {min_margin} and {min_evidence})",
             score=best.score,
             **common,
         )
     merged, offset = compose(a, b, T_full)
-    # wall cells of b that support the result, as point pairs for figures
-    pb = icp.pb[:: max(1, len(icp.pb) // 60)]
-    pb_full = pb + np.array([bbb[2], bbb[0]])
+    # wall cells of b that land on a's walls: the point pairs that support the result (figures)
+    pb_full = icp.pb + np.array([bbb[2], bbb[0]])
     pa_full = pb_full @ T_full[:2, :2].T + T_full[:2, 2]
+    c, r = np.rint(pa_full[:, 0]).astype(np.int64), np.rint(pa_full[:, 1]).astype(np.int64)
+    inside = (c >= 0) & (c < a.shape[1]) & (r >= 0) & (r < a.shape[0])
+    on_wall = np.zeros(len(c), dtype=bool)
+    on_wall[inside] = a[r[inside], c[inside]] >= OCCUPIED_THRESHOLD
+    sel = np.flatnonzero(on_wall)
+    sel = sel[:: max(1, sel.size // 60)]
+    matches = np.concatenate([pa_full[sel], pb_full[sel]], axis=1)
     return MergeResult(
         matched=True,
         transform=T_full,
@@ -497,7 +530,7 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
         method="semantic",
         detector=detector if use_paper else None,
         time_s=time.perf_counter() - t0,
-        matches=np.concatenate([pa_full, pb_full], axis=1),
+        matches=matches,
         info=info,
         **common,  # type: ignore[arg-type]
     )

@@ -52,7 +52,8 @@ def _resolve_merger(merger: Any, options: dict[str, Any]) -> Merger:
     if isinstance(merger, str):
         if merger.lower() not in METHODS:
             raise ConfigError(
-                f"MapMergeTracker: unknown merger {merger!r}; choose one of {tuple(METHODS)} or pass a callable"
+                f"MapMergeTracker: unknown merger {merger!r}; choose one of "
+                f"{tuple(METHODS)} or pass a callable"
             )
         method = merger.lower()
         # Validate the options now (a typo should fail at construction, not 10 steps later):
@@ -66,14 +67,16 @@ def _resolve_merger(merger: Any, options: dict[str, Any]) -> Merger:
         return run
     if options:
         raise ConfigError(
-            f"MapMergeTracker: options {sorted(options)} only apply to a named merger, not {merger!r}"
+            f"MapMergeTracker: options {sorted(options)} only apply to a named merger, "
+            f"not {merger!r}"
         )
     if hasattr(merger, "merge") and callable(merger.merge):
-        return merger.merge  # type: ignore[no-any-return]
+        return merger.merge  # type: ignore[no-any-return,unused-ignore]
     if callable(merger):
-        return merger  # type: ignore[no-any-return]
+        return merger  # type: ignore[no-any-return,unused-ignore]
     raise ConfigError(
-        f"MapMergeTracker: merger must be a method name, a callable or have .merge(), got {merger!r}"
+        "MapMergeTracker: merger must be a method name, a callable or have .merge(), "
+        f"got {merger!r}"
     )
 
 
@@ -179,7 +182,8 @@ class MapMergeTracker:
             links = np.asarray(links, dtype=bool)
             if links.shape != (self.n, self.n):
                 raise ConfigError(
-                    f"MapMergeTracker.update: links must be ({self.n}, {self.n}) bool, got shape {links.shape}"
+                    f"MapMergeTracker.update: links must be ({self.n}, {self.n}) bool, "
+                    f"got shape {links.shape}"
                 )
         self._links = links
         for i, m in enumerate(maps):
@@ -254,9 +258,11 @@ class MapMergeTracker:
             if not self._linked(i, j):
                 continue
             out = self._run(i, j)
-            if out is None or out[1] is None:
-                continue  # a failed re-check never drops an accepted transform
+            if out is None:
+                continue
             res, T_new = out
+            if T_new is None:
+                continue  # a failed re-check never drops an accepted transform
             ci, cj = self._crop(i), self._crop(j)
             assert ci is not None and cj is not None
             (a, (ca, ra)), (b, (cb, rb)) = ci, cj
@@ -280,7 +286,7 @@ class MapMergeTracker:
             adj[j].append((i, invert_transform(T)))
         paths: dict[tuple[int, int], Transform | None] = {}
         for s in range(self.n):
-            seen = {s: np.eye(3)}
+            seen: dict[int, Transform] = {s: np.eye(3)}
             q = deque([s])
             while q:
                 u = q.popleft()

@@ -1,0 +1,80 @@
+"""Hand-made maps for the merge tests (small, so the whole folder runs in seconds)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mrexplore.experiments.merge_cases import rotate_map
+from mrexplore.grid import FREE, OCCUPIED, UNKNOWN, invert_transform
+from mrexplore.merge.common import translation
+
+SHARED_MAPS = Path("/work/shared/maps")
+
+
+def twin_world() -> tuple[np.ndarray, list[tuple[int, int, int, int]]]:
+    """A fully known 110 x 190 floor: a corridor along the bottom with asymmetric clutter, and
+    above it two cell-for-cell identical rooms (same size, door, furniture) plus a different
+    room between them. Returns (map, twin boxes (r0, r1, c0, c1) including their walls)."""
+    m = np.full((110, 190), FREE, dtype=np.int8)
+    m[0:2, :] = OCCUPIED
+    m[-2:, :] = OCCUPIED
+    m[:, 0:2] = OCCUPIED
+    m[:, -2:] = OCCUPIED
+    m[40:42, :] = OCCUPIED  # wall between corridor (rows 2-39) and rooms (rows 42-107)
+    # corridor clutter, deliberately not symmetric
+    m[10:16, 30:33] = OCCUPIED
+    m[22:26, 95:110] = OCCUPIED
+    m[8:30, 160:163] = OCCUPIED
+    m[30:33, 60:66] = OCCUPIED
+    boxes = [(40, 110, 10, 60), (40, 110, 120, 170)]
+    for r0, r1, c0, c1 in boxes:
+        m[r0:r1, c0 : c0 + 2] = OCCUPIED
+        m[r0:r1, c1 - 2 : c1] = OCCUPIED
+        m[40:42, c0 + 10 : c0 + 22] = FREE  # door
+        m[70:80, c0 + 12 : c0 + 20] = OCCUPIED  # a table
+        m[95:99, c0 + 30 : c0 + 46] = OCCUPIED  # a shelf
+        m[55:58, c0 + 35 : c0 + 38] = OCCUPIED  # a bin
+    # the middle room is different
+    m[60:64, 80:100] = OCCUPIED
+    m[85:107, 105:108] = OCCUPIED
+    return m, boxes
+
+
+@pytest.fixture(scope="session")
+def twins() -> tuple[np.ndarray, list[tuple[int, int, int, int]]]:
+    return twin_world()
+
+
+def _cut(
+    m: np.ndarray, r0: int, r1: int, c0: int, c1: int, keep: np.ndarray | None = None
+) -> np.ndarray:
+    """Crop ``m[r0:r1, c0:c1]``; cells outside ``keep`` (same crop, bool) become unknown."""
+    out = m[r0:r1, c0:c1].copy()
+    if keep is not None:
+        out[~keep] = UNKNOWN
+    return out
+
+
+@pytest.fixture(scope="session")
+def cut():  # type: ignore[no-untyped-def]
+    """The crop helper as a fixture (test folders are not packages)."""
+    return _cut
+
+
+@pytest.fixture(scope="session")
+def office_pair() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Two overlapping crops of the real TurtleBot3 office map, b rotated by 37 degrees.
+
+    Returns (a, b, T_ab truth)."""
+    from mrexplore.world.map_io import read_map_yaml
+
+    full = read_map_yaml(SHARED_MAPS / "turtlebot3/office_raw.yaml").grid
+    ra, ca, rb, cb = 60, 150, 110, 210
+    a = full[ra : ra + 190, ca : ca + 190].copy()
+    mb = full[rb : rb + 190, cb : cb + 160]
+    b, T_rot = rotate_map(mb, np.radians(37.0))
+    T_ab = translation(cb - ca, rb - ra) @ invert_transform(T_rot)
+    return a, b, T_ab

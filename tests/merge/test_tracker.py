@@ -1,0 +1,165 @@
+"""MapMergeTracker: merge over time, keep, never flip-flop, chain, respect links, fuse."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mrexplore.errors import ConfigError, GridError
+from mrexplore.experiments.merge_cases import rotate_map
+from mrexplore.grid import UNKNOWN, invert_transform
+from mrexplore.merge import MapMergeTracker, MergeResult
+from mrexplore.merge.common import mean_displacement, translation
+
+
+def _canvas(
+    m: np.ndarray, shape: tuple[int, int] = (320, 340), at: tuple[int, int] = (40, 30)
+) -> tuple[np.ndarray, np.ndarray]:
+    """Place m in a bigger unknown canvas at (col, row) = at; returns (canvas, T canvas<-m)."""
+    out = np.full(shape, UNKNOWN, dtype=np.int8)
+    out[at[1] : at[1] + m.shape[0], at[0] : at[0] + m.shape[1]] = m
+    return out, translation(*at)
+
+
+@pytest.fixture(scope="module")
+def robots(office_pair):  # type: ignore[no-untyped-def]
+    a, b, T_ab = office_pair
+    ca, Ta = _canvas(a, at=(40, 30))
+    cb, Tb = _canvas(b, shape=(360, 360), at=(20, 10))
+    T_true = Ta @ T_ab @ invert_transform(Tb)  # robot 1 canvas cells -> robot 0 canvas cells
+    return ca, cb, T_true
+
+
+def test_merges_once_enough_is_known_and_keeps_the_transform(robots) -> None:
+    ca, cb, T_true = robots
+    early = cb.copy()
+    rows, _ = np.nonzero(early != UNKNOWN)
+    early[rows.min() + 25 :, :] = UNKNOWN  # robot 1 has barely started: a thin strip only
+    tr = MapMergeTracker(2, merge_every=5, recheck_every=20)
+    tr.update([ca, early], step=0)
+    assert not tr.merged(0) and tr.transform(0, 1) is None
+    tr.update([ca, cb], step=3)  # not a merge step: nothing tried
+    assert not tr.merged(0)
+    tr.update([ca, cb], step=5)
+    assert tr.merged(0) and tr.merged(1) and tr.group(0) == {0, 1}
+    T = tr.transform(0, 1)
+    assert T is not None and mean_displacement(T, T_true, cb) < 1.0
+    np.testing.assert_allclose(tr.transform(1, 0), invert_transform(T), atol=1e-9)
+    first = T.copy()
+    for step in range(6, 200):  # same maps for many steps, with re-checks: no flip-flop
+        tr.update([ca, cb], step=step)
+    np.testing.assert_array_equal(tr.transform(0, 1), first)
+    res = tr.last_result(0, 1)
+    assert isinstance(res, MergeResult) and res.matched
+
+
+def test_fused_map_holds_both_robots_knowledge(robots) -> None:
+    ca, cb, T_true = robots
+    tr = MapMergeTracker(2, merge_every=1)
+    tr.update([ca, cb], step=0)
+    f0, f1 = tr.fused(0), tr.fused(1)
+    assert f0.shape == ca.shape and f1.shape == cb.shape and f0.dtype == np.int8
+    known0 = ca != UNKNOWN
+    assert np.all(f0[known0] >= ca[known0])  # own knowledge kept (fusion only raises)
+    assert np.count_nonzero(f0 != UNKNOWN) > np.count_nonzero(known0) * 1.2  # teammate added
+    # a wall of robot 1, mapped through the true transform, is a wall in robot 0's fused map
+    rows, cols = np.nonzero(cb >= 65)
+    p = np.stack([cols, rows], axis=1) @ T_true[:2, :2].T + T_true[:2, 2]
+    c, r = np.rint(p[:, 0]).astype(int), np.rint(p[:, 1]).astype(int)
+    ok = (c >= 0) & (c < ca.shape[1]) & (r >= 0) & (r < ca.shape[0])
+    assert np.mean(f0[r[ok], c[ok]] >= 65) > 0.9
+    assert tr.fused(0) is f0  # cached until something changes
+    with pytest.raises(ValueError):
+        f0[0, 0] = 0  # read-only: callers copy before writing
+
+
+def test_links_are_respected(robots) -> None:
+    ca, cb, _ = robots
+    tr = MapMergeTracker(2, merge_every=1)
+    off = np.zeros((2, 2), dtype=bool)
+    for step in range(5):
+        tr.update([ca, cb], step=step, links=off)
+    assert not tr.merged(0) and tr.last_result(0, 1) is None  # never even tried
+    np.testing.assert_array_equal(tr.fused(0), ca)
+    on = ~off
+    tr.update([ca, cb], step=5, links=on)
+    assert tr.merged(0)
+    before = tr.fused(0).copy()
+    grown = cb.copy()
+    grown[grown == UNKNOWN] = 0  # robot 1 learns a lot more ...
+    tr.update([ca, grown], step=6, links=off)  # ... while out of range: robot 0 keeps the old copy
+    np.testing.assert_array_equal(tr.fused(0), before)
+    tr.update([ca, grown], step=7, links=on)
+    assert np.count_nonzero(tr.fused(0) != UNKNOWN) > np.count_nonzero(before != UNKNOWN)
+
+
+def test_transforms_chain_through_merged_pairs(office_pair) -> None:
+    from mrexplore.world.map_io import read_map_yaml
+
+    full = read_map_yaml("/work/shared/maps/turtlebot3/office_raw.yaml").grid
+    m0 = full[60:250, 150:340].copy()  # rows 60-250
+    m1 = full[140:300, 180:370].copy()  # overlaps both
+    m2, T_rot = rotate_map(full[230:332, 200:378], np.radians(-70.0))  # rows 230+: not m0
+    T_20_true = translation(200 - 150, 230 - 60) @ invert_transform(T_rot)  # m2 -> m0
+    tr = MapMergeTracker(3, merge_every=1)
+    tr.update([m0, m1, m2], step=0)
+    assert tr.group(0) == {0, 1, 2}
+    r02 = tr.last_result(0, 2)
+    assert r02 is None or not r02.matched  # 0-2 was not merged directly ...
+    T = tr.transform(0, 2)  # ... but is known through robot 1
+    assert T is not None and mean_displacement(T, T_20_true, m2) < 1.5
+
+
+class _Scripted:
+    """A merger returning scripted transforms with a claimed score (for the no-flip-flop rule)."""
+
+    def __init__(self, transforms: list[np.ndarray]) -> None:
+        self.transforms = transforms
+        self.calls = 0
+
+    def merge(self, a: np.ndarray, b: np.ndarray) -> MergeResult:
+        T = self.transforms[min(self.calls, len(self.transforms) - 1)]
+        self.calls += 1
+        return MergeResult(matched=True, transform=T, score=0.99)
+
+
+def test_recheck_replaces_only_a_clearly_better_transform(robots) -> None:
+    ca, cb, T_true = robots
+    # The tracker crops maps to their known boxes; express the truth in cropped cells.
+    from mrexplore.merge.common import known_bbox
+
+    ra0, _, ca0, _ = known_bbox(ca)  # type: ignore[misc]
+    rb0, _, cb0, _ = known_bbox(cb)  # type: ignore[misc]
+    T_crop = translation(-ca0, -ra0) @ T_true @ translation(cb0, rb0)
+    wrong = translation(40.0, 0.0) @ T_crop
+    scripted = _Scripted([T_crop, wrong])
+    tr = MapMergeTracker(2, merger=scripted, merge_every=1, recheck_every=2)
+    for step in range(10):
+        tr.update([ca, cb], step=step)
+    assert scripted.calls >= 3  # re-checks happened
+    T = tr.transform(0, 1)
+    assert T is not None and mean_displacement(T, T_true, cb) < 1e-6  # the wrong one never won
+
+
+def test_bad_configuration_and_input() -> None:
+    with pytest.raises(ConfigError, match="n_robots"):
+        MapMergeTracker(0)
+    with pytest.raises(ConfigError, match="merge_every"):
+        MapMergeTracker(2, merge_every=0)
+    with pytest.raises(ConfigError, match="unknown option"):
+        MapMergeTracker(2, min_scroe=0.5)  # typo caught at construction
+    with pytest.raises(ConfigError, match="merger"):
+        MapMergeTracker(2, merger="fft")
+    with pytest.raises(ConfigError, match="only apply"):
+        MapMergeTracker(2, merger=lambda a, b: None, min_score=0.5)
+    tr = MapMergeTracker(2)
+    g = np.zeros((10, 10), dtype=np.int8)
+    with pytest.raises(GridError, match="expected 2 maps"):
+        tr.update([g], step=0)
+    with pytest.raises(GridError, match="int8"):
+        tr.update([g, g.astype(np.float32)], step=0)  # type: ignore[list-item]
+    with pytest.raises(ConfigError, match="links"):
+        tr.update([g, g], step=0, links=np.ones((3, 3), dtype=bool))
+    tr.reset()
+    with pytest.raises(GridError, match="update"):
+        tr.fused(0)

@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError, GridError
 from mrexplore.grid import FREE, FREE_THRESHOLD, OCCUPIED, OCCUPIED_THRESHOLD, UNKNOWN
-from mrexplore.sensors import CORNER_EPS, traverse
+from mrexplore.sensors import CORNER_EPS, snap, traverse
 
 #: Beams are traversed in two groups: those shorter than this many cells (most beams indoors)
 #: with this many crossing slots, the long ones with as many as the longest needs.
@@ -150,8 +150,8 @@ class OccupancyMap:
         h, w = self.shape
         res = self.resolution_m
         # Corner coordinates (col + 0.5, row + 0.5): cell = floor.
-        ox = self.origin_cell[0] + x / res + 0.5
-        oy = self.origin_cell[1] + y / res + 0.5
+        ox = float(snap(np.float64(self.origin_cell[0] + x / res + 0.5)))
+        oy = float(snap(np.float64(self.origin_cell[1] + y / res + 0.5)))
         if not (1.0 <= ox < w - 1 and 1.0 <= oy < h - 1):
             raise GridError(
                 f"pose ({x:.3f}, {y:.3f}) m is outside the {h}x{w} canvas: make the canvas larger"

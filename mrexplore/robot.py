@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError, WorldError
+from mrexplore.sensors import snap
 from mrexplore.world.world import World
 
 
@@ -135,7 +136,8 @@ class Motion:
         xy = np.asarray(xy_m, dtype=np.float64)
         res = self.world.resolution_m
         org = np.asarray(self.world.origin_m)
-        return np.floor((xy - org) / res).astype(np.int64)
+        # Snapped first: positions on a cell boundary must not flip with rounding noise.
+        return np.floor(snap((xy - org) / res)).astype(np.int64)
 
     def is_free(self, xy_m: NDArray[np.floating]) -> NDArray[np.bool_]:
         """Whether robot centres at world metres (..., 2) are collision-free."""

@@ -45,6 +45,18 @@ CORNER_EPS: float = 1e-4
 FIRST_SLICE_SLOTS: int = 40
 
 
+#: Continuous cell coordinates are rounded to this lattice (cells) before anything takes their
+#: floor. Robots start at cell centres and move 2.5 cells per step, so they sit exactly on cell
+#: boundaries every other step; without the snap, 1e-15 rounding noise (which depends on where
+#: the world happens to be placed) would pick the cell on either side.
+SNAP_CELLS: float = 1e-9
+
+
+def snap(u: NDArray[np.floating]) -> NDArray[np.float64]:
+    """Round continuous cell coordinates to the :data:`SNAP_CELLS` lattice (see there)."""
+    return np.asarray(np.round(np.asarray(u, dtype=np.float64) / SNAP_CELLS) * SNAP_CELLS)
+
+
 @dataclass(frozen=True)
 class LidarConfig:
     """Options of the range sensor.
@@ -366,7 +378,7 @@ class Lidar:
         if hd.shape[0] != n_rob:
             raise GridError(f"got {n_rob} origins but {hd.shape[0]} headings")
         h, w = grid.shape
-        corner = org + 0.5
+        corner = snap(org + 0.5)
         if not (
             np.isfinite(corner).all()
             and (corner >= 0.0).all()

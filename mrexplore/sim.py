@@ -11,9 +11,10 @@ One step, in order (:meth:`Simulation.step`):
 
 Canvas rule (:func:`canvas_for`): a robot does not know the world, so its map canvas must hold
 any world seen from any start. Everything a robot senses lies inside the world, hence within
-one world diagonal of its start: the canvas is a square of side ``2 * ceil(diagonal / res) + 1
-+ 2 * margin`` cells with the start at the centre cell, ``margin`` = 16 cells (plus half a
-diagonal when odometry noise is on, since the estimate may drift away from the truth).
+one world diagonal of its start: the canvas is a square of side ``2 * half + 1`` cells with the
+start at the centre cell ``(half, half)``, ``half = ceil(diagonal / res) + 16`` (plus half a
+diagonal when odometry noise is on, since the estimate may drift away from the truth), rounded
+up to a multiple of 64 so that the canvas indices do not depend on the world's exact size.
 
 All randomness comes from the Generator passed to :meth:`Simulation.reset` and
 :meth:`Simulation.step`: the same seed and actions give the same poses, scans and maps.
@@ -38,6 +39,8 @@ from mrexplore.world.world import World
 
 #: Extra cells around the world diagonal on each side of a robot's canvas.
 CANVAS_MARGIN_CELLS: int = 16
+#: The start cell (and half the canvas side) is rounded up to a multiple of this.
+CANVAS_ALIGN_CELLS: int = 64
 
 
 @dataclass(frozen=True)
@@ -116,6 +119,10 @@ def canvas_for(
     half = math.ceil(diag_m / map_resolution_m) + CANVAS_MARGIN_CELLS
     if noisy_odometry:
         half += math.ceil(0.5 * diag_m / map_resolution_m)
+    # The start cell index is a multiple of CANVAS_ALIGN_CELLS, so whatever aligns on canvas
+    # indices (round-half-to-even of a pose 2.5 cells away, 2**k pyramids) behaves the same for
+    # every world size: the canvas must not leak the world's size into a robot's view.
+    half = -(-half // CANVAS_ALIGN_CELLS) * CANVAS_ALIGN_CELLS
     side = 2 * half + 1
     return (side, side), (half, half)
 

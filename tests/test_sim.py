@@ -141,8 +141,13 @@ def test_canvas_holds_any_start() -> None:
     world = office()
     (h, w), (c0, r0) = canvas_for(world, 0.1)
     diag = math.ceil(math.hypot(4.0, 3.0) / 0.1)
-    assert h == w == 2 * (diag + 16) + 1
-    assert (c0, r0) == (diag + 16, diag + 16)
+    assert c0 == r0 and c0 % 64 == 0 and c0 >= diag + 16
+    assert h == w == 2 * c0 + 1
+    # a bigger world of the same parity class gets the same start cell modulo 64
+    (_, _), (c1, _) = canvas_for(
+        World(walls=np.zeros((130, 170), dtype=bool), resolution_m=0.1), 0.1
+    )
+    assert c1 % 64 == 0 and c1 > c0
 
 
 def test_starts_option_and_errors() -> None:

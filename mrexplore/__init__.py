@@ -9,7 +9,7 @@
 ((8, 64, 64), 'uint8')
 
 ``parallel_env(**options)`` builds the PettingZoo ``ParallelEnv``; ``env(**options)`` the AEC
-version; the options are the fields of :class:`mrexplore.env.EnvConfig`. Importing the package
+version; the options are the fields of :class:`mrexplore.environment.EnvConfig`. Importing the package
 registers the Gymnasium id ``mrexplore/Explore-v0`` (one robot).
 """
 
@@ -25,10 +25,10 @@ __all__ = ["__version__", "env", "parallel_env", "raw_env"]
 def parallel_env(render_mode: str | None = None, **options: Any) -> Any:
     """The multi-robot exploration env as a PettingZoo ``ParallelEnv``.
 
-    Options: see :class:`mrexplore.env.EnvConfig` (``world``, ``n_robots``, ``task``, ``merger``,
+    Options: see :class:`mrexplore.environment.EnvConfig` (``world``, ``n_robots``, ``task``, ``merger``,
     ``comm_range_m``, ``max_range_m``, ...). An unknown option raises ``ConfigError``.
     """
-    from mrexplore.env import MultiRobotExplorationEnv
+    from mrexplore.environment import MultiRobotExplorationEnv
 
     return MultiRobotExplorationEnv(render_mode=render_mode, **options)
 

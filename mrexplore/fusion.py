@@ -1,6 +1,6 @@
 """The one merging path: local maps in, fused maps and merge facts out, every step.
 
-Both the built-in merging of :class:`mrexplore.env.MultiRobotExplorationEnv` and the generic
+Both the built-in merging of :class:`mrexplore.environment.MultiRobotExplorationEnv` and the generic
 :class:`mrexplore.wrappers.MapMergeWrapper` run their maps through a :class:`FusionStage`, so
 merging behaves identically whether you use our env or wrap your own.
 

@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from mrexplore.grid import apply_transform, free_mask, known_mask, occupied_mask
 
 if TYPE_CHECKING:  # pragma: no cover
-    from mrexplore.env.parallel_env import MultiRobotExplorationEnv
+    from mrexplore.environment.parallel_env import MultiRobotExplorationEnv
 
 #: BGR-free RGB colours of robots 0, 1, 2, ... (cycled).
 ROBOT_COLOURS: list[tuple[int, int, int]] = [

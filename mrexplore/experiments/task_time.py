@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from mrexplore.env.view import RobotView
+from mrexplore.environment.view import RobotView
 from mrexplore.experiments.episode import EpisodeResult, run_episode
 
 #: The seed paper's figures (Durdu & Korkmaz 2019, section 4): seconds.

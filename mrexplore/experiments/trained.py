@@ -34,7 +34,7 @@ class TrainedTeamPolicy:
     """Every robot acts with the same SB3 model on its own observation (parameter sharing).
 
     It reads the env's observations (``uses_observations = True``), which hold only what each
-    robot knows (see :mod:`mrexplore.env.observations`).
+    robot knows (see :mod:`mrexplore.environment.observations`).
     """
 
     uses_observations = True

@@ -20,7 +20,7 @@ Task = Literal["explore", "navigate"]
 
 @dataclass(frozen=True)
 class EnvConfig:
-    """Options of :class:`mrexplore.env.MultiRobotExplorationEnv` (units in the names).
+    """Options of :class:`mrexplore.environment.MultiRobotExplorationEnv` (units in the names).
 
     World and team:
         world: a shipped world name (``"symmetric_office"``), a path to a map_server YAML, a

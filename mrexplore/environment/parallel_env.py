@@ -9,7 +9,7 @@ Agents               ``robot_0`` ... ``robot_{n-1}`` (``n_robots=1`` is the sing
 Action space         ``Discrete(4)``: 0 forward (0.125 m), 1 turn left (22.5 deg), 2 turn right,
                      3 stay (:class:`mrexplore.robot.Action`; defaults 0.5 m/s, pi/2 rad/s, 0.25 s)
 Observation space    ``Box(0, 255, (8, 64, 64), uint8)``, robot-centred, own frame; see
-                     :mod:`mrexplore.env.observations`. Built from the fused map once the robot's
+                     :mod:`mrexplore.environment.observations`. Built from the fused map once the robot's
                      map is merged, else from its own map. Never from the ground truth.
 State space          ``Box(0, 255, (8 * n, 64, 64), uint8)``: all observations stacked.
 Reward               team reward (same for all): ``"time"``: ``-dt_s`` per step, so the return
@@ -44,9 +44,9 @@ import numpy as np
 from numpy.typing import NDArray
 from pettingzoo import ParallelEnv
 
-from mrexplore.env.config import EnvConfig
-from mrexplore.env.observations import ObservationBuilder
-from mrexplore.env.view import RobotView
+from mrexplore.environment.config import EnvConfig
+from mrexplore.environment.observations import ObservationBuilder
+from mrexplore.environment.view import RobotView
 from mrexplore.errors import ConfigError
 from mrexplore.fusion import FusionStage
 from mrexplore.grid import apply_transform, transform_angle

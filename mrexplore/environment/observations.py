@@ -1,6 +1,6 @@
 """Each robot's observation: a uint8 image stack in the robot's own map frame.
 
-Everything drawn here comes from a :class:`~mrexplore.env.view.RobotView`, i.e. from what the
+Everything drawn here comes from a :class:`~mrexplore.environment.view.RobotView`, i.e. from what the
 robot knows (its own map or the fused map, its own pose estimate, teammates only after a merge).
 Nothing is read from the ground truth.
 
@@ -32,7 +32,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from mrexplore.env.view import RobotView
+from mrexplore.environment.view import RobotView
 from mrexplore.grid import FREE, FREE_THRESHOLD, OCCUPIED_THRESHOLD
 
 N_CHANNELS = 8

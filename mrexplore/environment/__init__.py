@@ -1,6 +1,6 @@
 """The PettingZoo environment: options, observations, the env class and the robot view.
 
-Imports are lazy so that ``mrexplore.env.view`` (used by policies) does not pull in the
+Imports are lazy so that ``mrexplore.environment.view`` (used by policies) does not pull in the
 simulator.
 """
 
@@ -13,15 +13,15 @@ __all__ = ["EnvConfig", "MultiRobotExplorationEnv", "RobotView"]
 
 def __getattr__(name: str) -> Any:
     if name == "EnvConfig":
-        from mrexplore.env.config import EnvConfig
+        from mrexplore.environment.config import EnvConfig
 
         return EnvConfig
     if name == "MultiRobotExplorationEnv":
-        from mrexplore.env.parallel_env import MultiRobotExplorationEnv
+        from mrexplore.environment.parallel_env import MultiRobotExplorationEnv
 
         return MultiRobotExplorationEnv
     if name == "RobotView":
-        from mrexplore.env.view import RobotView
+        from mrexplore.environment.view import RobotView
 
         return RobotView
-    raise AttributeError(f"module 'mrexplore.env' has no attribute {name!r}")
+    raise AttributeError(f"module 'mrexplore.environment' has no attribute {name!r}")

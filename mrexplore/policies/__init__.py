@@ -1,0 +1,75 @@
+"""Exploration and navigation policies that read only a robot's view (``RobotView``).
+
+Protocol (see :mod:`mrexplore.policies.base`): a :class:`Policy` has ``reset(rng)`` and
+``act(view) -> int`` (an :class:`mrexplore.robot.Action`); a :class:`TeamPolicy` has ``reset(rng)``
+and ``act(views: Mapping[agent, RobotView]) -> {agent: action}``. Views come from
+``env.unwrapped.robot_view(agent)``.
+
+>>> from mrexplore.policies import make_team_policy
+>>> team = make_team_policy("nearest-frontier", ["robot_0", "robot_1"])
+>>> sorted(POLICIES)
+['coordinated-frontier', 'cost-frontier', 'goal', 'nearest-frontier', 'random']
+
+Names in :data:`POLICIES` map to a factory ``(agents) -> TeamPolicy``; per-robot policies are
+lifted with :class:`IndependentTeam`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+from mrexplore.errors import ConfigError
+from mrexplore.policies.base import IndependentTeam, Policy, TeamPolicy, follow_path
+from mrexplore.policies.frontier import (
+    CoordinatedFrontierPolicy,
+    CostFrontierPolicy,
+    FrontierExplorer,
+    NearestFrontierPolicy,
+)
+from mrexplore.policies.frontiers import Frontier, find_frontiers, frontier_mask
+from mrexplore.policies.goal import GoalPolicy
+from mrexplore.policies.planning import PlanningGrid, distance_field, inflate_obstacles
+from mrexplore.policies.random_policy import RandomPolicy
+
+__all__ = [
+    "POLICIES",
+    "CoordinatedFrontierPolicy",
+    "CostFrontierPolicy",
+    "Frontier",
+    "FrontierExplorer",
+    "GoalPolicy",
+    "IndependentTeam",
+    "NearestFrontierPolicy",
+    "PlanningGrid",
+    "Policy",
+    "RandomPolicy",
+    "TeamPolicy",
+    "distance_field",
+    "find_frontiers",
+    "follow_path",
+    "frontier_mask",
+    "inflate_obstacles",
+    "make_team_policy",
+]
+
+#: Policy name -> factory ``(agents) -> TeamPolicy``.
+POLICIES: dict[str, Callable[[Sequence[str]], TeamPolicy]] = {
+    "random": lambda agents: IndependentTeam(RandomPolicy, agents),
+    "nearest-frontier": lambda agents: IndependentTeam(NearestFrontierPolicy, agents),
+    "cost-frontier": lambda agents: IndependentTeam(CostFrontierPolicy, agents),
+    "coordinated-frontier": lambda agents: CoordinatedFrontierPolicy(agents),
+    "goal": lambda agents: IndependentTeam(GoalPolicy, agents),
+}
+
+
+def make_team_policy(name: str, agents: Sequence[str]) -> TeamPolicy:
+    """The team policy registered as ``name`` for ``agents`` (e.g. ``["robot_0", "robot_1"]``).
+
+    Raises:
+        ConfigError: ``name`` is not in :data:`POLICIES` (the message lists the names).
+    """
+    try:
+        factory = POLICIES[name]
+    except KeyError:
+        raise ConfigError(f"unknown policy '{name}'; choose one of {sorted(POLICIES)}") from None
+    return factory(list(agents))

@@ -134,11 +134,13 @@ def _layouts(h: int, w: int) -> tuple[_Layout, ...]:
 def _segment_offsets(
     free_flat: NDArray[np.bool_], lay: _Layout, big: int
 ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Forward and backward segment offsets of one family over one traversability mask.
+    """Forward and backward scan shifts ``ramp + segment * big`` of one family over one mask.
 
-    A segment starts wherever the step from the previous cell of the line is blocked; an offset
-    of ``-segment * big`` makes every value of an earlier segment lose any min against the later
-    segment, so a cumulative min never carries a distance across a blocked step.
+    A segment starts wherever the step from the previous cell of the line is blocked; the
+    ``segment * big`` part of the shift makes every value of an earlier segment lose any min
+    against the later segment, so a cumulative min never carries a distance across a blocked
+    step. The ``ramp`` part (step cost times position) turns "distance plus steps" into a plain
+    running minimum.
     """
     cell_ok = free_flat[lay.idx]
     edge = np.zeros_like(cell_ok)
@@ -149,19 +151,22 @@ def _segment_offsets(
     edge_rev = np.zeros_like(edge)
     edge_rev[:, 1:] = edge[:, :0:-1]
     seg_bwd = np.cumsum(~edge_rev, axis=1, dtype=np.int64)
-    return seg_fwd * big, seg_bwd * big
+    seg_fwd *= big
+    seg_fwd += lay.ramp
+    seg_bwd *= big
+    seg_bwd += lay.ramp
+    return seg_fwd, seg_bwd
 
 
-def _scan(lines: NDArray[np.int64], ramp: NDArray[np.int64], off: NDArray[np.int64]) -> None:
+def _scan(lines: NDArray[np.int64], shift: NDArray[np.int64], axis: int = 1) -> None:
     """In place, per line: ``v[i] = min(v[i], min_j v[j] + ramp[i] - ramp[j])``.
 
-    ``j`` runs over ``j <= i`` in the segment of ``i``.
+    ``j`` runs over ``j <= i`` in the segment of ``i`` along ``axis``; ``shift`` = ramp +
+    segment offsets, same shape as ``lines``.
     """
-    x = lines - ramp
-    x -= off
-    np.minimum.accumulate(x, axis=1, out=x)
-    x += ramp
-    x += off
+    x = lines - shift
+    np.minimum.accumulate(x, axis=axis, out=x)
+    x += shift
     np.minimum(lines, x, out=lines)
 
 
@@ -206,25 +211,33 @@ def distance_field(
     free_flat = np.append(free.ravel(), False)
     lays = _layouts(h, w)
     offs = [_segment_offsets(free_flat, lay, big) for lay in lays]
+    # Columns are scanned in place along axis 0 (contiguous rows, no transposed copy).
+    offs[1] = (np.ascontiguousarray(offs[1][0].T), np.ascontiguousarray(offs[1][1].T))
     buf = np.full(h * w + 1, unreached, dtype=np.int64)
     buf[src[:, 1] * w + src[:, 0]] = 0
     grid = buf[:-1].reshape(h, w)
+    # Values only ever decrease, so an unchanged sum means an unchanged field: stop after a
+    # sweep (all four families, both directions) that changed nothing - the field is then a
+    # fixed point of every scan, i.e. the exact shortest-path distance.
+    total = int(grid.sum())
     for _ in range(max_sweeps):
-        before = buf.copy()
         for lay, (off_f, off_b) in zip(lays, offs, strict=True):
             if lay.view == 0:
-                lines = grid
+                _scan(grid, off_f)
+                _scan(grid[:, ::-1], off_b)
             elif lay.view == 1:
-                lines = grid.T
+                _scan(grid, off_f, axis=0)
+                _scan(grid[::-1, :], off_b, axis=0)
             else:
                 lines = buf[lay.idx]
-            _scan(lines, lay.ramp, off_f)
-            _scan(lines[:, ::-1], lay.ramp, off_b)
-            if lay.view == 2:
+                _scan(lines, off_f)
+                _scan(lines[:, ::-1], off_b)
                 buf[lay.idx] = lines
                 buf[-1] = unreached  # padding entries only ever hold the sentinel
-        if np.array_equal(before, buf):
+        new_total = int(grid.sum())
+        if new_total == total:
             break
+        total = new_total
     out = grid.astype(np.float64) / _STRAIGHT
     out[(grid >= unreached) | ~free] = np.inf
     return out
@@ -382,6 +395,14 @@ class PlanningGrid:
             return None
         k = int(np.argmin((cols - p[0]) ** 2 + (rows - p[1]) ** 2))
         return (int(cols[k]), int(rows[k]))
+
+    def clear(self, cells: NDArray[np.floating]) -> NDArray[np.bool_]:
+        """bool (N,): fine ``(col, row)`` points (N, 2) that fall in traversable planning cells."""
+        p = self.to_plan(cells)
+        ok = self.inside(p)
+        out = np.zeros(p.shape[0], dtype=bool)
+        out[ok] = self.free[p[ok, 1], p[ok, 0]]
+        return out
 
     # -- queries -----------------------------------------------------------------------------
 

@@ -1,0 +1,249 @@
+"""Frontier, coordinated and goal policies on hand-made maps (views built by hand)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mrexplore.environment.view import RobotView
+from mrexplore.errors import ConfigError, GridError
+from mrexplore.grid import FREE, OCCUPIED, UNKNOWN
+from mrexplore.policies import (
+    CoordinatedFrontierPolicy,
+    CostFrontierPolicy,
+    GoalPolicy,
+    NearestFrontierPolicy,
+)
+from mrexplore.robot import Action
+
+RES = 0.05
+
+
+def _view(
+    m: np.ndarray,
+    pose: tuple[float, float, float],
+    agent: str = "robot_0",
+    merged: bool = False,
+    transforms: dict[str, np.ndarray] | None = None,
+    goal: tuple[float, float] | None = None,
+) -> RobotView:
+    transforms = transforms or {}
+    return RobotView(
+        agent=agent,
+        map=m,
+        resolution_m=RES,
+        pose_cell=pose,
+        robot_radius_m=0.15,
+        merged=merged,
+        teammates={k: (0.0, 0.0) for k in transforms},
+        transforms=transforms,
+        goal_cell=goal,
+    )
+
+
+def _corridor(left_open: int, right_open: int, length: int = 120) -> np.ndarray:
+    """A 20-cell-wide (1 m) horizontal corridor, walled top and bottom, in an unknown canvas.
+
+    Known free from col ``left_open`` to ``right_open`` - 1; beyond, unknown on both ends (two
+    frontiers, each 20 cells tall).
+    """
+    m = np.full((40, length), UNKNOWN, dtype=np.int8)
+    m[9, left_open:right_open] = OCCUPIED
+    m[30, left_open:right_open] = OCCUPIED
+    m[10:30, left_open:right_open] = FREE
+    return m
+
+
+def test_nearest_frontier_goes_to_the_nearer_end() -> None:
+    m = _corridor(10, 110)
+    for col, expected_side in ((30.0, "left"), (90.0, "right")):
+        pol = NearestFrontierPolicy()
+        pol.reset(np.random.default_rng(0))
+        pol.act(_view(m, (col, 20.0, 0.0)))
+        assert pol.target is not None
+        assert (pol.target[0] < 60) == (expected_side == "left")
+        assert pol.path is not None and not pol.done
+
+
+def test_nearest_frontier_first_action_heads_there() -> None:
+    m = _corridor(10, 110)
+    pol = NearestFrontierPolicy()
+    pol.reset(np.random.default_rng(0))
+    # Facing +col, nearest frontier at the right end: go forward.
+    assert pol.act(_view(m, (90.0, 20.0, 0.0))) == Action.FORWARD
+    pol.reset(np.random.default_rng(0))
+    # Facing +row (90 deg left of the way to go): turn right.
+    assert pol.act(_view(m, (90.0, 20.0, math.pi / 2))) == Action.TURN_RIGHT
+
+
+def test_cost_frontier_trades_distance_for_size() -> None:
+    """A 0.5 m frontier 2.3 m away against a 5.4 m one 3.3 m away: the nearest policy takes the
+    small one; explore_lite's cost (3 * 2.3 - 0.5 = 6.4 against 3 * 3.3 - 5.4 = 4.5) the big one."""
+    m = np.full((130, 140), UNKNOWN, dtype=np.int8)
+    m[10:120, 10:131] = OCCUPIED
+    m[11:119, 11:130] = FREE
+    m[60:70, 130] = UNKNOWN  # small gap in the right wall: 10 cells (0.5 m)
+    m[11:119, 10] = UNKNOWN  # the whole left wall unseen: 108 cells (5.4 m)
+    pose = (80.0, 65.0, 0.0)
+    near = NearestFrontierPolicy()
+    near.reset(np.random.default_rng(0))
+    near.act(_view(m, pose))
+    cost = CostFrontierPolicy()
+    cost.reset(np.random.default_rng(0))
+    cost.act(_view(m, pose))
+    assert near.target is not None and near.target[0] > 100
+    assert cost.target is not None and cost.target[0] < 30
+    # With the size term off, the cost policy is the nearest policy.
+    plain = CostFrontierPolicy(size_weight=0.0)
+    plain.reset(np.random.default_rng(0))
+    plain.act(_view(m, pose))
+    assert plain.target == near.target
+
+
+def test_coordinated_robots_split_once_merged() -> None:
+    """Two robots side by side in the middle of a corridor, on the same (merged) map: the second
+    robot, discounting the first robot's target, takes the other end."""
+    m = _corridor(10, 110)
+    eye = np.eye(3)
+    views = {
+        "robot_0": _view(m, (58.0, 20.0, 0.0), "robot_0", merged=True, transforms={"robot_1": eye}),
+        "robot_1": _view(m, (62.0, 20.0, 0.0), "robot_1", merged=True, transforms={"robot_0": eye}),
+    }
+    team = CoordinatedFrontierPolicy(["robot_0", "robot_1"])
+    team.reset(np.random.default_rng(0))
+    team.act(views)
+    t0, t1 = team.robots["robot_0"].target, team.robots["robot_1"].target
+    assert t0 is not None and t1 is not None
+    assert (t0[0] < 60) != (t1[0] < 60)  # one goes left, the other right
+
+
+def test_coordinated_claims_use_the_estimated_transform() -> None:
+    """robot_1's map is robot_0's shifted by 40 columns; its claim must be moved back."""
+    m0 = _corridor(10, 110, length=160)
+    m1 = np.full_like(m0, UNKNOWN)
+    m1[:, 40:] = m0[:, :-40]  # the same corridor, 40 cells to the right in robot_1's frame
+    T_01 = np.array([[1.0, 0.0, -40.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])  # robot_1 -> robot_0
+    T_10 = np.array([[1.0, 0.0, 40.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    views = {
+        "robot_0": _view(m0, (58.0, 20.0, 0.0), "robot_0", True, {"robot_1": T_01}),
+        "robot_1": _view(m1, (102.0, 20.0, 0.0), "robot_1", True, {"robot_0": T_10}),
+    }
+    team = CoordinatedFrontierPolicy()
+    team.reset(np.random.default_rng(0))
+    team.act(views)
+    t0, t1 = team.robots["robot_0"].target, team.robots["robot_1"].target
+    assert t0 is not None and t1 is not None
+    t1_in_0 = t1[0] - 40
+    assert (t0[0] < 60) != (t1_in_0 < 60)
+
+
+def test_coordinated_before_merge_is_independent() -> None:
+    m = _corridor(10, 110)
+    views = {
+        "robot_0": _view(m, (58.0, 20.0, 0.0), "robot_0"),
+        "robot_1": _view(m, (59.0, 20.0, 0.0), "robot_1"),
+    }
+    team = CoordinatedFrontierPolicy()
+    team.reset(np.random.default_rng(0))
+    team.act(views)
+    # No transforms, no claims: both pick the same nearest (left) end on their own maps.
+    t0, t1 = team.robots["robot_0"].target, team.robots["robot_1"].target
+    assert t0 is not None and t1 is not None and t0[0] < 60 and t1[0] < 60
+
+
+def test_no_frontier_means_stay_and_done() -> None:
+    m = np.full((40, 40), OCCUPIED, dtype=np.int8)
+    m[5:35, 5:35] = FREE
+    pol = NearestFrontierPolicy()
+    pol.reset(np.random.default_rng(0))
+    assert pol.act(_view(m, (20.0, 20.0, 0.0))) == Action.STAY
+    assert pol.done
+
+
+def test_unreachable_frontier_is_not_retried() -> None:
+    """The only frontier lies behind a 0.1 m slit: the policy says done and stays, it does not
+    loop on re-plans."""
+    m = np.full((40, 80), UNKNOWN, dtype=np.int8)
+    m[5:35, 5:60] = OCCUPIED
+    m[6:34, 6:40] = FREE
+    m[19:21, 40] = FREE  # a two-cell slit in the wall at col 40 ...
+    m[6:34, 41:59] = FREE  # ... into a room whose right side is unknown
+    m[6:34, 59] = UNKNOWN
+    pol = NearestFrontierPolicy()
+    pol.reset(np.random.default_rng(0))
+    view = _view(m, (20.0, 20.0, 0.0))
+    actions = [pol.act(view) for _ in range(40)]
+    assert set(actions) == {Action.STAY}
+    assert pol.done
+    assert pol.n_plans <= 1 + 40 // pol.replan_every  # only the periodic re-check
+
+
+def test_stuck_robot_blacklists_and_moves_on() -> None:
+    """A robot that never moves (its FORWARDs collide) strikes, then blacklists its target, and
+    ends up with nothing but the other end or STAY - it never spins on one target forever."""
+    m = _corridor(10, 110)
+    pol = NearestFrontierPolicy()
+    pol.reset(np.random.default_rng(0))
+    view = _view(m, (90.0, 20.0, 0.0))
+    first = None
+    for _ in range(200):
+        pol.act(view)
+        first = first or pol.target
+    assert first is not None and first[0] > 60
+    assert pol.blacklist  # the right end was given up
+    assert pol.target is None or pol.target[0] < 60
+
+
+def test_policy_refuses_bad_map() -> None:
+    pol = NearestFrontierPolicy()
+    with pytest.raises(GridError):
+        pol.act(_view(np.zeros((10, 10), dtype=np.float32), (5.0, 5.0, 0.0)))
+    with pytest.raises(ConfigError):
+        NearestFrontierPolicy(replan_every=0)
+
+
+# ---- GoalPolicy -------------------------------------------------------------------------------
+
+
+def test_goal_policy_plans_through_unknown() -> None:
+    m = np.full((60, 120), UNKNOWN, dtype=np.int8)
+    m[20:40, 5:30] = FREE  # the robot only knows where it stands
+    pol = GoalPolicy()
+    pol.reset(np.random.default_rng(0))
+    assert pol.act(_view(m, (15.0, 30.0, 0.0), goal=(100.0, 30.0))) == Action.FORWARD
+    assert pol.path is not None and np.hypot(*(pol.path[-1] - (100.0, 30.0))) < 1e-9
+
+
+def test_goal_policy_goes_around_known_wall() -> None:
+    m = np.full((80, 120), UNKNOWN, dtype=np.int8)
+    m[:, :] = FREE
+    m[0:60, 60] = OCCUPIED  # a wall between robot and goal, open above row 60
+    pol = GoalPolicy()
+    pol.reset(np.random.default_rng(0))
+    pol.act(_view(m, (30.0, 20.0, 0.0), goal=(90.0, 20.0)))
+    assert pol.path is not None
+    crossing = pol.path[np.abs(pol.path[:, 0] - 60.0) < 1.0]
+    assert crossing.size and (crossing[:, 1] > 60).all()
+
+
+def test_goal_policy_at_goal_stays_and_needs_a_goal() -> None:
+    m = np.full((40, 40), FREE, dtype=np.int8)
+    pol = GoalPolicy()
+    pol.reset(np.random.default_rng(0))
+    assert pol.act(_view(m, (20.0, 20.0, 0.0), goal=(21.0, 20.0))) == Action.STAY
+    with pytest.raises(ConfigError, match="goal"):
+        pol.act(_view(m, (20.0, 20.0, 0.0)))
+
+
+def test_goal_policy_enclosed_goal_goes_near() -> None:
+    m = np.full((60, 60), FREE, dtype=np.int8)
+    m[35:45, 35:45] = OCCUPIED
+    m[38:42, 38:42] = FREE  # the goal sits in a sealed box
+    pol = GoalPolicy()
+    pol.reset(np.random.default_rng(0))
+    pol.act(_view(m, (10.0, 10.0, 0.0), goal=(40.0, 40.0)))
+    assert pol.path is not None
+    end = pol.path[-1]
+    assert np.hypot(end[0] - 40.0, end[1] - 40.0) < 12.0  # as close as the inflation allows

@@ -22,7 +22,7 @@ and optionally
 
 The protocol is checked when the wrapper is built: a missing method or attribute is a
 :class:`~mrexplore.errors.ConfigError` that names it.
-:class:`mrexplore.env.MultiRobotExplorationEnv` implements the protocol.
+:class:`mrexplore.environment.MultiRobotExplorationEnv` implements the protocol.
 
 A method on the env was chosen over maps in ``infos``: the maps are then only built when a
 merger asks for them, ``reset`` and ``step`` keep their usual return values, and a missing map

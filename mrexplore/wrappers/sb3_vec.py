@@ -365,10 +365,10 @@ def make_vec_env(
     import mrexplore
 
     render_mode = env_options.pop("render_mode", None)
-    # Validate the options here, in this process, so a typo fails before any worker starts.
-    from mrexplore.env.config import EnvConfig
-
-    EnvConfig.from_kwargs(**env_options)
+    if use_subprocess:
+        # Build one copy here first, so that a typo fails in this process with its clear
+        # ConfigError, before any worker starts.
+        mrexplore.parallel_env(render_mode=render_mode, **env_options).close()
     fn = functools.partial(mrexplore.parallel_env, render_mode=render_mode, **env_options)
     venv = ParallelEnvVecEnv(
         [fn] * n_copies, start_method=start_method, use_subprocess=use_subprocess

@@ -7,12 +7,12 @@
 ((8, 64, 64), 'uint8', Discrete(4))
 >>> env.close()
 
-One robot (``robot_0``) of :class:`mrexplore.env.MultiRobotExplorationEnv` with ``n_robots=1``:
-the same world, start pose (for a seed), sensing, observation, reward and termination as the
-team env, so single- and multi-robot task times compare directly. Options are those of
-:class:`mrexplore.env.EnvConfig` except ``n_robots`` (always 1). ``step`` returns
-``(obs, reward, terminated, truncated, info)`` with ``info`` the robot's info dict
-(``coverage``, ``task_time_s``, ...).
+One robot (``robot_0``) of the multi-robot env (:func:`mrexplore.parallel_env`) with
+``n_robots=1``: the same world, start pose (for a seed), sensing, observation, reward and
+termination as the team env, so single- and multi-robot task times compare directly. Options
+are those of ``EnvConfig`` except ``n_robots`` (always 1). ``step`` returns ``(obs, reward,
+terminated, truncated, info)`` with ``info`` the robot's info dict (``coverage``,
+``task_time_s``, ...).
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import gymnasium
 import numpy as np
 from numpy.typing import NDArray
 
-from mrexplore.env.parallel_env import MultiRobotExplorationEnv
+import mrexplore
 from mrexplore.errors import ConfigError
 
 _AGENT = "robot_0"
@@ -34,17 +34,15 @@ class SingleRobotExploreEnv(gymnasium.Env[NDArray[np.uint8], Any]):
 
     Args:
         render_mode: ``None``, ``"rgb_array"`` or ``"human"`` (passed to the multi-robot env).
-        **options: :class:`mrexplore.env.EnvConfig` fields other than ``n_robots``.
+        **options: :class:`mrexplore.environment.EnvConfig` fields other than ``n_robots``.
 
     Raises:
         ConfigError: ``n_robots`` other than 1, or a bad option.
     """
 
-    # A class attribute as Gymnasium expects (read before an instance exists).
-    metadata: dict[str, Any] = {  # noqa: RUF012
-        "render_modes": list(cast(list[str], MultiRobotExplorationEnv.metadata["render_modes"])),
-        "render_fps": MultiRobotExplorationEnv.metadata["render_fps"],
-    }
+    # A class attribute, as Gymnasium reads it before building the env; the same modes and fps
+    # as the multi-robot env (tests/wrappers/test_single.py checks they agree).
+    metadata: dict[str, Any] = {"render_modes": ["human", "rgb_array"], "render_fps": 8}  # noqa: RUF012
 
     def __init__(self, render_mode: str | None = None, **options: Any) -> None:
         n = options.pop("n_robots", 1)
@@ -53,7 +51,7 @@ class SingleRobotExploreEnv(gymnasium.Env[NDArray[np.uint8], Any]):
                 f"SingleRobotExploreEnv has exactly one robot, got n_robots={n!r}; use "
                 "mrexplore.parallel_env(n_robots=...) for teams"
             )
-        self.penv = MultiRobotExplorationEnv(render_mode=render_mode, n_robots=1, **options)
+        self.penv: Any = mrexplore.parallel_env(render_mode=render_mode, n_robots=1, **options)
         self.render_mode = render_mode
         self.observation_space = cast(
             gymnasium.spaces.Space[NDArray[np.uint8]], self.penv.observation_space(_AGENT)
@@ -92,5 +90,5 @@ class SingleRobotExploreEnv(gymnasium.Env[NDArray[np.uint8], Any]):
         self.penv.close()
 
     def robot_view(self) -> Any:
-        """The robot's :class:`~mrexplore.env.view.RobotView` (map, pose, goal), for scripts."""
+        """The robot's ``RobotView`` (map, pose, goal: what it knows), for scripted policies."""
         return self.penv.robot_view(_AGENT)

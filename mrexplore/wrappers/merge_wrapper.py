@@ -80,6 +80,7 @@ from mrexplore.grid import UNKNOWN, apply_transform, free_mask, occupied_mask, v
 MergeMode = Literal["replace", "augment"]
 LinksFn = Callable[[Any], "NDArray[np.bool_] | None"]
 
+
 #: Value of the agent's own disk and of a merged teammate's disk in the robots channel.
 _SELF_VALUE = 255
 _MATE_VALUE = 128
@@ -146,19 +147,22 @@ def fused_map_image(
     else:
         c0 = round(centre[0]) - side // 2
         r0 = round(centre[1]) - side // 2
-    # Pad rather than clip so that the agent stays at the image centre at the map's border.
-    win = np.full((side, side), UNKNOWN, dtype=np.int8)
-    rs, cs = max(r0, 0), max(c0, 0)
-    re, ce = min(r0 + side, h), min(c0 + side, w)
-    if rs < re and cs < ce:
-        win[rs - r0 : re - r0, cs - c0 : ce - c0] = grid[rs:re, cs:ce]
+    if c0 >= 0 and r0 >= 0 and c0 + side <= w and r0 + side <= h:
+        win = grid[r0 : r0 + side, c0 : c0 + side]  # inside the grid: a view, no copy
+    else:
+        # Pad rather than clip so that the agent stays at the image centre at the map's border.
+        win = np.full((side, side), UNKNOWN, dtype=np.int8)
+        rs, cs = max(r0, 0), max(c0, 0)
+        re, ce = min(r0 + side, h), min(c0 + side, w)
+        if rs < re and cs < ce:
+            win[rs - r0 : re - r0, cs - c0 : ce - c0] = grid[rs:re, cs:ce]
     free = free_mask(win)
     occ = occupied_mask(win)
     unknown = ~(free | occ)  # in-between probabilities count as unknown: neither class is sure
-    stack = np.stack([free, occ, unknown], axis=-1).astype(np.uint8) * np.uint8(255)
+    cells = np.stack([free, occ, unknown], axis=-1).view(np.uint8) * np.uint8(255)
     # INTER_AREA averages the cells under each pixel (shares); upsampling keeps cells crisp.
     interp = cv2.INTER_AREA if side >= size_px else cv2.INTER_NEAREST
-    out = cv2.resize(stack, (size_px, size_px), interpolation=interp)
+    out = cv2.resize(cells, (size_px, size_px), interpolation=interp)
     return np.ascontiguousarray(out.transpose(2, 0, 1))
 
 

@@ -8,7 +8,9 @@ For every method x detector, over seeded cases from the symmetric worlds and fro
 - **imprecise**: accepted, between 2 and 5 cells off;
 - **refused**: not matched;
 - **correct >= 30 %**: correct among the cases whose true overlap is at least 30 %;
-- **median ms**: median wall-clock time of one ``merge_maps`` call (one core).
+- **median ms**: median time of one ``merge_maps`` call, wall clock and process CPU time (OpenCV
+  is limited to one thread, numpy's FFT and reductions are single-threaded, so CPU time is the
+  one-core cost; on a shared machine it is the steadier figure).
 
 Run: ``python scripts/merge_bench.py --n 30 --out results/merge_bench`` (or ``mrexplore bench
 merge ...``); ``--tracker`` also times :class:`~mrexplore.merge.MapMergeTracker` per step.
@@ -30,15 +32,18 @@ from mrexplore.experiments.merge_cases import MergeCase, real_cases, symmetric_c
 from mrexplore.merge import MapMergeTracker, merge_maps
 from mrexplore.merge.common import mean_displacement
 
-#: (method, detector) pairs run by default; detector None = the method's default / none.
-DEFAULT_CONFIGS: tuple[tuple[str, str | None], ...] = (
-    ("semantic", None),
-    ("paper", "harris"),
-    ("paper", "shi-tomasi"),
-    ("paper", "fast"),
-    ("paper", "sift"),
-    ("orb", "orb"),
-    ("orb", "sift"),
+#: (method, detector, options) run by default; detector None = the method has none to choose.
+#: The orb baseline runs twice: with m-explore's default confidence threshold (1.0) and with
+#: its ROS 2 port's (0.6).
+DEFAULT_CONFIGS: tuple[tuple[str, str | None, dict[str, Any]], ...] = (
+    ("semantic", None, {}),
+    ("paper", "harris", {}),
+    ("paper", "shi-tomasi", {}),
+    ("paper", "fast", {}),
+    ("paper", "sift", {}),
+    ("orb", "orb", {}),
+    ("orb", "orb", {"min_confidence": 0.6}),
+    ("orb", "sift", {}),
 )
 CORRECT_CELLS = 2.0
 WRONG_CELLS = 5.0
@@ -64,10 +69,12 @@ def evaluate(
     if detector is not None:
         kw["detector"] = detector
     counts = {"correct": 0, "wrong": 0, "imprecise": 0, "refused": 0}
-    times, records = [], []
+    times, cpu, records = [], [], []
     big = big_ok = 0
     for c in cases:
+        t_cpu = time.process_time()
         res = merge_maps(c.a, c.b, method=method, **kw)
+        cpu.append(time.process_time() - t_cpu)
         kind, err = classify(c, res.matched, res.transform)
         counts[kind] += 1
         times.append(res.time_s)
@@ -91,7 +98,9 @@ def evaluate(
         "n": len(cases),
         **counts,
         "correct_overlap30": f"{big_ok}/{big}",
+        "options": ",".join(f"{k}={v}" for k, v in options.items()) or "-",
         "median_ms": round(float(np.median(times)) * 1e3, 1) if times else float("nan"),
+        "median_cpu_ms": round(float(np.median(cpu)) * 1e3, 1) if cpu else float("nan"),
         "cases": records,
     }
 
@@ -102,7 +111,7 @@ def run_bench(
     detectors: Sequence[str] | None = None,
     seed: int = 0,
     families: Sequence[str] = ("symmetric", "real"),
-    configs: Sequence[tuple[str, str | None]] | None = None,
+    configs: Sequence[tuple[str, str | None, dict[str, Any]]] | None = None,
 ) -> list[dict[str, Any]]:
     """Rows ``{family, method, detector, n, correct, wrong, imprecise, refused,
     correct_overlap30, median_ms, cases}`` for every configuration and family.
@@ -116,8 +125,8 @@ def run_bench(
         list(configs)
         if configs is not None
         else [
-            (m, d)
-            for m, d in DEFAULT_CONFIGS
+            (m, d, o)
+            for m, d, o in DEFAULT_CONFIGS
             if (methods is None or m in methods)
             and (detectors is None or d is None or d in detectors)
         ]
@@ -130,8 +139,8 @@ def run_bench(
             cases = real_cases(n_cases, seed)
         else:
             raise ConfigError(f"run_bench: unknown family {fam!r} (symmetric, real)")
-        for m, d in cfgs:
-            row = evaluate(cases, m, d)
+        for m, d, o in cfgs:
+            row = evaluate(cases, m, d, **o)
             row["family"] = fam
             rows.append(row)
     return rows
@@ -140,22 +149,26 @@ def run_bench(
 COLUMNS = (
     "method",
     "detector",
+    "options",
     "correct",
     "wrong",
     "imprecise",
     "refused",
     "correct_overlap30",
     "median_ms",
+    "median_cpu_ms",
 )
 HEADERS = (
     "method",
     "detector",
+    "options",
     "correct",
     "WRONG",
     "imprecise",
     "refused",
     "correct (overlap>=30%)",
-    "median ms",
+    "median ms (wall)",
+    "median ms (CPU)",
 )
 
 
@@ -200,20 +213,22 @@ def tracker_timing(
     tr = MapMergeTracker(2, merge_every=10**9, recheck_every=0)
     tr.update(maps, step=0)
     merged = tr.merged(0)
-    times = []
+    times, cpu = [], []
     for step in range(1, n_steps + 1):
         for m in maps:  # a small local change, as one lidar update
             r, c = (int(x) for x in rng.integers(canvas // 2 - 50, canvas // 2 + 50, size=2))
             m[r, c] = 0 if m[r, c] != 0 else 100
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         tr.update(maps, step=step)
         tr.fused(0)
         tr.fused(1)
         times.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
     return {
         "merged": float(merged),
         "median_ms": float(np.median(times) * 1e3),
         "p95_ms": float(np.percentile(times, 95) * 1e3),
+        "median_cpu_ms": float(np.median(cpu) * 1e3),
     }
 
 
@@ -229,6 +244,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--out", default=None, help="write STEM.json and STEM.md")
     p.add_argument("--tracker", action="store_true", help="also time the tracker per step")
     args = p.parse_args(list(argv) if argv is not None else None)
+    import cv2
+
+    cv2.setNumThreads(1)  # one core, as the targets are stated
     try:
         rows = run_bench(
             args.n,

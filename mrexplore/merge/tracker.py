@@ -22,6 +22,7 @@ changed teammate (see ``scripts/merge_bench.py --tracker``).
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -31,21 +32,55 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError, GridError
-from mrexplore.grid import Int8Grid, Transform, invert_transform
+from mrexplore.grid import UNKNOWN, Int8Grid, Transform, invert_transform
 from mrexplore.merge.api import METHODS, merge_maps
 from mrexplore.merge.common import MergeResult, Verifier, known_bbox, translation, warp_into
 
 Merger = Callable[[Int8Grid, Int8Grid], MergeResult]
 
 
+Box = tuple[int, int, int, int]  # (r0, r1, c0, c1), half-open, in some robot's cells
+
+
 @dataclass
 class _Patch:
-    """Teammate j's map warped into robot i's canvas, restricted to a window."""
+    """Teammate j's map warped into robot i's canvas, restricted to a window.
+
+    ``changed``: the region of i's canvas (r0, r1, c0, c1) rewritten by the last incremental
+    update, or None after a full rebuild.
+    """
 
     r0: int
     c0: int
     data: Int8Grid
     version: int  # j's map version it was made from
+    T: Transform  # T_ij it was made with
+    T_inv: Transform  # its inverse (cached: used every step)
+    changed: Box | None = None
+
+
+def _clip(box: Box, shape: tuple[int, int]) -> Box | None:
+    r0, r1, c0, c1 = max(0, box[0]), min(shape[0], box[1]), max(0, box[2]), min(shape[1], box[3])
+    return (r0, r1, c0, c1) if r1 > r0 and c1 > c0 else None
+
+
+def _map_box(T: Transform, box: Box) -> Box:
+    """Cells (r0, r1, c0, c1) covering the image of ``box`` under T, one cell of slack.
+
+    Plain Python on the four corners: called every step, where numpy's per-call overhead on
+    4 x 2 arrays would cost more than the arithmetic.
+    """
+    r0, r1, c0, c1 = box
+    a, b, tx = float(T[0, 0]), float(T[0, 1]), float(T[0, 2])
+    c, d, ty = float(T[1, 0]), float(T[1, 1]), float(T[1, 2])
+    xs = [a * x + b * y + tx for x, y in ((c0, r0), (c1 - 1, r0), (c0, r1 - 1), (c1 - 1, r1 - 1))]
+    ys = [c * x + d * y + ty for x, y in ((c0, r0), (c1 - 1, r0), (c0, r1 - 1), (c1 - 1, r1 - 1))]
+    return (
+        math.floor(min(ys)) - 1,
+        math.ceil(max(ys)) + 2,
+        math.floor(min(xs)) - 1,
+        math.ceil(max(xs)) + 2,
+    )
 
 
 def _resolve_merger(merger: Any, options: dict[str, Any]) -> Merger:
@@ -156,8 +191,13 @@ class MapMergeTracker:
         self._edge_score: dict[tuple[int, int], float] = {}
         self._results: dict[tuple[int, int], MergeResult] = {}
         self._patches: dict[tuple[int, int], _Patch] = {}
+        # what changed in each robot's map at its last version: a box in its cells, None = all
+        self._delta: list[Box | None] = [None] * self.n
         self._fused: list[Int8Grid | None] = [None] * self.n
         self._fused_key: list[tuple[Any, ...] | None] = [None] * self.n
+        # per robot: the fusion buffer and the versions it reflects (own, {j: patch version})
+        self._fbuf: list[Int8Grid | None] = [None] * self.n
+        self._fbuf_ver: list[tuple[int, dict[int, int]] | None] = [None] * self.n
         self._paths: dict[tuple[int, int], Transform | None] | None = None
         self._links: NDArray[np.bool_] | None = None
 
@@ -201,20 +241,45 @@ class MapMergeTracker:
             self._recheck()
 
     def _observe(self, i: int, m: Int8Grid) -> None:
+        """Record robot i's map; bump its version and note the changed box when it changed.
+
+        Cost: the known box (two SIMD max-reductions) and one comparison of the known box with
+        the previous snapshot, which also yields the (usually small) box of changed cells.
+        """
         bb = known_bbox(m)
-        prev = self._maps[i]
-        changed = True
-        if prev is not None and bb == self._bbox[i] and prev.shape == m.shape:
-            snap = self._snap[i]
-            if bb is None:
-                changed = False
-            elif snap is not None:
-                changed = not np.array_equal(snap, m[bb[0] : bb[1], bb[2] : bb[3]])
+        prev, old_bb, snap = self._maps[i], self._bbox[i], self._snap[i]
         self._maps[i] = m
-        if changed:
-            self._bbox[i] = bb
-            self._snap[i] = None if bb is None else m[bb[0] : bb[1], bb[2] : bb[3]].copy()
-            self._version[i] += 1
+        delta: Box | None = None
+        if prev is None or prev.shape != m.shape or snap is None or old_bb is None or bb is None:
+            if prev is not None and bb is None and old_bb is None:
+                return  # still all unknown: nothing changed
+        elif (
+            bb[0] <= old_bb[0] and bb[1] >= old_bb[1] and bb[2] <= old_bb[2] and bb[3] >= old_bb[3]
+        ):
+            # the known box kept or grew: compare with the old snapshot placed in the new box
+            cur = m[bb[0] : bb[1], bb[2] : bb[3]]
+            if bb == old_bb:
+                diff = cur != snap
+            else:
+                before = np.full(cur.shape, UNKNOWN, dtype=np.int8)
+                before[
+                    old_bb[0] - bb[0] : old_bb[1] - bb[0], old_bb[2] - bb[2] : old_bb[3] - bb[2]
+                ] = snap
+                diff = cur != before
+            rows = np.flatnonzero(diff.any(axis=1))
+            if rows.size == 0:
+                return  # same content
+            cols = np.flatnonzero(diff[rows[0] : rows[-1] + 1].any(axis=0))
+            delta = (
+                bb[0] + int(rows[0]),
+                bb[0] + int(rows[-1]) + 1,
+                bb[2] + int(cols[0]),
+                bb[2] + int(cols[-1]) + 1,
+            )
+        self._bbox[i] = bb
+        self._snap[i] = None if bb is None else m[bb[0] : bb[1], bb[2] : bb[3]].copy()
+        self._delta[i] = delta
+        self._version[i] += 1
 
     def _linked(self, i: int, j: int) -> bool:
         return self._links is None or bool(self._links[i, j] and self._links[j, i])
@@ -322,52 +387,134 @@ class MapMergeTracker:
     def fused(self, i: int) -> Int8Grid:
         """Robot i's fused map: int8, same shape and frame as its own map.
 
-        Read-only and cached: the same array is returned until a map or transform changes.
-        Copy it before writing.
+        Composed incrementally: only the boxes that changed since the last call (in i's map or
+        in a teammate's warped patch) are recomputed in an internal buffer; the result is a
+        fresh read-only copy of that buffer, cached (the same array is returned) until a map or
+        transform changes. Copy it before writing.
         """
         own = self._maps[i]
         if own is None:
             raise GridError("MapMergeTracker.fused: call update() first")
         mates = sorted(self.group(i) - {i})
-        patches = [p for p in (self._patch(i, j) for j in mates) if p is not None]
-        key = (self._version[i], id(own), tuple((id(p), p.version) for p in patches))
-        if self._fused[i] is not None and self._fused_key[i] == key:
-            return self._fused[i]  # type: ignore[return-value]
-        if not patches:
-            out = own.copy()
+        patches = {j: p for j in mates if (p := self._patch(i, j)) is not None}
+        key = (self._version[i], id(own), tuple((j, id(p), p.version) for j, p in patches.items()))
+        cached = self._fused[i]
+        if cached is not None and self._fused_key[i] == key:
+            return cached
+        buf, ver = self._fbuf[i], self._fbuf_ver[i]
+        regions: list[Box] | None = []
+        if buf is None or ver is None or buf.shape != own.shape or set(ver[1]) != set(patches):
+            regions = None
         else:
-            out = own.copy()
-            for p in patches:
+            if ver[0] != self._version[i]:
+                d = self._delta[i]
+                if ver[0] + 1 != self._version[i] or d is None:
+                    regions = None
+                elif regions is not None:
+                    regions.append(d)
+            for j, p in patches.items():
+                if regions is None or ver[1][j] == p.version:
+                    continue
+                if ver[1][j] + 1 != p.version or p.changed is None:
+                    regions = None
+                else:
+                    regions.append(p.changed)
+        if regions is None:  # rebuild the buffer
+            buf = own.copy()
+            for p in patches.values():
                 h, w = p.data.shape
-                win = out[p.r0 : p.r0 + h, p.c0 : p.c0 + w]
+                win = buf[p.r0 : p.r0 + h, p.c0 : p.c0 + w]
                 np.maximum(win, p.data, out=win)
+        else:
+            assert buf is not None
+            for box in regions:
+                cl = _clip(box, own.shape)
+                if cl is None:
+                    continue
+                r0, r1, c0, c1 = cl
+                buf[r0:r1, c0:c1] = own[r0:r1, c0:c1]
+                for p in patches.values():
+                    h, w = p.data.shape
+                    sub = _clip((r0 - p.r0, r1 - p.r0, c0 - p.c0, c1 - p.c0), (h, w))
+                    if sub is None:
+                        continue
+                    a0, a1, b0, b1 = sub
+                    win = buf[p.r0 + a0 : p.r0 + a1, p.c0 + b0 : p.c0 + b1]
+                    np.maximum(win, p.data[a0:a1, b0:b1], out=win)
+        self._fbuf[i] = buf
+        self._fbuf_ver[i] = (self._version[i], {j: p.version for j, p in patches.items()})
+        # A fresh array: unknown everywhere (a memset) except the box that can hold knowledge,
+        # copied from the buffer: cheaper than copying the whole canvas.
+        out = np.full(buf.shape, UNKNOWN, dtype=np.int8)
+        boxes = [self._bbox[i]] + [
+            (p.r0, p.r0 + p.data.shape[0], p.c0, p.c0 + p.data.shape[1]) for p in patches.values()
+        ]
+        live = [bx for bx in boxes if bx is not None]
+        if live:
+            r0, r1 = min(bx[0] for bx in live), max(bx[1] for bx in live)
+            c0, c1 = min(bx[2] for bx in live), max(bx[3] for bx in live)
+            out[r0:r1, c0:c1] = buf[r0:r1, c0:c1]
         out.flags.writeable = False
         self._fused[i], self._fused_key[i] = out, key
         return out
 
     def _patch(self, i: int, j: int) -> _Patch | None:
-        """j's map warped into i's canvas (cached); stale copy when the link is down."""
+        """j's map warped into i's canvas (cached); stale copy when the link is down.
+
+        When j's map changed by one version inside a box, only the image of that box is
+        re-warped (from a crop of j's map covering its preimage); otherwise the patch is rebuilt
+        from j's known box.
+        """
         old = self._patches.get((i, j))
         if not self._linked(i, j) or (old is not None and old.version == self._version[j]):
             return old
         T = self.transform(i, j)
+        own, mj = self._maps[i], self._maps[j]
+        if T is None or own is None or mj is None:
+            return old
+        d = self._delta[j]
+        if (
+            old is not None
+            and d is not None
+            and old.version + 1 == self._version[j]
+            and np.array_equal(old.T, T)
+        ):
+            h, w = old.data.shape
+            dst = _clip(_map_box(T, d), own.shape)
+            win = (old.r0, old.r0 + h, old.c0, old.c0 + w)
+            if dst is None or (
+                dst[0] >= win[0] and dst[1] <= win[1] and dst[2] >= win[2] and dst[3] <= win[3]
+            ):
+                if dst is not None:
+                    # source crop = preimage of the destination box: every destination cell
+                    # finds its nearest source cell inside it (or outside j's map = unknown)
+                    src = _clip(_map_box(old.T_inv, dst), mj.shape)
+                    if src is not None:
+                        s0, s1, t0, t1 = src
+                        piece = warp_into(
+                            mj[s0:s1, t0:t1],
+                            T @ translation(t0, s0),
+                            (dst[1] - dst[0], dst[3] - dst[2]),
+                            dst_origin=(dst[2], dst[0]),
+                        )
+                    else:
+                        piece = np.full((dst[1] - dst[0], dst[3] - dst[2]), UNKNOWN, np.int8)
+                    old.data[
+                        dst[0] - old.r0 : dst[1] - old.r0, dst[2] - old.c0 : dst[3] - old.c0
+                    ] = piece
+                old.version = self._version[j]
+                old.changed = dst if dst is not None else (0, 0, 0, 0)
+                return old
         cj = self._crop(j)
-        own = self._maps[i]
-        if T is None or cj is None or own is None:
+        if cj is None:
             return old
         b, (cb, rb) = cj
         T_crop = T @ translation(cb, rb)  # cropped j cells -> i cells
-        h, w = b.shape
-        corners = np.array([[0, 0], [w - 1, 0], [0, h - 1], [w - 1, h - 1]], dtype=np.float64)
-        q = corners @ T_crop[:2, :2].T + T_crop[:2, 2]
-        H, W = own.shape
-        c0 = max(0, int(np.floor(q[:, 0].min())))
-        r0 = max(0, int(np.floor(q[:, 1].min())))
-        c1 = min(W, int(np.ceil(q[:, 0].max())) + 1)
-        r1 = min(H, int(np.ceil(q[:, 1].max())) + 1)
-        if c1 <= c0 or r1 <= r0:
+        box = _clip(_map_box(T_crop, (0, b.shape[0], 0, b.shape[1])), own.shape)
+        if box is None:
             return old  # j's known part falls outside i's canvas
+        r0, r1, c0, c1 = box
         data = warp_into(b, T_crop, (r1 - r0, c1 - c0), dst_origin=(c0, r0))
-        p = _Patch(r0, c0, data, self._version[j])
+        p = _Patch(r0, c0, data, self._version[j], T.copy(), invert_transform(T), None)
         self._patches[(i, j)] = p
         return p

@@ -94,3 +94,10 @@ def test_options_are_validated() -> None:
         merge_maps(g, g, min_score=2.0)
     with pytest.raises(ConfigError, match="scale"):
         merge_maps(g, g, scale="four")
+
+
+def test_paper_candidates_option_runs(office_pair) -> None:
+    a, b, T_true = office_pair
+    res = merge_maps(a, b, paper_candidates=True, detector="shi-tomasi")
+    assert res.matched and res.transform is not None
+    assert mean_displacement(res.transform, T_true, b) < 1.0

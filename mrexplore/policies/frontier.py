@@ -15,9 +15,9 @@ All three share one per-robot machine, :class:`FrontierExplorer`, and differ onl
   frontier ``t`` normalised by its largest reachable cost, and ``U_t`` a utility that starts at 1
   and drops by ``max(0, 1 - d / sensor_range)`` for every target ``t'`` teammates chose, ``d`` the
   distance between ``t`` and ``t'`` (what a teammate at ``t'`` will see, this robot need not
-  visit). Teammates' targets come from *their* frames and are moved into this robot's frame by the
-  estimated transforms of its :class:`~mrexplore.environment.view.RobotView`; before a merge a robot has no
-  teammate transforms and so plans alone on its own map.
+  visit). Teammates' targets come from *their* frames and are moved into this robot's frame by
+  the estimated transforms of its :class:`~mrexplore.environment.view.RobotView`; before a merge
+  a robot has no teammate transforms and so plans alone on its own map.
 
 The machine (per robot, every step):
 
@@ -133,8 +133,8 @@ class FrontierExplorer(Policy):
         min_frontier_cells: int = 8,
         plan_factor: int = 2,
         approach_cells: int = 2,
-        replan_every: int = 15,
-        min_replan_steps: int = 4,
+        replan_every: int = 10,
+        min_replan_steps: int = 2,
         stuck_steps: int = 12,
         bump_steps: int = 3,
         blacklist_radius_m: float = 0.5,

@@ -10,7 +10,12 @@ import pytest
 
 from mrexplore.errors import ConfigError, GridError
 from mrexplore.grid import FREE, OCCUPIED, UNKNOWN
-from mrexplore.policies.planning import PlanningGrid, distance_field, inflate_obstacles
+from mrexplore.policies.planning import (
+    PlanningGrid,
+    distance_field,
+    distance_field_scan,
+    inflate_obstacles,
+)
 
 RES = 0.05
 RADIUS = 0.15
@@ -40,14 +45,15 @@ def _dijkstra(free: np.ndarray, src: tuple[int, int]) -> np.ndarray:
     return d
 
 
+@pytest.mark.parametrize("method", ["dijkstra", "scan"])
 @pytest.mark.parametrize("seed", [0, 1, 2, 3])
-def test_distance_field_matches_dijkstra(seed: int) -> None:
+def test_distance_field_matches_reference(seed: int, method: str) -> None:
     rng = np.random.default_rng(seed)
     free = rng.random((25, 31)) > 0.3
     free[8, :27] = False  # two long walls: paths must snake
     free[16, 4:] = False
     free[0, 0] = True
-    got = distance_field(free, np.array([[0, 0]]))
+    got = distance_field(free, np.array([[0, 0]]), method=method)
     ref = _dijkstra(free, (0, 0))
     assert np.array_equal(np.isinf(got), np.isinf(ref))
     fin = np.isfinite(ref)
@@ -55,9 +61,25 @@ def test_distance_field_matches_dijkstra(seed: int) -> None:
     np.testing.assert_allclose(got[fin], ref[fin], rtol=1e-4, atol=1e-6)
 
 
-def test_distance_field_no_corner_cutting() -> None:
+def test_numba_and_numpy_fields_agree_exactly() -> None:
+    """Both methods use the same integer step costs, so they must give the same numbers."""
+    rng = np.random.default_rng(11)
+    free = rng.random((70, 90)) > 0.25
+    sources = np.array([[5, 5], [80, 60]])
+    a = distance_field(free, sources, method="dijkstra")
+    b = distance_field_scan(free, sources)
+    assert np.array_equal(a, b)
+
+
+def test_distance_field_bad_method() -> None:
+    with pytest.raises(ConfigError):
+        distance_field(np.ones((3, 3), dtype=bool), np.array([[0, 0]]), method="bfs")
+
+
+@pytest.mark.parametrize("method", ["dijkstra", "scan"])
+def test_distance_field_no_corner_cutting(method: str) -> None:
     free = np.array([[1, 0], [0, 1]], dtype=bool)
-    d = distance_field(free, np.array([[0, 0]]))
+    d = distance_field(free, np.array([[0, 0]]), method=method)
     assert np.isinf(d[1, 1])  # diagonal between two blocked cells is not allowed
 
 

@@ -14,6 +14,11 @@ grid traversal the sensor uses.
 
 The int8 view (``-1/0/100``, :mod:`mrexplore.grid`) is kept up to date incrementally (only the
 cells a scan touched), so :meth:`OccupancyMap.to_int8` is O(1) even on 1500 x 1500 canvases.
+
+Two implementations of the update, chosen by :data:`mrexplore.sensors.USE_NUMBA` at call time: the
+compiled kernel :func:`mrexplore._kernels.map_update` (default; a per-scan stamp array dedupes the
+cells) and the vectorised numpy path below (fallback and test oracle). With
+:data:`NUMPY_TRAVERSE_DTYPE` = float64 the two give identical maps.
 """
 
 from __future__ import annotations
@@ -24,9 +29,10 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from mrexplore import sensors
 from mrexplore.errors import ConfigError, GridError
 from mrexplore.grid import FREE, FREE_THRESHOLD, OCCUPIED, OCCUPIED_THRESHOLD, UNKNOWN
-from mrexplore.sensors import CORNER_EPS, snap, traverse
+from mrexplore.sensors import CORNER_EPS, traverse
 
 #: Beams are traversed in two groups: those shorter than this many cells (most beams indoors)
 #: with this many crossing slots, the long ones with as many as the longest needs.
@@ -35,6 +41,14 @@ SHORT_BEAM_CELLS: int = 24
 #: The occupied end point is taken this far (cells) beyond the measured range, so a noise-free
 #: range that ends exactly on a wall boundary lands in the wall cell, not the free one before.
 _END_NUDGE_CELLS: float = 1e-3
+
+#: Float type of the numpy path's per-slot positions (float32 is faster; float64 reproduces the
+#: compiled kernel bit for bit, which the tests use).
+NUMPY_TRAVERSE_DTYPE: type[np.floating] = np.float32
+
+#: The per-scan stamps are uint16: scan ids wrap (and the stamps are cleared) before 2 id + 1
+#: overflows.
+_STAMP_WRAP: int = 32767
 
 
 class OccupancyMap:
@@ -92,6 +106,15 @@ class OccupancyMap:
         self._marks = np.zeros((h, w), dtype=np.uint8)
         self._delta = np.array([0.0, self.l_free, self.l_occ], dtype=np.float32)
         self._bbox: list[int] | None = None  # [row0, row1, col0, col1] inclusive
+        # Compiled path: a per-cell stamp of the last scan that touched it (2 id free,
+        # 2 id + 1 occupied), allocated on the first compiled update; the bbox as an array the
+        # kernel updates in place (row1 < 0: none yet).
+        self._stamp: NDArray[np.uint16] | None = None
+        self._scan_id = 0
+        self._bbox_arr = np.array([0, -1, 0, -1], dtype=np.int64)
+        self._kdeltas = np.array(
+            [self.l_free, self.l_occ, self.l_min, self.l_max], dtype=np.float32
+        )
 
     # ------------------------------------------------------------------ queries
     def cell_of(self, x_m: float, y_m: float) -> tuple[float, float]:
@@ -114,6 +137,13 @@ class OccupancyMap:
 
     def known_bbox(self) -> tuple[int, int, int, int] | None:
         """``(row0, row1, col0, col1)`` inclusive bounds of the observed cells, None if none."""
+        if self._bbox_arr[1] >= 0:  # the compiled path has updated it
+            b = self._bbox_arr
+            box = (int(b[0]), int(b[1]), int(b[2]), int(b[3]))
+            if self._bbox is None:
+                return box
+            o = self._bbox
+            return (min(o[0], box[0]), max(o[1], box[1]), min(o[2], box[2]), max(o[3], box[3]))
         return (
             None
             if self._bbox is None
@@ -147,18 +177,35 @@ class OccupancyMap:
             )
         if not (np.isfinite(rng_m).all() and (rng_m >= 0.0).all()):
             raise GridError("ranges_m must be finite and non-negative")
+        self._integrate(x, y, th, ang, rng_m, hits)
+
+    def _integrate(
+        self,
+        x: float,
+        y: float,
+        th: float,
+        ang: NDArray[np.float64],
+        rng_m: NDArray[np.floating],
+        hits: NDArray[np.bool_],
+    ) -> None:
+        """:meth:`update` without the input checks (the simulator passes its own valid scans):
+        ``ang`` (B,) float64 radians, ``rng_m`` (B,) metres (float32 or float64), ``hits`` (B,)."""
         h, w = self.shape
         res = self.resolution_m
-        # Corner coordinates (col + 0.5, row + 0.5): cell = floor.
-        ox = float(snap(np.float64(self.origin_cell[0] + x / res + 0.5)))
-        oy = float(snap(np.float64(self.origin_cell[1] + y / res + 0.5)))
+        # Corner coordinates (col + 0.5, row + 0.5): cell = floor. (snap inlined: this runs
+        # every step and numpy's scalar calls cost microseconds each.)
+        ox = round((self.origin_cell[0] + x / res + 0.5) / sensors.SNAP_CELLS) * sensors.SNAP_CELLS
+        oy = round((self.origin_cell[1] + y / res + 0.5) / sensors.SNAP_CELLS) * sensors.SNAP_CELLS
         if not (1.0 <= ox < w - 1 and 1.0 <= oy < h - 1):
             raise GridError(
                 f"pose ({x:.3f}, {y:.3f}) m is outside the {h}x{w} canvas: make the canvas larger"
             )
         a = th + ang
+        t_end = np.asarray(rng_m, dtype=np.float64) / res
+        if sensors.USE_NUMBA and sensors._kernels is not None:
+            self._integrate_numba(ox, oy, np.cos(a), np.sin(a), t_end, hits)
+            return
         d = np.stack([np.cos(a), np.sin(a)], axis=1)
-        t_end = rng_m / res
         hits = hits.copy()
         # Beams that would leave the canvas (keeping a one-cell ring) are cut at its edge and
         # lose their hit: the canvas should be big enough for this never to happen.
@@ -186,7 +233,7 @@ class OccupancyMap:
                 n_slots,
                 w,
                 float(n_slots) + 2.0,
-                dtype=np.float32,
+                dtype=NUMPY_TRAVERSE_DTYPE,
                 index_bound=h * w,
             )
             touched.append(tr.selected(tr.count_before(t_end[group])))
@@ -225,6 +272,44 @@ class OccupancyMap:
                     max(b[3], box[3]),
                 ]
 
+    def _integrate_numba(
+        self,
+        ox: float,
+        oy: float,
+        dx: NDArray[np.float64],
+        dy: NDArray[np.float64],
+        t_end: NDArray[np.float64],
+        hits: NDArray[np.bool_],
+    ) -> None:
+        """The compiled update (see :func:`mrexplore._kernels.map_update`)."""
+        assert sensors._kernels is not None
+        h, w = self.shape
+        if self._stamp is None:
+            self._stamp = np.zeros(h * w, dtype=np.uint16)
+        self._scan_id += 1
+        if self._scan_id > _STAMP_WRAP:
+            self._stamp[:] = 0
+            self._scan_id = 1
+        sensors._kernels.map_update(
+            self.logodds.reshape(-1),
+            self._int8.reshape(-1),
+            self._stamp,
+            self._scan_id,
+            h,
+            w,
+            ox,
+            oy,
+            dx,
+            dy,
+            t_end,
+            np.asarray(hits, dtype=np.bool_),
+            float(SHORT_BEAM_CELLS),
+            self._kdeltas,
+            _KTHRESHOLDS,
+            _KPCT,
+            self._bbox_arr,
+        )
+
     def save(self, path_yaml: str | Path) -> Path:
         """Write the int8 map as a map_server YAML + image (needs :mod:`mrexplore.world.map_io`).
 
@@ -253,6 +338,14 @@ def _exit_t(ox: float, oy: float, d: NDArray[np.float64], w: int, h: int) -> NDA
 #: Log-odds at the int8 thresholds of :mod:`mrexplore.grid` (logit of 25 % and 65 %).
 _L_FREE_MAX: float = math.log(FREE_THRESHOLD / (100.0 - FREE_THRESHOLD))
 _L_OCC_MIN: float = math.log(OCCUPIED_THRESHOLD / (100.0 - OCCUPIED_THRESHOLD))
+
+
+#: The compiled path's constants: the thresholds as float32 (the numpy path compares float32
+#: log-odds with Python floats, which NumPy 2 casts to float32) and the int8 values.
+_KTHRESHOLDS: NDArray[np.float32] = np.array([_L_FREE_MAX, _L_OCC_MIN], dtype=np.float32)
+_KPCT: NDArray[np.int64] = np.array(
+    [FREE, OCCUPIED, FREE_THRESHOLD + 1, OCCUPIED_THRESHOLD - 1], dtype=np.int64
+)
 
 
 def _logodds_to_int8(lo: NDArray[np.float32]) -> NDArray[np.int8]:

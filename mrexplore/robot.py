@@ -21,6 +21,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from mrexplore import sensors
 from mrexplore.errors import ConfigError, WorldError
 from mrexplore.sensors import snap
 from mrexplore.world.world import World
@@ -130,6 +131,10 @@ class Motion:
         step_cells = self.config.step_m / world.resolution_m
         # Sub-steps of at most half a cell: a straight move then never skips a cell.
         self._n_sub = max(1, math.ceil(step_cells / 0.5))
+        # Distance (m) of each sub-step from the start, 0 .. step_m.
+        self._dist = self.config.step_m * (
+            np.arange(self._n_sub + 1, dtype=np.float64) / self._n_sub
+        )
 
     def cell_index(self, xy_m: NDArray[np.floating]) -> NDArray[np.int64]:
         """World metres (..., 2) -> integer cells (..., 2) as (col, row) (rounded centres)."""
@@ -173,15 +178,40 @@ class Motion:
         turn = self.config.turn_rad
         # Only turning robots are wrapped: the others keep their heading bit for bit.
         left, right = a == Action.TURN_LEFT, a == Action.TURN_RIGHT
-        p[left, 2] = wrap_angle(p[left, 2] + turn)
-        p[right, 2] = wrap_angle(p[right, 2] - turn)
+        if left.any():
+            p[left, 2] = wrap_angle(p[left, 2] + turn)
+        if right.any():
+            p[right, 2] = wrap_angle(p[right, 2] - turn)
         collided = np.zeros(p.shape[0], dtype=bool)
         fwd = np.flatnonzero(a == Action.FORWARD)
         if fwd.size == 0:
             return p, collided
+        if sensors.USE_NUMBA and sensors._kernels is not None:
+            # The same sub-steps and checks, compiled: numpy's per-call overhead on a handful
+            # of robots was ~0.2 ms per step.
+            th = p[fwd, 2]
+            nx = np.empty(fwd.size)
+            ny = np.empty(fwd.size)
+            last_ok = sensors._kernels.motion_forward(
+                self._blocked,
+                p[fwd, 0],
+                p[fwd, 1],
+                np.cos(th),
+                np.sin(th),
+                self._dist,
+                float(self.world.origin_m[0]),
+                float(self.world.origin_m[1]),
+                float(self.world.resolution_m),
+                sensors.SNAP_CELLS,
+                nx,
+                ny,
+            )
+            p[fwd, 0] = nx
+            p[fwd, 1] = ny
+            collided[fwd] = last_ok < self._n_sub
+            return p, collided
         h, w = self.world.shape
-        frac = np.arange(self._n_sub + 1, dtype=np.float64) / self._n_sub  # 0 .. 1
-        dist = self.config.step_m * frac  # (S+1,)
+        dist = self._dist  # (S+1,)
         th = p[fwd, 2]
         xs = p[fwd, 0, None] + np.cos(th)[:, None] * dist[None, :]
         ys = p[fwd, 1, None] + np.sin(th)[:, None] * dist[None, :]

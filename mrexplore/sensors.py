@@ -20,6 +20,11 @@ wall cells that touch only at a corner (a diagonal staircase of walls is closed)
 is used by :func:`cast_ray_reference`.
 
 Cells outside the grid count as walls: a beam leaving the grid stops at the border.
+
+Two implementations: the compiled per-beam kernels of :mod:`mrexplore._kernels` (used when
+:data:`USE_NUMBA`, the default) and the vectorised numpy traversal below (the fallback, and the
+oracle of the tests). They evaluate the same float64 formulas, so they agree to the bit with
+``Lidar.dtype = numpy.float64``.
 """
 
 from __future__ import annotations
@@ -32,6 +37,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError, GridError
+
+try:  # numba is a core dependency; the numpy path stays as a fallback and a test oracle
+    from mrexplore import _kernels
+except ImportError:  # pragma: no cover - only without numba
+    _kernels = None  # type: ignore[assignment]
+
+#: numba imported: the compiled kernels of :mod:`mrexplore._kernels` are available.
+HAVE_NUMBA: bool = _kernels is not None
+#: Use the compiled kernels for :meth:`Lidar.cast`, :meth:`Lidar.cast_observe`,
+#: :meth:`mrexplore.mapping.OccupancyMap.update` and :meth:`mrexplore.robot.Motion.step` (read at
+#: call time: set it to False to run the vectorised numpy path, e.g. to compare the two).
+USE_NUMBA: bool = HAVE_NUMBA
 
 #: Rays passing within this many cells of a grid corner test both cells beside the corner.
 #: Larger than the float32 rounding of the per-slot positions (~2e-5 cells for beams of a few
@@ -372,20 +389,10 @@ class Lidar:
         grid = walls if isinstance(walls, PaddedGrid) else prepare_walls(walls)
         if not (math.isfinite(resolution_m) and resolution_m > 0.0):
             raise GridError(f"resolution_m must be a positive number, got {resolution_m}")
-        org = np.asarray(origins_cells, dtype=np.float64).reshape(-1, 2)
-        hd = np.asarray(headings, dtype=np.float64).reshape(-1)
-        n_rob = org.shape[0]
-        if hd.shape[0] != n_rob:
-            raise GridError(f"got {n_rob} origins but {hd.shape[0]} headings")
-        h, w = grid.shape
-        corner = snap(org + 0.5)
-        if not (
-            np.isfinite(corner).all()
-            and (corner >= 0.0).all()
-            and (corner[:, 0] < w).all()
-            and (corner[:, 1] < h).all()
-        ):
-            raise GridError(f"sensor origins {org.tolist()} must lie inside the {h}x{w} grid")
+        corner, hd = self._check_origins(grid, origins_cells, headings)
+        n_rob = corner.shape[0]
+        if USE_NUMBA:
+            return self._cast_numba(grid, corner, hd, resolution_m, rng, want_visible)
         n_b = self.angles.shape[0]
         max_cells = self.config.max_range_m / resolution_m
         dirs = self.directions(hd)
@@ -453,6 +460,147 @@ class Lidar:
             visible_flat=visible,
         )
 
+    def _check_origins(
+        self, grid: PaddedGrid, origins_cells: NDArray[np.floating], headings: NDArray[np.floating]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Validated ``(corner (R, 2) snapped corner coordinates, headings (R,))``."""
+        org = np.asarray(origins_cells, dtype=np.float64).reshape(-1, 2)
+        hd = np.asarray(headings, dtype=np.float64).reshape(-1)
+        if hd.shape[0] != org.shape[0]:
+            raise GridError(f"got {org.shape[0]} origins but {hd.shape[0]} headings")
+        h, w = grid.shape
+        corner = snap(org + 0.5)
+        # One reduction instead of four (this runs every simulator step).
+        if not (corner.min() >= 0.0 and (corner < np.array([w, h])).all()):
+            raise GridError(f"sensor origins {org.tolist()} must lie inside the {h}x{w} grid")
+        return corner, hd
+
+    def _noise(self, rng: np.random.Generator | None, n_rob: int) -> NDArray[np.float64]:
+        """(R, B) range noise in metres from ``rng`` (one draw), or an empty array for none."""
+        if rng is None or self.config.noise_std_m <= 0.0:
+            return _NO_NOISE
+        return rng.normal(0.0, self.config.noise_std_m, size=(n_rob, self.angles.shape[0]))
+
+    def _cast_numba(
+        self,
+        grid: PaddedGrid,
+        corner: NDArray[np.float64],
+        hd: NDArray[np.float64],
+        resolution_m: float,
+        rng: np.random.Generator | None,
+        want_visible: bool,
+    ) -> Scan:
+        """:meth:`cast` with the compiled kernel (``corner``: validated corner coordinates)."""
+        n_rob, n_b = corner.shape[0], self.angles.shape[0]
+        h, w = grid.shape
+        ranges = np.empty((n_rob, n_b), dtype=np.float32)
+        hit = np.empty((n_rob, n_b), dtype=np.bool_)
+        if want_visible:
+            # The kernel marks cells into a mask; the visible cells are its nonzero entries
+            # (O(H W): the simulator uses cast_observe, which marks its own masks directly).
+            obs = np.zeros((n_rob, h * w), dtype=np.bool_)
+            flat = np.zeros(h * w, dtype=np.bool_)
+            newly = np.zeros(n_rob, dtype=np.int64)
+        else:
+            obs, flat, newly = _NO_OBS, _NO_FLAT, _NO_NEWLY
+        assert _kernels is not None
+        _kernels.cast_observe(
+            grid.table,
+            h + 2,
+            w + 2,
+            corner,
+            np.cos(hd),
+            np.sin(hd),
+            self._cos,
+            self._sin,
+            self.config.max_range_m / resolution_m,
+            resolution_m,
+            self.config.max_range_m,
+            self._noise(rng, n_rob),
+            ranges,
+            hit,
+            want_visible,
+            obs,
+            flat,
+            flat,
+            newly,
+        )
+        visible = tuple(np.flatnonzero(o) for o in obs) if want_visible else None
+        return Scan(ranges_m=ranges, hit=hit, angles=self.angles, visible_flat=visible)
+
+    def cast_observe(
+        self,
+        grid: PaddedGrid,
+        origins_cells: NDArray[np.floating],
+        headings: NDArray[np.floating],
+        resolution_m: float,
+        rng: np.random.Generator | None,
+        observed: NDArray[np.bool_],
+        reachable: NDArray[np.bool_],
+        team_observed: NDArray[np.bool_],
+    ) -> tuple[Scan, NDArray[np.int64], int]:
+        """Cast every beam of R robots and mark what they observed (the simulator's step).
+
+        Args:
+            grid: the wall grid from :meth:`prepare` (H, W).
+            origins_cells, headings, resolution_m, rng: as :meth:`cast`.
+            observed: bool (R, H, W), C-contiguous, per robot the world cells observed so far;
+                updated in place with the robot's own cell and, per beam, the cells entered up
+                to the hit (hit cell included) or the maximum range (``Scan.visible_flat``).
+            reachable: bool (H, W) the cells that count for coverage.
+            team_observed: bool (H, W), C-contiguous, cells observed by any robot; updated.
+
+        Returns:
+            ``(scan, newly (R,) int64 cells each robot observed for the first time, number of
+            reachable cells the team observed for the first time)``. ``scan.visible_flat`` is
+            None.
+        """
+        if not (math.isfinite(resolution_m) and resolution_m > 0.0):
+            raise GridError(f"resolution_m must be a positive number, got {resolution_m}")
+        corner, hd = self._check_origins(grid, origins_cells, headings)
+        n_rob, n_b = corner.shape[0], self.angles.shape[0]
+        h, w = grid.shape
+        if (
+            observed.shape != (n_rob, h, w)
+            or reachable.shape != (h, w)
+            or team_observed.shape != (h, w)
+            or not (observed.flags.c_contiguous and team_observed.flags.c_contiguous)
+        ):
+            raise GridError(
+                f"observed must be C-contiguous bool ({n_rob}, {h}, {w}) and reachable, "
+                f"team_observed bool ({h}, {w})"
+            )
+        if not USE_NUMBA:
+            scan = self.cast(grid, origins_cells, headings, resolution_m, rng, want_visible=True)
+            newly, covered = _observe_numpy(scan, observed, reachable, team_observed)
+            return Scan(scan.ranges_m, scan.hit, scan.angles), newly, covered
+        ranges = np.empty((n_rob, n_b), dtype=np.float32)
+        hit = np.empty((n_rob, n_b), dtype=np.bool_)
+        newly = np.zeros(n_rob, dtype=np.int64)
+        assert _kernels is not None
+        covered = _kernels.cast_observe(
+            grid.table,
+            h + 2,
+            w + 2,
+            corner,
+            np.cos(hd),
+            np.sin(hd),
+            self._cos,
+            self._sin,
+            self.config.max_range_m / resolution_m,
+            resolution_m,
+            self.config.max_range_m,
+            self._noise(rng, n_rob),
+            ranges,
+            hit,
+            True,
+            observed.reshape(n_rob, h * w),
+            np.ascontiguousarray(reachable).reshape(-1),
+            team_observed.reshape(-1),
+            newly,
+        )
+        return Scan(ranges_m=ranges, hit=hit, angles=self.angles), newly, int(covered)
+
     @staticmethod
     def _visible(
         grid: PaddedGrid,
@@ -490,6 +638,40 @@ class Lidar:
             oc = origin_cells[i]
             out.append(np.concatenate([flat, np.array([oc[1] * w + oc[0]], dtype=np.int64)]))
         return tuple(out)
+
+
+#: Placeholders for the kernel's unused arguments (no noise, no marking).
+_NO_NOISE: NDArray[np.float64] = np.zeros((0, 0), dtype=np.float64)
+_NO_OBS: NDArray[np.bool_] = np.zeros((1, 1), dtype=np.bool_)
+_NO_FLAT: NDArray[np.bool_] = np.zeros(1, dtype=np.bool_)
+_NO_NEWLY: NDArray[np.int64] = np.zeros(1, dtype=np.int64)
+
+
+def _observe_numpy(
+    scan: Scan,
+    observed: NDArray[np.bool_],
+    reachable: NDArray[np.bool_],
+    team_observed: NDArray[np.bool_],
+) -> tuple[NDArray[np.int64], int]:
+    """The numpy bookkeeping of :meth:`Lidar.cast_observe` from ``scan.visible_flat``."""
+    assert scan.visible_flat is not None
+    n_rob = observed.shape[0]
+    newly = np.zeros(n_rob, dtype=np.int64)
+    covered = 0
+    team = team_observed.reshape(-1)
+    reach = reachable.reshape(-1)
+    for i in range(n_rob):
+        vis = scan.visible_flat[i]
+        obs = observed[i].reshape(-1)
+        fresh = vis[~obs[vis]]
+        if fresh.size:
+            fresh = np.unique(fresh)
+            obs[fresh] = True
+            newly[i] = fresh.size
+            team_new = fresh[~team[fresh]]
+            team[team_new] = True
+            covered += int(np.count_nonzero(reach[team_new]))
+    return newly, covered
 
 
 def cast_ray_reference(

@@ -299,36 +299,32 @@ class Simulation:
         return out
 
     def _sense(self, rng: np.random.Generator) -> NDArray[np.int64]:
-        """Cast all robots on the truth, update own maps and the observed cells."""
+        """Cast all robots on the truth, mark the observed cells, update the own maps.
+
+        One call casts every beam of every robot and marks ``observed`` / the team's cells
+        (:meth:`mrexplore.sensors.Lidar.cast_observe`, incremental coverage); then one map
+        update per robot at its *estimated* pose.
+        """
         world = self.world
         origins = world.cell_of(self.true_poses[:, :2])
-        scan = self.lidar.cast(
+        scan, newly, covered = self.lidar.cast_observe(
             self._grid,
             origins,
             self.true_poses[:, 2],
             self.resolution_m,
-            rng=rng,
-            want_visible=True,
+            rng,
+            self.observed,
+            self.reachable,
+            self._team_observed,
         )
         self.last_scan = scan
-        newly = np.zeros(self.n_robots, dtype=np.int64)
-        assert scan.visible_flat is not None
-        team = self._team_observed.reshape(-1)
-        reach = self.reachable.reshape(-1)
+        self._team_covered += covered
+        angles = scan.angles
         for i in range(self.n_robots):
-            vis = scan.visible_flat[i]
-            obs = self.observed[i].reshape(-1)
-            fresh = vis[~obs[vis]]
-            if fresh.size:
-                fresh = np.unique(fresh)
-                obs[fresh] = True
-                newly[i] = fresh.size
-                team_new = fresh[~team[fresh]]
-                team[team_new] = True
-                self._team_covered += int(np.count_nonzero(reach[team_new]))
-            self.maps[i].update(self.est_poses[i], scan.angles, scan.ranges_m[i], scan.hit[i])
-            col, row, _ = self.pose_cell(i)
-            self._trails[i].append(col, row)
+            x, y, th = (float(v) for v in self.est_poses[i])
+            m = self.maps[i]
+            m._integrate(x, y, th, angles, scan.ranges_m[i], scan.hit[i])
+            self._trails[i].append(*m.cell_of(x, y))
         return newly
 
     # ------------------------------------------------------------------ queries

@@ -143,7 +143,7 @@ def map_in_world(sim: Simulation, i: int) -> np.ndarray:
     """Robot i's int8 map resampled into world cells through the true transform (nearest)."""
     h, w = sim.world.shape
     rows, cols = np.mgrid[0:h, 0:w]
-    T_map_from_world = np.linalg.inv(sim.world_from_map(i))
+    T_map_from_world = np.asarray(np.linalg.inv(sim.world_from_map(i)), dtype=np.float64)
     pts = apply_transform(T_map_from_world, np.stack([cols.ravel(), rows.ravel()], 1))
     mc = np.floor(pts + 0.5).astype(int)
     return sim.maps[i].to_int8()[mc[:, 1], mc[:, 0]].reshape(h, w)

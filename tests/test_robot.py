@@ -50,7 +50,7 @@ def test_defaults_document_the_step() -> None:
 )
 def test_config_is_validated(kwargs: dict[str, float]) -> None:
     with pytest.raises(ConfigError):
-        RobotConfig(**kwargs)  # type: ignore[arg-type]
+        RobotConfig(**kwargs)
 
 
 def test_driving_at_a_one_cell_wall_stops_before_it() -> None:

@@ -18,8 +18,8 @@ def random_world(rng: np.random.Generator) -> np.ndarray:
     h, w = (int(v) for v in rng.integers(12, 48, size=2))
     walls = rng.random((h, w)) < 0.03
     for _ in range(3):  # blobs
-        r, c = rng.integers(0, h), rng.integers(0, w)
-        walls[r : r + int(rng.integers(1, 5)), c : c + int(rng.integers(1, 5))] = True
+        r0, c0 = int(rng.integers(0, h)), int(rng.integers(0, w))
+        walls[r0 : r0 + int(rng.integers(1, 5)), c0 : c0 + int(rng.integers(1, 5))] = True
     r = int(rng.integers(0, h))
     walls[r, : w // 2] = True  # one-cell-thick horizontal wall
     c = int(rng.integers(0, w))
@@ -263,7 +263,7 @@ def test_bad_inputs_raise_grid_error() -> None:
     with pytest.raises(GridError, match="inside"):
         lidar.cast(walls, np.array([[7.0, 1.0]]), np.array([0.0]), 0.05)
     with pytest.raises(GridError, match="bool"):
-        lidar.cast(walls.astype(np.uint8), np.array([[1.0, 1.0]]), np.array([0.0]), 0.05)  # type: ignore[arg-type]
+        lidar.cast(walls.astype(np.uint8), np.array([[1.0, 1.0]]), np.array([0.0]), 0.05)
     with pytest.raises(GridError, match="headings"):
         lidar.cast(walls, np.array([[1.0, 1.0]]), np.array([0.0, 1.0]), 0.05)
 

@@ -30,9 +30,9 @@ from mrexplore.grid import (
 #: the OpenCV 5.0 build this project targets does not ship it.
 DETECTORS: tuple[str, ...] = ("harris", "shi-tomasi", "fast", "sift", "orb", "akaze")
 
-# Cell codes used by the verifier: one small integer per cell so that a (b code, a code) pair
-# indexes a 4x4 agreement table. "near wall" = free within one cell (8-neighbourhood) of a wall:
-# the one-cell tolerance of the acceptance index lives in these codes.
+# Cell codes used by the verifier: one small integer per cell, so that counting where walls land
+# is one bincount. "near wall" = free within one cell (8-neighbourhood) of a wall: the one-cell
+# tolerance of the acceptance index lives in these codes.
 CODE_UNKNOWN = 0
 CODE_FREE = 1
 CODE_FREE_NEAR_WALL = 2
@@ -47,9 +47,11 @@ class MergeResult:
         matched: True when a transform was accepted.
         transform: 3x3 float64 ``T_ab`` mapping b's cells ``(col, row, 1)`` into a's cells, or
             None when not matched.
-        score: acceptance index in [0, 1] (agreement / (agreement + disagreement) over cells known
-            in both maps, one-cell tolerance on walls) of the accepted transform; when not
-            matched, that of the best hypothesis examined, or 0 when there was none.
+        score: acceptance index in [0, 1] of the transform: agreement / (agreement +
+            disagreement) where both maps are known, counted on the wall cells of either map
+            that land on a known cell of the other (a wall on a wall or within one cell of one
+            agrees; a wall in open free space disagrees), see :class:`Verifier`. When not
+            matched: that of the best hypothesis examined, or 0 when there was none.
         merged: int8 fused map in a's frame on a canvas grown to hold b, or None when not matched.
         offset: (dcol, drow) of a's cell (0, 0) in the ``merged`` canvas: a's cell (c, r) is
             ``merged[r + drow, c + dcol]``.
@@ -122,15 +124,6 @@ class Options:
         if not isinstance(value, (bool, np.bool_)):
             raise ConfigError(f"{self._where}: option {name}={value!r} must be True or False")
         return bool(value)
-
-    def get_choice(self, name: str, default: str | None, choices: tuple[str, ...]) -> str | None:
-        """Pop a string option that must be one of ``choices`` (None keeps the default)."""
-        value = self._left.pop(name, default)
-        if value is None:
-            return default
-        if not isinstance(value, str) or value.lower() not in choices:
-            raise ConfigError(f"{self._where}: option {name}={value!r} must be one of {choices}")
-        return value.lower()
 
     def get_detector(self, default: str, allowed: tuple[str, ...]) -> str:
         """Pop the ``detector`` option and validate it with :func:`check_detector`."""

@@ -98,16 +98,17 @@ def test_transforms_chain_through_merged_pairs(office_pair) -> None:
     from mrexplore.world.map_io import read_map_yaml
 
     full = read_map_yaml("/work/shared/maps/turtlebot3/office_raw.yaml").grid
-    m0 = full[60:250, 150:340].copy()  # rows 60-250
-    m1 = full[140:300, 180:370].copy()  # overlaps both
-    m2, T_rot = rotate_map(full[230:332, 200:378], np.radians(-70.0))  # rows 230+: not m0
-    T_20_true = translation(200 - 150, 230 - 60) @ invert_transform(T_rot)  # m2 -> m0
+    m0 = full[60:250, 150:340].copy()  # rows 60-249
+    m1 = full[140:320, 180:370].copy()  # overlaps both
+    m2, T_rot = rotate_map(full[252:332, 160:378], np.radians(-70.0))  # rows 252+: not m0's
+    T_20_true = translation(160 - 150, 252 - 60) @ invert_transform(T_rot)  # m2 -> m0
     tr = MapMergeTracker(3, merge_every=1)
     tr.update([m0, m1, m2], step=0)
     assert tr.group(0) == {0, 1, 2}
+    assert tr.transform(1, 0) is not None and tr.transform(1, 2) is not None
     r02 = tr.last_result(0, 2)
-    assert r02 is None or not r02.matched  # 0-2 was not merged directly ...
-    T = tr.transform(0, 2)  # ... but is known through robot 1
+    assert r02 is not None and not r02.matched  # 0-2 share no cell: refused directly ...
+    T = tr.transform(0, 2)  # ... yet known through robot 1
     assert T is not None and mean_displacement(T, T_20_true, m2) < 1.5
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -59,7 +60,7 @@ def _cut(
 
 
 @pytest.fixture(scope="session")
-def cut():  # type: ignore[no-untyped-def]
+def cut() -> Callable[..., np.ndarray]:
     """The crop helper as a fixture (test folders are not packages)."""
     return _cut
 

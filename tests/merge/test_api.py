@@ -69,7 +69,9 @@ def test_featureless_maps_are_refused_not_errors(method: str, a: np.ndarray, wor
     assert 0.0 <= res.score <= 1.0
 
 
-def test_orb_baseline_runs_and_returns_a_valid_result(office_pair) -> None:
+def test_orb_baseline_runs_and_returns_a_valid_result(
+    office_pair: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
     a, b, _ = office_pair
     for det in ("orb", "sift"):
         res = merge_maps(a, b, method="orb", detector=det)
@@ -81,7 +83,9 @@ def test_orb_baseline_runs_and_returns_a_valid_result(office_pair) -> None:
             assert res.merged is not None and res.merged.dtype == np.int8
 
 
-def test_min_confidence_option_is_used(office_pair) -> None:
+def test_min_confidence_option_is_used(
+    office_pair: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
     a, b, _ = office_pair
     never = merge_maps(a, b, method="orb", min_confidence=1e6)
     assert not never.matched and "confidence" in never.reason

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 
@@ -12,7 +14,9 @@ from mrexplore.merge.common import mean_displacement, translation
 from mrexplore.merge.semantic import rotation_candidates
 
 
-def test_recovers_rotation_and_translation_on_real_crops(office_pair) -> None:
+def test_recovers_rotation_and_translation_on_real_crops(
+    office_pair: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
     a, b, T_true = office_pair
     res = merge_maps(a, b)
     assert res.matched, res.reason
@@ -29,7 +33,9 @@ def test_recovers_rotation_and_translation_on_real_crops(office_pair) -> None:
     assert np.all(window[known] >= a[known])  # fusion only adds (occupied > free > unknown)
 
 
-def test_refuses_look_alike_room(twins, cut) -> None:
+def test_refuses_look_alike_room(
+    twins: tuple[np.ndarray, list[tuple[int, int, int, int]]], cut: Callable[..., np.ndarray]
+) -> None:
     world, boxes = twins
     r0, r1, c0, c1 = boxes[1]
     b = cut(world, r0, r1, c0, c1)  # b saw only twin room 2: it fits room 1 just as well
@@ -40,7 +46,11 @@ def test_refuses_look_alike_room(twins, cut) -> None:
 
 
 @pytest.mark.parametrize("angle_deg", [0.0, 90.0, 33.0])
-def test_accepts_once_b_sees_the_surroundings(twins, cut, angle_deg: float) -> None:
+def test_accepts_once_b_sees_the_surroundings(
+    twins: tuple[np.ndarray, list[tuple[int, int, int, int]]],
+    cut: Callable[..., np.ndarray],
+    angle_deg: float,
+) -> None:
     world, _ = twins
     b0 = cut(world, 2, 110, 100, 188)  # twin room 2 plus the corridor clutter below it
     if angle_deg:
@@ -54,7 +64,9 @@ def test_accepts_once_b_sees_the_surroundings(twins, cut, angle_deg: float) -> N
     assert mean_displacement(res.transform, T_true, b) < 1.0
 
 
-def test_partial_views_of_twin_room_with_unknown_rest(twins, cut) -> None:
+def test_partial_views_of_twin_room_with_unknown_rest(
+    twins: tuple[np.ndarray, list[tuple[int, int, int, int]]], cut: Callable[..., np.ndarray]
+) -> None:
     """a saw room 1 and the corridor, b only room 2's inside: ambiguous for b -> refuse."""
     world, boxes = twins
     keep = np.zeros(world.shape, dtype=bool)
@@ -96,7 +108,9 @@ def test_options_are_validated() -> None:
         merge_maps(g, g, scale="four")
 
 
-def test_paper_candidates_option_runs(office_pair) -> None:
+def test_paper_candidates_option_runs(
+    office_pair: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
     a, b, T_true = office_pair
     res = merge_maps(a, b, paper_candidates=True, detector="shi-tomasi")
     assert res.matched and res.transform is not None

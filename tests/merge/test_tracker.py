@@ -23,7 +23,9 @@ def _canvas(
 
 
 @pytest.fixture(scope="module")
-def robots(office_pair):  # type: ignore[no-untyped-def]
+def robots(
+    office_pair: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     a, b, T_ab = office_pair
     ca, Ta = _canvas(a, at=(40, 30))
     cb, Tb = _canvas(b, shape=(360, 360), at=(20, 10))
@@ -31,7 +33,9 @@ def robots(office_pair):  # type: ignore[no-untyped-def]
     return ca, cb, T_true
 
 
-def test_merges_once_enough_is_known_and_keeps_the_transform(robots) -> None:
+def test_merges_once_enough_is_known_and_keeps_the_transform(
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
     ca, cb, T_true = robots
     early = cb.copy()
     rows, _ = np.nonzero(early != UNKNOWN)
@@ -45,7 +49,9 @@ def test_merges_once_enough_is_known_and_keeps_the_transform(robots) -> None:
     assert tr.merged(0) and tr.merged(1) and tr.group(0) == {0, 1}
     T = tr.transform(0, 1)
     assert T is not None and mean_displacement(T, T_true, cb) < 1.0
-    np.testing.assert_allclose(tr.transform(1, 0), invert_transform(T), atol=1e-9)
+    T10 = tr.transform(1, 0)
+    assert T10 is not None
+    np.testing.assert_allclose(T10, invert_transform(T), atol=1e-9)
     first = T.copy()
     for step in range(6, 200):  # same maps for many steps, with re-checks: no flip-flop
         tr.update([ca, cb], step=step)
@@ -54,7 +60,9 @@ def test_merges_once_enough_is_known_and_keeps_the_transform(robots) -> None:
     assert isinstance(res, MergeResult) and res.matched
 
 
-def test_fused_map_holds_both_robots_knowledge(robots) -> None:
+def test_fused_map_holds_both_robots_knowledge(
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
     ca, cb, T_true = robots
     tr = MapMergeTracker(2, merge_every=1)
     tr.update([ca, cb], step=0)
@@ -74,7 +82,7 @@ def test_fused_map_holds_both_robots_knowledge(robots) -> None:
         f0[0, 0] = 0  # read-only: callers copy before writing
 
 
-def test_links_are_respected(robots) -> None:
+def test_links_are_respected(robots: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
     ca, cb, _ = robots
     tr = MapMergeTracker(2, merge_every=1)
     off = np.zeros((2, 2), dtype=bool)
@@ -94,7 +102,7 @@ def test_links_are_respected(robots) -> None:
     assert np.count_nonzero(tr.fused(0) != UNKNOWN) > np.count_nonzero(before != UNKNOWN)
 
 
-def test_transforms_chain_through_merged_pairs(office_pair) -> None:
+def test_transforms_chain_through_merged_pairs() -> None:
     from mrexplore.world.map_io import read_map_yaml
 
     full = read_map_yaml("/work/shared/maps/turtlebot3/office_raw.yaml").grid
@@ -125,7 +133,9 @@ class _Scripted:
         return MergeResult(matched=True, transform=T, score=0.99)
 
 
-def test_recheck_replaces_only_a_clearly_better_transform(robots) -> None:
+def test_recheck_replaces_only_a_clearly_better_transform(
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
     ca, cb, T_true = robots
     # The tracker crops maps to their known boxes; express the truth in cropped cells.
     from mrexplore.merge.common import known_bbox
@@ -153,13 +163,13 @@ def test_bad_configuration_and_input() -> None:
     with pytest.raises(ConfigError, match="merger"):
         MapMergeTracker(2, merger="fft")
     with pytest.raises(ConfigError, match="only apply"):
-        MapMergeTracker(2, merger=lambda a, b: None, min_score=0.5)
+        MapMergeTracker(2, merger=lambda a, b: MergeResult(False, None, 0.0), min_score=0.5)
     tr = MapMergeTracker(2)
     g = np.zeros((10, 10), dtype=np.int8)
     with pytest.raises(GridError, match="expected 2 maps"):
         tr.update([g], step=0)
     with pytest.raises(GridError, match="int8"):
-        tr.update([g, g.astype(np.float32)], step=0)  # type: ignore[list-item]
+        tr.update([g, g.astype(np.float32)], step=0)
     with pytest.raises(ConfigError, match="links"):
         tr.update([g, g], step=0, links=np.ones((3, 3), dtype=bool))
     tr.reset()

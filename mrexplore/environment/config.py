@@ -82,7 +82,7 @@ class EnvConfig:
     reward_mode: RewardMode = "time"
     coverage_reward_per_m2: float = 0.1
     time_penalty_per_s: float = 0.04
-    goal_min_distance_m: float = 6.0
+    goal_min_distance_m: float = 10.0
     goal_radius_m: float = 0.4
     global_view_m: float = 25.6
     local_view_m: float = 6.4

@@ -24,7 +24,7 @@ from mrexplore.experiments.trained import TrainedTeamPolicy
 
 EVAL_SEED_BASE = 1_000_000
 BASELINES = ("random", "nearest-frontier", "coordinated-frontier")
-COVERAGE_TIMES_S = (30.0, 60.0, 90.0, 120.0)
+COVERAGE_TIMES_S = (15.0, 30.0, 60.0, 90.0, 120.0)
 
 
 def coverage_at(result: EpisodeResult, t_s: float) -> float:

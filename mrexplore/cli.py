@@ -48,11 +48,21 @@ def _bench(argv: Sequence[str]) -> int:
         from mrexplore.experiments.env_bench import main as env_main
 
         return int(env_main(rest))
-    if what == "sensor":
-        from mrexplore.experiments.sensor_bench import main as sensor_main
+    if what == "policies":
+        from mrexplore.policies.bench import main as policies_main
 
-        return int(sensor_main(rest))
-    print("usage: mrexplore bench {merge,env,sensor} [options]  (each takes --help)", file=sys.stderr)
+        policies_main(rest)
+        return 0
+    if what == "wrappers":
+        from mrexplore.wrappers.bench import main as wrappers_main
+
+        wrappers_main(rest)
+        return 0
+    print(
+        "usage: mrexplore bench {merge,env,policies,wrappers} [options]  (each takes --help);\n"
+        "the sensor benchmark is scripts/bench_sensor.py",
+        file=sys.stderr,
+    )
     return 2
 
 
@@ -91,7 +101,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     for name, helptext in (
         ("merge", "merge two map_server maps: mrexplore merge a.yaml b.yaml -o merged.yaml"),
-        ("bench", "benchmarks: mrexplore bench {merge,env,sensor}"),
+        ("bench", "benchmarks: mrexplore bench {merge,env,policies,wrappers}"),
         ("train", "train a shared policy with stable-baselines3"),
         ("evaluate", "evaluate a trained policy against the baselines"),
     ):

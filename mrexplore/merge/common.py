@@ -294,6 +294,39 @@ class Verifier:
         disagree = int(hit[CODE_FREE])
         return agree, disagree, agree + disagree
 
+    @staticmethod
+    def _count_many(
+        base: NDArray[np.float64], offsets: NDArray[np.float64], codes: NDArray[np.uint8]
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """Agree / disagree counts (K,) of the points ``base`` (N, 2) moved by each of the K
+        ``offsets`` (K, 2): one gather of K x N cells."""
+        h, w = codes.shape
+        c = np.rint(base[None, :, 0] + offsets[:, None, 0]).astype(np.int32)
+        r = np.rint(base[None, :, 1] + offsets[:, None, 1]).astype(np.int32)
+        inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
+        flat = np.where(inside, r * w + c, 0)
+        got = np.where(inside, codes.ravel()[flat], CODE_UNKNOWN)
+        agree = np.count_nonzero((got == CODE_WALL) | (got == CODE_FREE_NEAR_WALL), axis=1)
+        return agree, np.count_nonzero(got == CODE_FREE, axis=1)
+
+    def shifted(
+        self, T: Transform, shifts: NDArray[np.float64], max_points: int = 500
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        """Agree / disagree counts (K,) of the K transforms ``translation(shift_k) @ T``, in one
+        vectorised pass over at most ``max_points`` wall cells per map (for sliding a pose
+        along walls)."""
+        T = np.asarray(T, dtype=np.float64)
+        shifts = np.asarray(shifts, dtype=np.float64).reshape(-1, 2)
+        Ti = np.linalg.inv(T)
+        sb = max(1, -(-self.points_b.shape[0] // max_points))
+        sa = max(1, -(-self.points_a.shape[0] // max_points))
+        pb = self.points_b[::sb] @ T[:2, :2].T + T[:2, 2]
+        pa = self.points_a[::sa] @ Ti[:2, :2].T + Ti[:2, 2]
+        ab, db = self._count_many(pb, shifts, self.codes_a)
+        # translation(s) @ T maps a's points back by T^-1 (p - s) = T^-1 p - R^-1 s
+        aa, da = self._count_many(pa, -shifts @ Ti[:2, :2].T, self.codes_b)
+        return ab + aa, db + da
+
     def overlap_ok(self, ag: Agreement, min_share: float, min_cells: int) -> bool:
         """True when at least ``min_share`` of b's wall cells and ``min_cells`` wall cells in all
         (both maps) took part."""

@@ -212,7 +212,9 @@ class _CoarseMatcher:
         self.FA2 = np.fft.rfft2(a2, (self.H, self.W))
         if self.p > 0:
             self.FAW = np.fft.rfft2(_dilate(wa), (self.H, self.W))
-            self.FAF = np.fft.rfft2(fa, (self.H, self.W))
+            # free blocks next to a wall block do not count as disagreement: a translation
+            # that is not a multiple of the block size shifts every wall by up to one block
+            self.FAF = np.fft.rfft2(fa * (1.0 - _dilate(wa)), (self.H, self.W))
             self.FAWW = np.fft.rfft2(wa, (self.H, self.W))
 
     def peaks(self, b: Int8Grid, k: int, nms: int = 2) -> list[tuple[float, float, float]]:
@@ -221,8 +223,8 @@ class _CoarseMatcher:
         s = self.s
         wb, fb = _pool(b, s)
         FB1 = np.conj(np.fft.rfft2(wb, (self.H, self.W)))
-        FB2 = np.conj(np.fft.rfft2(fb, (self.H, self.W)))
         if self.p > 0:
+            FB2 = np.conj(np.fft.rfft2(fb * (1.0 - _dilate(wb)), (self.H, self.W)))
             # agreement and disagreement apart: rank by agree * (agree / (agree + dis))^p, which
             # favours clean alignments over large but contradicted overlaps (repetitive shelves)
             ag = np.fft.irfft2(self.FAW * FB1, (self.H, self.W))
@@ -231,6 +233,7 @@ class _CoarseMatcher:
             ds = np.maximum(ds, 0.0)
             S = (ag * (ag / (ag + ds + 2.0)) ** self.p).astype(np.float32)
             return self._top(S, wb.shape, k, nms)
+        FB2 = np.conj(np.fft.rfft2(fb, (self.H, self.W)))
         S = np.fft.irfft2(self.FA1 * FB1 + self.FA2 * FB2, (self.H, self.W)).astype(np.float32)
         return self._top(S, wb.shape, k, nms)
 
@@ -393,6 +396,60 @@ def _paper_hypotheses(
     return [translation(*(ta[i] - tb[j])) @ T_rot for i, j in zip(ii, jj, strict=True)]
 
 
+def _slide_hypotheses(
+    best: _Hypothesis,
+    wall_a: NDArray[np.bool_],
+    b_shape: tuple[int, int],
+    step: float,
+    screen: Verifier,
+    quick: Verifier,
+    verify: Verifier,
+    icp: _WallICP,
+    min_overlap: float,
+    min_overlap_cells: int,
+    keep: int = 2,
+) -> list[_Hypothesis]:
+    """Hypotheses that slide the best pose along a's two wall directions.
+
+    Rows of identical shelves or a long corridor make a *ridge* in the coarse score: sliding b
+    along the walls keeps every wall on a wall, and the coarse peak sits where the overlap is
+    largest, which need not be the truth (seen on the warehouse map: a perfectly consistent
+    pose 140 cells from the truth). Shifting the best pose by multiples of ``step`` cells along
+    a's dominant wall direction and its normal, screening each shift, and refining the ``keep``
+    best, puts the other poses on the ridge into the verification: either one explains more
+    (it becomes the best) or one explains as much (the rival test refuses).
+    """
+    hist = orientation_histogram(wall_a)
+    phi = np.radians(float(np.argmax(hist)))  # wall normal direction mod 90 deg
+    h, w = b_shape
+    reach = float(np.hypot(h, w))
+    ks = np.arange(step, reach, step)
+    dirs = np.array([[np.cos(phi), np.sin(phi)], [-np.sin(phi), np.cos(phi)]])
+    shifts = np.concatenate([s * ks[:, None] * d[None, :] for d in dirs for s in (1.0, -1.0)])
+    agree, disagree = screen.shifted(best.T, shifts)
+    order = np.argsort(-(agree - 10 * disagree))[: 3 * keep]
+    out = [
+        _Hypothesis(
+            translation(*shifts[k]) @ best.T, "slide", Agreement(int(agree[k]), int(disagree[k]))
+        )
+        for k in order
+        if agree[k] > 0
+    ]
+    refined: list[_Hypothesis] = []
+    for hyp in out[: 3 * keep]:
+        hyp.T = icp(hyp.T, iters=4, max_dist=3.0, n_points=400)
+        hyp.agreement = quick(hyp.T)
+    out = [h for h in out[: 3 * keep] if h.agreement is not None]
+    out.sort(key=lambda h: -h.evidence)
+    for hyp in out[:keep]:
+        hyp.T = icp(hyp.T, iters=10, max_dist=3.0)
+        hyp.T = icp(hyp.T, iters=5, max_dist=1.5)
+        hyp.agreement = verify(hyp.T)
+        if verify.overlap_ok(hyp.agreement, min_overlap, min_overlap_cells):
+            refined.append(hyp)
+    return refined
+
+
 def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     """Verified merge of b into a. Options (all validated; defaults tuned on the merge bench):
 
@@ -405,6 +462,8 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     - ``far_cells`` (5.0): mean displacement of b's cells (cells) that makes a hypothesis "far".
     - ``rival_support`` (0.5): a far hypothesis is a rival only if it has at least this share
       of the best's agreeing wall cells.
+    - ``slide_step`` (8.0): cells between the shifts of the slide search (0 = off), see
+      :func:`_slide_hypotheses`.
     - ``min_overlap`` (0.15): share of b's wall cells that must land on a's known cells.
     - ``min_overlap_cells`` (80): and at least this many wall cells of both maps must take part.
     - ``scale`` (4): coarse search pooling factor (cells per block).
@@ -432,6 +491,7 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     min_evidence = opt.get_int("min_evidence_cells", 20, lo=0)
     far_cells = opt.get_float("far_cells", 5.0, lo=0.0)
     rival_support = opt.get_float("rival_support", 0.5, lo=0.0, hi=1.0)
+    slide_step = opt.get_float("slide_step", 8.0, lo=0.0)
     min_overlap = opt.get_float("min_overlap", 0.15, lo=0.0, hi=1.0)
     min_overlap_cells = opt.get_int("min_overlap_cells", 80, lo=0)
     scale = opt.get_int("scale", 4, lo=1, hi=32)
@@ -533,6 +593,19 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
         if h.agreement is not None
         and verify.overlap_ok(h.agreement, min_overlap, min_overlap_cells)
     ]
+    if slide_step > 0 and chosen:
+        chosen += _slide_hypotheses(
+            max(chosen, key=lambda h: h.evidence),
+            wall_a,
+            bc.shape,
+            slide_step,
+            screen,
+            quick,
+            verify,
+            icp,
+            min_overlap,
+            min_overlap_cells,
+        )
     info["n_candidates"] = len(hyps)
     if not chosen:
         best_any = max((h.score for h in hyps), default=0.0)

@@ -25,11 +25,16 @@ Pipeline (all on the maps cropped to their known bounding boxes):
    one-cell tolerance (:class:`mrexplore.merge.common.Verifier`). Free-on-free cells are left
    out: they agree for almost any pose inside a large room and drowned the signal (with them,
    wrong poses scored 0.99+ on the bench).
-5. **Decision**: accept the best only if its index is at least ``min_score``, it overlaps at
-   least ``min_overlap`` of b's known cells, and it beats the best hypothesis *far* from it
-   (b's cells displaced by ``far_cells`` or more on average) by at least ``min_margin``.
-   Two look-alike rooms give two far-apart hypotheses that agree equally well: refused, to be
-   merged later once more of the map is known.
+   The best pose is also slid along a's two wall directions (``slide_step``): in repetitive
+   layouts (shelf rows, long corridors) the coarse peak can sit on a ridge of equally
+   consistent poses, which this brings into the verification.
+5. **Decision**: the best hypothesis is the one with the most evidence (agreeing minus 10 x
+   disagreeing wall cells). Accept it only if its index is at least ``min_score``, at least
+   ``min_overlap`` of b's wall cells land on a's known cells, and it beats every *rival* - a
+   hypothesis far from it (b's cells displaced by ``far_cells`` or more on average) with at
+   least ``rival_support`` of its support - by ``min_margin`` in index and
+   ``min_evidence_cells`` in disagreeing cells. Two look-alike rooms give two far-apart
+   hypotheses that agree equally well: refused, to be merged later once more is known.
 """
 
 from __future__ import annotations

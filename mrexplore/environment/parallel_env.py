@@ -127,6 +127,8 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         self._goal_cell: tuple[float, float] | None = None
         self._done = True
         self._renderer: Any = None
+        self._error_cache: dict[tuple[int, int], tuple[int, NDArray[np.float64], dict[str, float]]] = {}
+        self._last_coverage = 0.0
 
     # ------------------------------------------------------------------ spaces
     @functools.lru_cache(maxsize=None)  # noqa: B019 - PettingZoo wants the same object each call
@@ -172,6 +174,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         self.sim.reset(start_rng, starts=starts)
         self.agents = list(self.possible_agents)
         self._collisions[:] = 0
+        self._error_cache = {}
         self._done = False
         self.fusion.reset()
         self._goal_world = None
@@ -417,20 +420,32 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         worst: dict[str, float] | None = None
         for other, T in transforms.items():
             j = self.possible_agents.index(other)
-            box = self.sim.maps[j].known_bbox()
-            if box is None:
-                continue
-            r0, r1, c0, c1 = box
-            rows, cols = np.nonzero(self.sim.maps[j].to_int8()[r0 : r1 + 1, c0 : c1 + 1] != UNKNOWN)
-            step = max(1, len(rows) // 4096)
-            pts = np.stack([cols[::step] + c0, rows[::step] + r0], axis=1).astype(np.float64)
-            T_true = self.sim.true_transform(i, j)
-            disp = np.linalg.norm(apply_transform(T, pts) - apply_transform(T_true, pts), axis=1)
-            rot = abs(math.degrees(transform_angle(T @ np.linalg.inv(T_true))))
-            err = {"translation_cells": float(disp.mean()), "rotation_deg": float(rot)}
-            if worst is None or err["translation_cells"] > worst["translation_cells"]:
+            err = self._pair_error(i, j, T)
+            if err is not None and (worst is None or err["translation_cells"] > worst["translation_cells"]):
                 worst = err
         return worst
+
+    def _pair_error(self, i: int, j: int, T: NDArray[np.float64]) -> dict[str, float] | None:
+        """Error of the estimated ``T`` (j's cells -> i's) against the truth. Cached: recomputed
+        when ``T`` changes or every 10 steps (the known cells grow slowly; this runs each step)."""
+        assert self.sim is not None
+        key = (i, j)
+        cached = self._error_cache.get(key)
+        if cached is not None and cached[0] + 10 > self.sim.steps and np.array_equal(cached[1], T):
+            return cached[2]
+        box = self.sim.maps[j].known_bbox()
+        if box is None:
+            return None
+        r0, r1, c0, c1 = box
+        rows, cols = np.nonzero(self.sim.maps[j].to_int8()[r0 : r1 + 1, c0 : c1 + 1] != UNKNOWN)
+        step = max(1, len(rows) // 4096)
+        pts = np.stack([cols[::step] + c0, rows[::step] + r0], axis=1).astype(np.float64)
+        T_true = self.sim.true_transform(i, j)
+        disp = np.linalg.norm(apply_transform(T, pts) - apply_transform(T_true, pts), axis=1)
+        rot = abs(math.degrees(transform_angle(T @ np.linalg.inv(T_true))))
+        err = {"translation_cells": float(disp.mean()), "rotation_deg": float(rot)}
+        self._error_cache[key] = (int(self.sim.steps), np.array(T, copy=True), err)
+        return err
 
     def _info(self, agent: AgentID, truncated: bool) -> dict[str, Any]:
         assert self.sim is not None

@@ -116,6 +116,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
             merge_every=cfg.merge_every,
             recheck_every=cfg.recheck_every,
             merge_options=cfg.merge_options,
+            resolution_m=self._resolution_m,
         )
         self._rng: np.random.Generator | None = None
         self._run_rng = np.random.default_rng(0)

@@ -73,7 +73,8 @@ def evaluate(
     big = big_ok = 0
     for c in cases:
         t_cpu = time.process_time()
-        res = merge_maps(c.a, c.b, method=method, **kw)
+        extra = {"resolution_m": c.resolution_m} if method == "semantic" else {}
+        res = merge_maps(c.a, c.b, method=method, **extra, **kw)
         cpu.append(time.process_time() - t_cpu)
         kind, err = classify(c, res.matched, res.transform)
         counts[kind] += 1

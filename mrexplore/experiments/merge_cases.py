@@ -2,7 +2,7 @@
 
 Two families:
 
-- :func:`real_map_case`: two overlapping crops of a real map from ``/work/shared/maps`` (or any
+- :func:`real_map_case`: two overlapping crops of a real map from ``../shared/maps`` (``$MREXPLORE_MAPS``) (or any
   int8 map), the second rotated by a random angle, their borders damaged a little (random unknown
   blobs near the crop edges, as partial SLAM maps fray at their rims).
 - :func:`symmetric_case`: two robots explore overlapping parts of a generated symmetric world
@@ -15,6 +15,8 @@ known cells that land on a's known cells under the truth.
 """
 
 from __future__ import annotations
+
+import os
 
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,7 +37,16 @@ REAL_MAPS: dict[str, tuple[int, int]] = {
     "nav2/tb3_sandbox.yaml": (120, 200),
     "nav2/warehouse.yaml": (250, 450),
 }
-SHARED_MAPS = Path("/work/shared/maps")
+def _default_maps_dir() -> Path:
+    """``$MREXPLORE_MAPS``, else ``shared/maps`` beside the checkout (the team's layout)."""
+    env = os.environ.get("MREXPLORE_MAPS")
+    if env:
+        return Path(env)
+    return Path(__file__).resolve().parents[3] / "shared" / "maps"
+
+
+#: Folder of the real maps (``$MREXPLORE_MAPS`` or ``../shared/maps`` beside the checkout).
+SHARED_MAPS = _default_maps_dir()
 
 
 @dataclass(eq=False)
@@ -58,6 +69,7 @@ class MergeCase:
     family: str
     name: str
     meta: dict[str, Any] = field(default_factory=dict)
+    resolution_m: float = 0.05
 
 
 def overlap_share(a: Int8Grid, b: Int8Grid, T_ab: Transform) -> float:
@@ -342,10 +354,14 @@ def real_cases(n: int, seed: int, maps_dir: Path = SHARED_MAPS) -> list[MergeCas
     if n < 0:
         raise ConfigError(f"real_cases: n must be >= 0, got {n}")
     rng = np.random.default_rng(seed)
-    fulls = {k: load_real_map(k, maps_dir) for k in REAL_MAPS}
+    from mrexplore.world.map_io import read_map_yaml
+
+    files = {k: read_map_yaml(maps_dir / k) for k in REAL_MAPS}
     keys = list(REAL_MAPS)
     out = []
     for i in range(n):
         k = keys[i % len(keys)]
-        out.append(real_map_case(fulls[k], rng, REAL_MAPS[k], rotate=i % 2 == 0, name=f"{k}#{i}"))
+        case = real_map_case(files[k].grid, rng, REAL_MAPS[k], rotate=i % 2 == 0, name=f"{k}#{i}")
+        case.resolution_m = files[k].resolution_m
+        out.append(case)
     return out

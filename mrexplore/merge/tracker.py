@@ -5,9 +5,16 @@ Each step the caller hands over the robots' own-frame maps. The tracker
 - every ``merge_every`` steps tries to merge each pair of robots that are in communication range
   and not yet connected (directly or through a chain of merged pairs), calling the merger on the
   maps cropped to their known bounding boxes;
+- accepts a pair's transform only once ``confirmations`` consecutive attempts, each on maps
+  that grew since the last, found the same transform (within ``confirm_tol_cells``): a
+  look-alike match made on two small partial maps tends to move or vanish as the maps grow,
+  the true one stays put (measured: in-loop wrong merges on ``small_office`` with rotated starts
+  came from single attempts on maps with ~150-270 agreeing wall cells);
 - keeps an accepted transform; every ``recheck_every`` steps re-runs the merger on merged pairs
   and replaces the transform only when the new one scores clearly better (by
   ``replace_margin``) than the kept one does *on the same current maps*: no flip-flopping;
+  and drops it when, on the current maps, it agrees less than ``drop_below`` (new evidence
+  contradicts it: a wrong merge is worse than no merge);
 - chains transforms through merged pairs (0-1 and 1-2 merged => 0-2 known);
 - composes robot i's fused map in its own canvas: each teammate's map, cropped to its known
   bounding box, warped (nearest neighbour) into i's frame and fused by "occupied beats free
@@ -126,6 +133,12 @@ class MapMergeTracker:
         recheck_every: re-check accepted transforms every this many steps (0 = never).
         replace_margin: a re-check replaces the kept transform only if its score beats the kept
             transform's score on the current maps by at least this (default 0.05).
+        confirmations: consecutive agreeing attempts needed before a transform is accepted
+            (default 2; 1 accepts the first match).
+        confirm_tol_cells: two attempts agree when the corners of b's known box land within
+            this many cells of each other (default 2.0).
+        drop_below: a re-check drops the kept transform when its agreement on the current maps
+            falls below this (default 0.85; 0 never drops).
         **merge_options: options for the named merger (validated at construction).
 
     >>> import numpy as np
@@ -143,6 +156,9 @@ class MapMergeTracker:
         merge_every: int = 10,
         recheck_every: int = 50,
         replace_margin: float = 0.05,
+        confirmations: int = 2,
+        confirm_tol_cells: float = 2.0,
+        drop_below: float = 0.85,
         **merge_options: Any,
     ) -> None:
         if (
@@ -177,6 +193,15 @@ class MapMergeTracker:
         self.merge_every = int(merge_every)
         self.recheck_every = int(recheck_every)
         self.replace_margin = float(replace_margin)
+        if isinstance(confirmations, bool) or not isinstance(confirmations, (int, np.integer)) or confirmations < 1:
+            raise ConfigError(f"MapMergeTracker: confirmations must be an integer >= 1, got {confirmations!r}")
+        if not float(confirm_tol_cells) > 0.0:
+            raise ConfigError(f"MapMergeTracker: confirm_tol_cells must be > 0, got {confirm_tol_cells!r}")
+        if not 0.0 <= float(drop_below) <= 1.0:
+            raise ConfigError(f"MapMergeTracker: drop_below must be in [0, 1], got {drop_below!r}")
+        self.confirmations = int(confirmations)
+        self.confirm_tol_cells = float(confirm_tol_cells)
+        self.drop_below = float(drop_below)
         self._merge = _resolve_merger(merger, dict(merge_options))
         self.reset()
 
@@ -189,6 +214,8 @@ class MapMergeTracker:
         self._version = [0] * self.n
         self._edges: dict[tuple[int, int], Transform] = {}  # (i, j), i < j: T_ij direct
         self._edge_score: dict[tuple[int, int], float] = {}
+        # (i, j) -> (T_ij candidate, agreeing attempts so far, map versions at the last attempt)
+        self._pending: dict[tuple[int, int], tuple[Transform, int, tuple[int, int]]] = {}
         self._results: dict[tuple[int, int], MergeResult] = {}
         self._patches: dict[tuple[int, int], _Patch] = {}
         # what changed in each robot's map at its last version: a box in its cells, None = all
@@ -312,15 +339,51 @@ class MapMergeTracker:
             for j in range(i + 1, self.n):
                 if not self._linked(i, j) or self.transform(i, j) is not None:
                     continue
+                versions = (self._version[i], self._version[j])
+                pending = self._pending.get((i, j))
+                if pending is not None and pending[2] == versions:
+                    continue  # neither map changed since the last attempt: nothing new to learn
                 out = self._run(i, j)
-                if out is not None and out[1] is not None:
-                    self._edges[(i, j)] = out[1]
+                if out is None or out[1] is None:
+                    self._pending.pop((i, j), None)  # a refusal breaks the run of agreements
+                    continue
+                T = out[1]
+                count = 1
+                if pending is not None and self._same(pending[0], T, j):
+                    count = pending[1] + 1
+                if count >= self.confirmations:
+                    self._pending.pop((i, j), None)
+                    self._edges[(i, j)] = T
                     self._edge_score[(i, j)] = out[0].score
                     self._paths = None
+                else:
+                    self._pending[(i, j)] = (T, count, versions)
+
+    def _same(self, T1: Transform, T2: Transform, j: int) -> bool:
+        """Do two estimates of T_ij put robot j's known box in the same place (within tolerance)?"""
+        bb = self._bbox[j]
+        if bb is None:
+            return False
+        r0, r1, c0, c1 = bb
+        corners = np.array([[c0, r0, 1.0], [c1, r0, 1.0], [c0, r1, 1.0], [c1, r1, 1.0]]).T
+        d = (T1 @ corners - T2 @ corners)[:2]
+        return bool(np.sqrt((d**2).sum(axis=0)).max() <= self.confirm_tol_cells)
 
     def _recheck(self) -> None:
         for (i, j), T_old in list(self._edges.items()):
             if not self._linked(i, j):
+                continue
+            ci, cj = self._crop(i), self._crop(j)
+            if ci is None or cj is None:
+                continue
+            (a, (ca, ra)), (b, (cb, rb)) = ci, cj
+            old_now = Verifier(a, b)(translation(-ca, -ra) @ T_old @ translation(cb, rb)).score
+            if old_now < self.drop_below:
+                # The maps grew and now contradict the kept transform: un-merge this pair.
+                del self._edges[(i, j)]
+                self._edge_score.pop((i, j), None)
+                self._paths = None
+                self._patches = {k: p for k, p in self._patches.items() if i not in k and j not in k}
                 continue
             out = self._run(i, j)
             if out is None:
@@ -328,10 +391,6 @@ class MapMergeTracker:
             res, T_new = out
             if T_new is None:
                 continue  # a failed re-check never drops an accepted transform
-            ci, cj = self._crop(i), self._crop(j)
-            assert ci is not None and cj is not None
-            (a, (ca, ra)), (b, (cb, rb)) = ci, cj
-            old_now = Verifier(a, b)(translation(-ca, -ra) @ T_old @ translation(cb, rb)).score
             if res.score >= old_now + self.replace_margin:
                 self._edges[(i, j)] = T_new
                 self._edge_score[(i, j)] = res.score

@@ -231,6 +231,7 @@ class MapMergeWrapper(BaseParallelWrapper):
             merge_every=int(merge_every),
             recheck_every=int(recheck_every),
             merge_options=merge_options,
+            resolution_m=float(parallel_env.unwrapped.map_resolution_m),
         )
         self._step = 0
         n_channels = 4 if self._has_pose else 3

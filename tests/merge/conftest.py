@@ -12,7 +12,8 @@ from mrexplore.experiments.merge_cases import rotate_map
 from mrexplore.grid import FREE, OCCUPIED, UNKNOWN, invert_transform
 from mrexplore.merge.common import translation
 
-SHARED_MAPS = Path("/work/shared/maps")
+# The real TurtleBot3 office map (ROBOTIS, Apache-2.0) ships in envs/ as tb3_office.
+ENVS = Path(__file__).resolve().parents[2] / "envs"
 
 
 def twin_world() -> tuple[np.ndarray, list[tuple[int, int, int, int]]]:
@@ -72,7 +73,7 @@ def office_pair() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     Returns (a, b, T_ab truth)."""
     from mrexplore.world.map_io import read_map_yaml
 
-    full = read_map_yaml(SHARED_MAPS / "turtlebot3/office_raw.yaml").grid
+    full = read_map_yaml(ENVS / "tb3_office.yaml").grid
     ra, ca, rb, cb = 60, 150, 110, 210
     a = full[ra : ra + 190, ca : ca + 190].copy()
     mb = full[rb : rb + 190, cb : cb + 160]

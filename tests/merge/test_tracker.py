@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -40,7 +42,7 @@ def test_merges_once_enough_is_known_and_keeps_the_transform(
     early = cb.copy()
     rows, _ = np.nonzero(early != UNKNOWN)
     early[rows.min() + 25 :, :] = UNKNOWN  # robot 1 has barely started: a thin strip only
-    tr = MapMergeTracker(2, merge_every=5, recheck_every=20)
+    tr = MapMergeTracker(2, merge_every=5, recheck_every=20, confirmations=1)
     tr.update([ca, early], step=0)
     assert not tr.merged(0) and tr.transform(0, 1) is None
     tr.update([ca, cb], step=3)  # not a merge step: nothing tried
@@ -64,7 +66,7 @@ def test_fused_map_holds_both_robots_knowledge(
     robots: tuple[np.ndarray, np.ndarray, np.ndarray],
 ) -> None:
     ca, cb, T_true = robots
-    tr = MapMergeTracker(2, merge_every=1)
+    tr = MapMergeTracker(2, merge_every=1, confirmations=1)
     tr.update([ca, cb], step=0)
     f0, f1 = tr.fused(0), tr.fused(1)
     assert f0.shape == ca.shape and f1.shape == cb.shape and f0.dtype == np.int8
@@ -84,7 +86,7 @@ def test_fused_map_holds_both_robots_knowledge(
 
 def test_links_are_respected(robots: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
     ca, cb, _ = robots
-    tr = MapMergeTracker(2, merge_every=1)
+    tr = MapMergeTracker(2, merge_every=1, confirmations=1)
     off = np.zeros((2, 2), dtype=bool)
     for step in range(5):
         tr.update([ca, cb], step=step, links=off)
@@ -105,12 +107,12 @@ def test_links_are_respected(robots: tuple[np.ndarray, np.ndarray, np.ndarray]) 
 def test_transforms_chain_through_merged_pairs() -> None:
     from mrexplore.world.map_io import read_map_yaml
 
-    full = read_map_yaml("/work/shared/maps/turtlebot3/office_raw.yaml").grid
+    full = read_map_yaml(Path(__file__).resolve().parents[2] / "envs" / "tb3_office.yaml").grid
     m0 = full[60:250, 150:340].copy()  # rows 60-249
     m1 = full[140:320, 180:370].copy()  # overlaps both
     m2, T_rot = rotate_map(full[252:332, 160:378], np.radians(-70.0))  # rows 252+: not m0's
     T_20_true = translation(160 - 150, 252 - 60) @ invert_transform(T_rot)  # m2 -> m0
-    tr = MapMergeTracker(3, merge_every=1)
+    tr = MapMergeTracker(3, merge_every=1, confirmations=1)
     tr.update([m0, m1, m2], step=0)
     assert tr.group(0) == {0, 1, 2}
     assert tr.transform(1, 0) is not None and tr.transform(1, 2) is not None
@@ -145,7 +147,7 @@ def test_recheck_replaces_only_a_clearly_better_transform(
     T_crop = translation(-ca0, -ra0) @ T_true @ translation(cb0, rb0)
     wrong = translation(40.0, 0.0) @ T_crop
     scripted = _Scripted([T_crop, wrong])
-    tr = MapMergeTracker(2, merger=scripted, merge_every=1, recheck_every=2)
+    tr = MapMergeTracker(2, merger=scripted, merge_every=1, recheck_every=2, confirmations=1)
     for step in range(10):
         tr.update([ca, cb], step=step)
     assert scripted.calls >= 3  # re-checks happened
@@ -190,7 +192,7 @@ def test_incremental_fusion_equals_fusion_from_scratch() -> None:
     m1[50:110, 70:150] = 0
     T = make_transform(0.6, 30.3, -20.7)
     never = MergeResult(matched=False, transform=None, score=0.0)
-    tr = MapMergeTracker(2, merger=lambda a, b: never, merge_every=1)
+    tr = MapMergeTracker(2, merger=lambda a, b: never, merge_every=1, recheck_every=0)
     tr.update([m0, m1], step=0)
     tr._edges[(0, 1)] = T  # inject a transform: this test is about composition only
     tr._paths = None
@@ -209,3 +211,78 @@ def test_incremental_fusion_equals_fusion_from_scratch() -> None:
         ref1 = np.maximum(m1, warp_into(m0, invert_transform(T), m1.shape))
         np.testing.assert_array_equal(tr.fused(0), ref0)
         np.testing.assert_array_equal(tr.fused(1), ref1)
+
+
+class _Seq:
+    """A merger answering with a scripted sequence of transforms (None = refuse)."""
+
+    def __init__(self, answers: list[np.ndarray | None]) -> None:
+        self.answers = answers
+        self.calls = 0
+
+    def merge(self, a: np.ndarray, b: np.ndarray) -> MergeResult:
+        T = self.answers[min(self.calls, len(self.answers) - 1)]
+        self.calls += 1
+        if T is None:
+            return MergeResult(matched=False, transform=None, score=0.5, reason="scripted refusal")
+        return MergeResult(matched=True, transform=T, score=0.99)
+
+
+def _growing_maps(k: int) -> list[np.ndarray]:
+    """Two maps whose known boxes keep their lower-left corner (10, 10) and grow with k, so a
+    transform in cropped cells stays the same transform in canvas cells."""
+    maps = []
+    for _ in range(2):
+        m = np.full((120, 120), UNKNOWN, dtype=np.int8)
+        m[10 : 40 + 5 * k, 10 : 40 + 5 * k] = 0
+        maps.append(m)
+    return maps
+
+
+@pytest.mark.parametrize(
+    ("answers", "merged_at"),
+    [
+        # two agreeing attempts on grown maps: accepted at the second
+        ([translation(3.0, 0.0)], 1),
+        # a refusal in between breaks the run: accepted only after two new agreeing attempts
+        ([translation(3.0, 0.0), None, translation(3.0, 0.0)], 3),
+        # the second attempt disagrees (10 cells away): it starts a new run
+        ([translation(3.0, 0.0), translation(13.0, 0.0)], 2),
+    ],
+)
+def test_a_transform_needs_agreeing_attempts_on_growing_maps(
+    answers: list[np.ndarray | None], merged_at: int
+) -> None:
+    seq = _Seq(answers)
+    tr = MapMergeTracker(2, merger=seq, merge_every=1, recheck_every=0, confirmations=2)
+    tr.update(_growing_maps(0), step=0)
+    tr.update(_growing_maps(0), step=1)  # nothing changed: no new evidence, no attempt
+    assert seq.calls == 1 and not tr.merged(0)
+    for k in range(1, 6):
+        tr.update(_growing_maps(k), step=k + 1)
+        if tr.merged(0):
+            assert k == merged_at
+            break
+    assert tr.merged(0)
+
+
+def test_recheck_drops_a_transform_the_grown_maps_contradict(
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    ca, cb, T_true = robots
+    from mrexplore.merge.common import known_bbox
+
+    ra0, _, ca0, _ = known_bbox(ca)  # type: ignore[misc]
+    rb0, _, cb0, _ = known_bbox(cb)  # type: ignore[misc]
+    T_crop = translation(-ca0, -ra0) @ T_true @ translation(cb0, rb0)
+    seq = _Seq([T_crop, None])
+    tr = MapMergeTracker(2, merger=seq, merge_every=1, recheck_every=5, confirmations=1)
+    tr.update([ca, cb], step=1)
+    assert tr.merged(0)
+    # Robot 1's map now says something else where it overlaps robot 0's: its walls moved by
+    # 15 cells (as if the kept transform had been a look-alike match). The re-check drops it.
+    moved = np.full_like(cb, UNKNOWN)
+    moved[:, 15:] = cb[:, :-15]
+    for step in range(2, 11):
+        tr.update([ca, moved], step=step)
+    assert not tr.merged(0) and tr.transform(0, 1) is None

@@ -9,8 +9,8 @@
 ((8, 64, 64), 'uint8')
 
 ``parallel_env(**options)`` builds the PettingZoo ``ParallelEnv``; ``env(**options)`` the AEC
-version; the options are the fields of :class:`mrexplore.environment.EnvConfig`. Importing the package
-registers the Gymnasium id ``mrexplore/Explore-v0`` (one robot).
+version; the options are the fields of :class:`mrexplore.environment.EnvConfig`. Importing the
+package registers the Gymnasium id ``mrexplore/Explore-v0`` (one robot).
 """
 
 from __future__ import annotations
@@ -25,8 +25,9 @@ __all__ = ["__version__", "env", "parallel_env", "raw_env"]
 def parallel_env(render_mode: str | None = None, **options: Any) -> Any:
     """The multi-robot exploration env as a PettingZoo ``ParallelEnv``.
 
-    Options: see :class:`mrexplore.environment.EnvConfig` (``world``, ``n_robots``, ``task``, ``merger``,
-    ``comm_range_m``, ``max_range_m``, ...). An unknown option raises ``ConfigError``.
+    Options: see :class:`mrexplore.environment.EnvConfig` (``world``, ``n_robots``, ``task``,
+    ``merger``, ``comm_range_m``, ``max_range_m``, ...). An unknown option raises
+    ``ConfigError``.
     """
     from mrexplore.environment import MultiRobotExplorationEnv
 

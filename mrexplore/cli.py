@@ -12,7 +12,9 @@ from mrexplore.errors import MrexploreError
 def _demo(args: argparse.Namespace) -> int:
     from mrexplore.experiments.demo import run_demo
 
-    run_demo(out=args.out, world=args.world, seed=args.seed, policy=args.policy, n_robots=args.n_robots)
+    run_demo(
+        out=args.out, world=args.world, seed=args.seed, policy=args.policy, n_robots=args.n_robots
+    )
     return 0
 
 
@@ -90,13 +92,19 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--policy", default="coordinated-frontier")
     d.add_argument("--n-robots", type=int, default=2)
 
-    t = sub.add_parser("task-time", help="single vs multi-robot task times (the paper's experiment)")
+    t = sub.add_parser(
+        "task-time", help="single vs multi-robot task times (the paper's experiment)"
+    )
     t.add_argument("--world", default="symmetric_office")
     t.add_argument("--seeds", type=int, default=20)
     t.add_argument("--first-seed", type=int, default=1000)
-    t.add_argument("--policy", default="coordinated-frontier", help="a policy name or a trained policy folder")
+    t.add_argument(
+        "--policy", default="coordinated-frontier", help="a policy name or a trained policy folder"
+    )
     t.add_argument("--out", default="results")
-    t.add_argument("--tasks", nargs="+", default=["explore", "navigate"], choices=["explore", "navigate"])
+    t.add_argument(
+        "--tasks", nargs="+", default=["explore", "navigate"], choices=["explore", "navigate"]
+    )
     t.add_argument("--max-time-s", type=float, default=600.0)
 
     for name, helptext in (

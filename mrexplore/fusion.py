@@ -18,7 +18,6 @@ from numpy.typing import NDArray
 
 from mrexplore.errors import GridError
 
-
 #: Known space (m^2) two maps must share before the every-step merger accepts a match.
 IN_LOOP_MIN_COMMON_M2 = 40.0
 
@@ -27,11 +26,17 @@ def _checked(grid: object, agent: str) -> NDArray[np.int8]:
     """A cheap dtype/shape check of an agent's map, run every step. The full value check of
     :func:`mrexplore.grid.validate_grid` (a scan of the whole canvas, ~1 ms at 1500x1500) runs
     inside :func:`mrexplore.merge.merge_maps` when a merge is attempted."""
-    if not isinstance(grid, np.ndarray) or grid.dtype != np.int8 or grid.ndim != 2 or grid.size == 0:
+    if (
+        not isinstance(grid, np.ndarray)
+        or grid.dtype != np.int8
+        or grid.ndim != 2
+        or grid.size == 0
+    ):
         shape = getattr(grid, "shape", None)
         dtype = getattr(grid, "dtype", type(grid).__name__)
         raise GridError(
-            f"local map of {agent} must be a non-empty 2-D int8 array (-1/0/100), got {dtype} {shape}"
+            f"local map of {agent} must be a non-empty 2-D int8 array (-1/0/100), "
+            f"got {dtype} {shape}"
         )
     return grid
 
@@ -121,7 +126,7 @@ class FusionStage:
         return self._first_merge_step[agent]
 
     def fused(self, agent: str) -> NDArray[np.int8]:
-        """The fused map in ``agent``'s frame (its own map when not merged); same shape as its map."""
+        """The fused map in ``agent``'s frame (its own map when not merged), same shape."""
         i = self.index[agent]
         if self.tracker is not None and self.tracker.merged(i):
             return np.asarray(self.tracker.fused(i))

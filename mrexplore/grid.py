@@ -1,4 +1,4 @@
-"""Occupancy-grid cell values, checks and 2-D homogeneous transforms: the one place that spells them.
+"""Occupancy-grid cell values, checks and 2-D homogeneous transforms: the one place for them.
 
 Conventions (see README, "Conventions"):
 
@@ -37,7 +37,7 @@ Transform = NDArray[np.float64]
 
 
 def validate_grid(grid: object, name: str = "grid") -> Int8Grid:
-    """Return ``grid`` as a 2-D int8 occupancy array, or raise :class:`GridError` naming the problem.
+    """Return ``grid`` as a 2-D int8 occupancy array, or raise :class:`GridError` naming why.
 
     Accepts int8 arrays and integer arrays whose values are all in ``{-1} U [0, 100]``; refuses
     floats (NaN would hide there), booleans, non-2-D arrays and empty arrays.
@@ -48,9 +48,7 @@ def validate_grid(grid: object, name: str = "grid") -> Int8Grid:
         raise GridError(f"{name} must be 2-D (rows, cols), got shape {grid.shape}")
     if grid.size == 0:
         raise GridError(f"{name} is empty (shape {grid.shape})")
-    if grid.dtype == np.int8:
-        arr = grid
-    elif np.issubdtype(grid.dtype, np.integer) and grid.dtype != np.bool_:
+    if grid.dtype == np.int8 or (np.issubdtype(grid.dtype, np.integer) and grid.dtype != np.bool_):
         arr = grid
     else:
         raise GridError(
@@ -82,7 +80,7 @@ def occupied_mask(grid: Int8Grid) -> NDArray[np.bool_]:
 
 
 def make_transform(theta_rad: float, tx: float, ty: float) -> Transform:
-    """Rigid 2-D transform: rotate by ``theta_rad`` (counter-clockwise in (col, row)), then translate.
+    """Rigid 2-D transform: rotate by ``theta_rad`` (counter-clockwise in (col, row)), then shift.
 
     Returns a 3x3 float64 matrix acting on column vectors ``(col, row, 1)``.
     """
@@ -100,7 +98,9 @@ def invert_transform(T: Transform) -> Transform:
     return np.asarray(np.linalg.inv(np.asarray(T, dtype=np.float64)), dtype=np.float64)
 
 
-def apply_transform(T: Transform, points: NDArray[np.floating] | NDArray[np.integer]) -> NDArray[np.float64]:
+def apply_transform(
+    T: Transform, points: NDArray[np.floating] | NDArray[np.integer]
+) -> NDArray[np.float64]:
     """Map ``points`` of shape (N, 2) as ``(col, row)`` through ``T``; returns (N, 2) float64."""
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     return pts @ np.asarray(T, dtype=np.float64)[:2, :2].T + np.asarray(T, dtype=np.float64)[:2, 2]

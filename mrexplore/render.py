@@ -20,7 +20,12 @@ if TYPE_CHECKING:  # pragma: no cover
 
 #: BGR-free RGB colours of robots 0, 1, 2, ... (cycled).
 ROBOT_COLOURS: list[tuple[int, int, int]] = [
-    (220, 50, 47), (38, 139, 210), (133, 153, 0), (211, 54, 130), (181, 137, 0), (42, 161, 152)
+    (220, 50, 47),
+    (38, 139, 210),
+    (133, 153, 0),
+    (211, 54, 130),
+    (181, 137, 0),
+    (42, 161, 152),
 ]
 PANEL_PX = 360
 
@@ -109,7 +114,9 @@ def render_env_frame(env: MultiRobotExplorationEnv) -> NDArray[np.uint8]:
     h = world.walls.shape[0]
 
     def wpx(cr: NDArray[np.float64]) -> NDArray[np.int32]:
-        return np.stack([(cr[:, 0] + 0.5) * s, (h - 1 - cr[:, 1] + 0.5) * s], axis=1).astype(np.int32)
+        return np.stack([(cr[:, 0] + 0.5) * s, (h - 1 - cr[:, 1] + 0.5) * s], axis=1).astype(
+            np.int32
+        )
 
     scan = sim.last_scan
     for i in range(n):
@@ -136,7 +143,9 @@ def render_env_frame(env: MultiRobotExplorationEnv) -> NDArray[np.uint8]:
     for i, a in enumerate(env.possible_agents):
         c, r, th = sim.pose_cell(i)
         panels.append(
-            map_panel(sim.maps[i].to_int8(), f"{a} own map", [(c, r, th, i)], [(sim.trail_cells(i), i)])
+            map_panel(
+                sim.maps[i].to_int8(), f"{a} own map", [(c, r, th, i)], [(sim.trail_cells(i), i)]
+            )
         )
     # --- the fused map in robot_0's frame
     if n > 1:
@@ -164,12 +173,14 @@ def write_video(frames: Sequence[NDArray[np.uint8]], path: str | Path, fps: floa
         try:
             from PIL import Image
         except ImportError as exc:  # pragma: no cover
-            raise ImportError("writing GIFs needs Pillow: pip install pillow (or use .mp4)") from exc
+            raise ImportError(
+                "writing GIFs needs Pillow: pip install pillow (or use .mp4)"
+            ) from exc
         imgs = [Image.fromarray(f) for f in frames]
         imgs[0].save(path, save_all=True, append_images=imgs[1:], duration=int(1000 / fps), loop=0)
         return path
     h, w = frames[0].shape[:2]
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, (w, h))
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"mp4v"), fps, (w, h))
     for f in frames:
         writer.write(cv2.cvtColor(f, cv2.COLOR_RGB2BGR))
     writer.release()

@@ -93,7 +93,9 @@ def bench(n: int) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=ROOT / "envs")
-    parser.add_argument("--maps", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "maps")
+    parser.add_argument(
+        "--maps", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "maps"
+    )
     parser.add_argument("--preview", type=Path, default=None)
     parser.add_argument("--bench", type=int, default=0, metavar="N")
     args = parser.parse_args()

@@ -92,25 +92,58 @@ class EnvConfig:
     def __post_init__(self) -> None:
         def positive(name: str) -> None:
             v = getattr(self, name)
-            if not isinstance(v, (int, float)) or isinstance(v, bool) or not v > 0 or not math.isfinite(v):
+            if (
+                not isinstance(v, (int, float))
+                or isinstance(v, bool)
+                or not v > 0
+                or not math.isfinite(v)
+            ):
                 raise ConfigError(f"option {name} must be a positive number, got {v!r}")
 
         def non_negative(name: str) -> None:
             v = getattr(self, name)
-            if not isinstance(v, (int, float)) or isinstance(v, bool) or not v >= 0 or not math.isfinite(v):
+            if (
+                not isinstance(v, (int, float))
+                or isinstance(v, bool)
+                or not v >= 0
+                or not math.isfinite(v)
+            ):
                 raise ConfigError(f"option {name} must be a non-negative number, got {v!r}")
 
-        if not isinstance(self.n_robots, int) or isinstance(self.n_robots, bool) or self.n_robots < 1:
+        if (
+            not isinstance(self.n_robots, int)
+            or isinstance(self.n_robots, bool)
+            or self.n_robots < 1
+        ):
             raise ConfigError(f"option n_robots must be an integer >= 1, got {self.n_robots!r}")
         if self.task not in ("explore", "navigate"):
             raise ConfigError(f"option task must be 'explore' or 'navigate', got {self.task!r}")
         if self.reward_mode not in ("time", "coverage"):
-            raise ConfigError(f"option reward_mode must be 'time' or 'coverage', got {self.reward_mode!r}")
-        for name in ("radius_m", "speed_mps", "turn_rate_rps", "dt_s", "fov_deg", "max_range_m",
-                     "max_time_s", "goal_radius_m", "global_view_m", "local_view_m"):
+            raise ConfigError(
+                f"option reward_mode must be 'time' or 'coverage', got {self.reward_mode!r}"
+            )
+        for name in (
+            "radius_m",
+            "speed_mps",
+            "turn_rate_rps",
+            "dt_s",
+            "fov_deg",
+            "max_range_m",
+            "max_time_s",
+            "goal_radius_m",
+            "global_view_m",
+            "local_view_m",
+        ):
             positive(name)
-        for name in ("range_noise_m", "odom_noise_trans", "odom_noise_rot", "min_start_separation_m",
-                     "coverage_reward_per_m2", "time_penalty_per_s", "goal_min_distance_m"):
+        for name in (
+            "range_noise_m",
+            "odom_noise_trans",
+            "odom_noise_rot",
+            "min_start_separation_m",
+            "coverage_reward_per_m2",
+            "time_penalty_per_s",
+            "goal_min_distance_m",
+        ):
             non_negative(name)
         if self.fov_deg > 360.0:
             raise ConfigError(f"option fov_deg must be at most 360, got {self.fov_deg}")
@@ -120,15 +153,25 @@ class EnvConfig:
                 raise ConfigError(f"option {name} must be an integer >= 1, got {v!r}")
         if self.obs_size_px < 36:
             # SB3's NatureCNN (CnnPolicy) needs at least 36x36 inputs.
-            raise ConfigError(f"option obs_size_px must be at least 36 (CnnPolicy), got {self.obs_size_px}")
+            raise ConfigError(
+                f"option obs_size_px must be at least 36 (CnnPolicy), got {self.obs_size_px}"
+            )
         if not 0.0 < self.target_coverage <= 1.0:
-            raise ConfigError(f"option target_coverage must be in (0, 1], got {self.target_coverage!r}")
-        if self.max_cycles is not None and (not isinstance(self.max_cycles, int) or self.max_cycles < 1):
-            raise ConfigError(f"option max_cycles must be an integer >= 1 or None, got {self.max_cycles!r}")
+            raise ConfigError(
+                f"option target_coverage must be in (0, 1], got {self.target_coverage!r}"
+            )
+        if self.max_cycles is not None and (
+            not isinstance(self.max_cycles, int) or self.max_cycles < 1
+        ):
+            raise ConfigError(
+                f"option max_cycles must be an integer >= 1 or None, got {self.max_cycles!r}"
+            )
         if self.comm_range_m is not None:
             positive("comm_range_m")
         if not isinstance(self.merge_options, dict):
-            raise ConfigError(f"option merge_options must be a dict, got {type(self.merge_options).__name__}")
+            raise ConfigError(
+                f"option merge_options must be a dict, got {type(self.merge_options).__name__}"
+            )
 
     @classmethod
     def from_kwargs(cls, **kwargs: Any) -> EnvConfig:

@@ -1,7 +1,7 @@
 """Each robot's observation: a uint8 image stack in the robot's own map frame.
 
-Everything drawn here comes from a :class:`~mrexplore.environment.view.RobotView`, i.e. from what the
-robot knows (its own map or the fused map, its own pose estimate, teammates only after a merge).
+Everything drawn here comes from a :class:`~mrexplore.environment.view.RobotView`, i.e. from what
+the robot knows (its own map or the fused map, its own pose estimate, teammates only after a merge).
 Nothing is read from the ground truth.
 
 Layout, shape ``(8, S, S)`` with ``S = obs_size_px`` (channel-first, so SB3's ``CnnPolicy`` takes
@@ -46,8 +46,8 @@ def _window(
     Returns a view when the window lies inside the grid (the common case), else a padded copy.
     """
     half = side_cells // 2
-    c0 = int(round(centre[0])) - half
-    r0 = int(round(centre[1])) - half
+    c0 = round(centre[0]) - half
+    r0 = round(centre[1]) - half
     h, w = grid.shape
     if c0 >= 0 and r0 >= 0 and c0 + side_cells <= w and r0 + side_cells <= h:
         return grid[r0 : r0 + side_cells, c0 : c0 + side_cells]
@@ -66,10 +66,10 @@ def _shares(window: NDArray[np.int8], size: int) -> tuple[NDArray[np.uint8], NDA
     occ = cv2.inRange(window, OCCUPIED_THRESHOLD, 127)
     # INTER_AREA averages the cells under each pixel: a pixel's value is the share of that class.
     interp = cv2.INTER_AREA if window.shape[0] >= size else cv2.INTER_NEAREST
-    return (
-        cv2.resize(free, (size, size), interpolation=interp),
-        cv2.resize(occ, (size, size), interpolation=interp),
-    )
+    free_px = cv2.resize(free, (size, size), interpolation=interp)
+    occ_px = cv2.resize(occ, (size, size), interpolation=interp)
+    # OpenCV's stubs type results as any-number arrays; inputs are uint8, so are the outputs.
+    return free_px.astype(np.uint8, copy=False), occ_px.astype(np.uint8, copy=False)
 
 
 class ObservationBuilder:
@@ -86,8 +86,8 @@ class ObservationBuilder:
         self, resolution_m: float, global_view_m: float, local_view_m: float, size_px: int
     ) -> None:
         self.size = int(size_px)
-        self.global_cells = max(self.size, int(round(global_view_m / resolution_m)))
-        self.local_cells = max(2, int(round(local_view_m / resolution_m)))
+        self.global_cells = max(self.size, round(global_view_m / resolution_m))
+        self.local_cells = max(2, round(local_view_m / resolution_m))
         self.shape = (N_CHANNELS, self.size, self.size)
 
     def build(self, view: RobotView, trail_cells: NDArray[np.float64]) -> NDArray[np.uint8]:
@@ -108,11 +108,11 @@ class ObservationBuilder:
         obs[4], obs[5] = _shares(loc, s)
         scale_l = s / self.local_cells
         centre = (s // 2, s // 2)
-        radius_px = max(1, int(round(view.robot_radius_m / view.resolution_m * scale_l)))
+        radius_px = max(1, round(view.robot_radius_m / view.resolution_m * scale_l))
         cv2.circle(obs[6], centre, radius_px, 255, -1)
         tip = (
-            int(round(centre[0] + math.cos(theta) * 2.5 * radius_px)),
-            int(round(centre[1] + math.sin(theta) * 2.5 * radius_px)),
+            round(centre[0] + math.cos(theta) * 2.5 * radius_px),
+            round(centre[1] + math.sin(theta) * 2.5 * radius_px),
         )
         cv2.line(obs[6], centre, tip, 255, 1)
         if view.goal_cell is not None:
@@ -157,7 +157,7 @@ class ObservationBuilder:
         limit = c - 1
         if dist > limit and dist > 0:
             dx, dy = dx * limit / dist, dy * limit / dist
-        end = (int(round(c + dx)), int(round(c + dy)))
+        end = (round(c + dx), round(c + dy))
         cv2.line(channel, (c, c), end, 128, 1)
         if dist <= limit:
             cv2.circle(channel, end, 2, 255, -1)
@@ -166,5 +166,3 @@ class ObservationBuilder:
 def is_unknown_everywhere(obs: NDArray[np.uint8]) -> bool:
     """True when the observation shows no known cell at all (used by tests)."""
     return bool(obs[0].max() == 0 and obs[1].max() == 0)
-
-

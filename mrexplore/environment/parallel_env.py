@@ -9,8 +9,8 @@ Agents               ``robot_0`` ... ``robot_{n-1}`` (``n_robots=1`` is the sing
 Action space         ``Discrete(4)``: 0 forward (0.125 m), 1 turn left (22.5 deg), 2 turn right,
                      3 stay (:class:`mrexplore.robot.Action`; defaults 0.5 m/s, pi/2 rad/s, 0.25 s)
 Observation space    ``Box(0, 255, (8, 64, 64), uint8)``, robot-centred, own frame; see
-                     :mod:`mrexplore.environment.observations`. Built from the fused map once the robot's
-                     map is merged, else from its own map. Never from the ground truth.
+                     :mod:`mrexplore.environment.observations`. Built from the fused map once
+                     the robot's map is merged, else from its own map. Never from the truth.
 State space          ``Box(0, 255, (8 * n, 64, 64), uint8)``: all observations stacked.
 Reward               team reward (same for all): ``"time"``: ``-dt_s`` per step, so the return
                      is minus the task time; ``"coverage"``: ``coverage_reward_per_m2`` x newly
@@ -37,7 +37,7 @@ from __future__ import annotations
 import functools
 import math
 import warnings
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium
 import numpy as np
@@ -49,7 +49,7 @@ from mrexplore.environment.observations import ObservationBuilder
 from mrexplore.environment.view import RobotView
 from mrexplore.errors import ConfigError
 from mrexplore.fusion import FusionStage
-from mrexplore.grid import UNKNOWN, apply_transform, transform_angle
+from mrexplore.grid import UNKNOWN, apply_transform, invert_transform, transform_angle
 from mrexplore.robot import Action, RobotConfig
 from mrexplore.sensors import LidarConfig
 from mrexplore.sim import SimConfig, Simulation
@@ -59,9 +59,12 @@ AgentID = str
 
 
 class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
-    """PettingZoo parallel env; build it with :func:`mrexplore.parallel_env` (options: :class:`EnvConfig`)."""
+    """PettingZoo parallel env; build it with :func:`mrexplore.parallel_env`.
 
-    metadata = {
+    Options: :class:`~mrexplore.environment.config.EnvConfig`.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {
         "name": "mrexplore_v0",
         "render_modes": ["human", "rgb_array"],
         "is_parallelizable": True,
@@ -72,7 +75,8 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         self.config = EnvConfig.from_kwargs(**options)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ConfigError(
-                f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}"
+                f"render_mode must be one of {self.metadata['render_modes']} or None, "
+                f"got {render_mode!r}"
             )
         self.render_mode = render_mode
         cfg = self.config
@@ -128,17 +132,19 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         self._goal_cell: tuple[float, float] | None = None
         self._done = True
         self._renderer: Any = None
-        self._error_cache: dict[tuple[int, int], tuple[int, NDArray[np.float64], dict[str, float]]] = {}
+        self._error_cache: dict[
+            tuple[int, int], tuple[int, NDArray[np.float64], dict[str, float]]
+        ] = {}
         self._last_coverage = 0.0
 
     # ------------------------------------------------------------------ spaces
-    @functools.lru_cache(maxsize=None)  # noqa: B019 - PettingZoo wants the same object each call
+    @functools.cache  # noqa: B019 - PettingZoo wants the same object each call
     def observation_space(self, agent: AgentID) -> gymnasium.spaces.Box:
         """``Box(0, 255, (8, S, S), uint8)``; the same object for every call."""
         self._check_agent(agent)
         return self._obs_space
 
-    @functools.lru_cache(maxsize=None)  # noqa: B019
+    @functools.cache  # noqa: B019
     def action_space(self, agent: AgentID) -> gymnasium.spaces.Discrete:
         """``Discrete(4)`` (see :class:`mrexplore.robot.Action`); the same object for every call."""
         self._check_agent(agent)
@@ -169,7 +175,8 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
             starts = np.asarray(options["starts"], dtype=np.float64)
             if starts.shape != (self.config.n_robots, 3):
                 raise ConfigError(
-                    f"reset option starts must have shape ({self.config.n_robots}, 3), got {starts.shape}"
+                    f"reset option starts must have shape ({self.config.n_robots}, 3), "
+                    f"got {starts.shape}"
                 )
         self.sim = Simulation(self.world, self.config.n_robots, self._sim_config)
         self.sim.reset(start_rng, starts=starts)
@@ -287,7 +294,9 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         frame in a matplotlib window when matplotlib and a display are available; on a headless
         machine it draws nothing and returns None (a warning is issued once)."""
         if self.render_mode is None:
-            gymnasium.logger.warn("render() called without a render_mode; pass render_mode='rgb_array'")
+            gymnasium.logger.warn(
+                "render() called without a render_mode; pass render_mode='rgb_array'"
+            )
             return None
         if self.sim is None:
             raise RuntimeError("render() called before reset()")
@@ -399,7 +408,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         goal_cell_world = np.array([cols[k], rows[k]], dtype=np.float64)
         self._goal_world = world.xy_of(goal_cell_world[None])[0]
         T_world_from_map0 = self.sim.world_from_map(0)
-        T_map0_from_world = np.linalg.inv(T_world_from_map0)
+        T_map0_from_world = invert_transform(T_world_from_map0)
         g = apply_transform(T_map0_from_world, goal_cell_world[None])[0]
         self._goal_cell = (float(g[0]), float(g[1]))
 
@@ -422,7 +431,9 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         for other, T in transforms.items():
             j = self.possible_agents.index(other)
             err = self._pair_error(i, j, T)
-            if err is not None and (worst is None or err["translation_cells"] > worst["translation_cells"]):
+            if err is not None and (
+                worst is None or err["translation_cells"] > worst["translation_cells"]
+            ):
                 worst = err
         return worst
 

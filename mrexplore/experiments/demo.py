@@ -43,8 +43,16 @@ def run_demo(
     final = res.frames[-1]
     if res.merge_frame is not None:
         label = np.full((26, final.shape[1], 3), 255, np.uint8)
-        cv2.putText(label, f"the moment of the merge: t = {res.first_merge_time_s:.1f} s", (6, 18),
-                    cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 1, cv2.LINE_AA)
+        cv2.putText(
+            label,
+            f"the moment of the merge: t = {res.first_merge_time_s:.1f} s",
+            (6, 18),
+            cv2.FONT_HERSHEY_SIMPLEX,
+            0.55,
+            (0, 0, 0),
+            1,
+            cv2.LINE_AA,
+        )
         final = np.vstack([final, label, res.merge_frame])
     cv2.imwrite(str(out / "final.png"), cv2.cvtColor(final, cv2.COLOR_RGB2BGR))
     summary = {
@@ -65,13 +73,15 @@ def run_demo(
         else "never merged"
     )
     err_txt = (
-        f", error {res.merge_error['translation_cells']:.2f} cells / {res.merge_error['rotation_deg']:.2f} deg"
+        f", error {res.merge_error['translation_cells']:.2f} cells / "
+        f"{res.merge_error['rotation_deg']:.2f} deg"
         if res.merge_error
         else ""
     )
     print(
         f"demo: {n_robots} robots on '{world}' (seed {seed}, policy {policy})\n"
-        f"  task time {res.task_time_s:.1f} s simulated ({'target reached' if res.success else 'truncated'}), "
+        f"  task time {res.task_time_s:.1f} s simulated "
+        f"({'target reached' if res.success else 'truncated'}), "
         f"coverage {res.coverage:.1%}\n"
         f"  {merge_txt}{err_txt}\n"
         f"  wrote {gif} and {out / 'final.png'} in {wall_s:.1f} s wall time"

@@ -69,7 +69,8 @@ def bench_env(steps: int = 2000, seed: int = 0, **options: Any) -> dict[str, Any
 def _print(title: str, r: dict[str, Any]) -> None:
     ms = r["ms_per_step"]
     print(
-        f"{title}: {r['steps_per_s']:.0f} env steps/s ({r['robot_updates_per_s']:.0f} robot updates/s) over "
+        f"{title}: {r['steps_per_s']:.0f} env steps/s "
+        f"({r['robot_updates_per_s']:.0f} robot updates/s) over "
         f"{r['steps']} steps, {r['episodes']} episode(s)\n"
         f"   per step: act (move+sense+map) {ms['act']:.3f} ms | merge {ms['merge']:.3f} ms | "
         f"observe {ms['observe']:.3f} ms | other {ms['other']:.3f} ms"
@@ -88,17 +89,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     results["default"] = bench_env(
         args.steps, args.seed, world="symmetric_office", n_robots=2, merger=args.merger
     )
-    _print("2 robots, symmetric_office (0.05 m/cell), 360 beams, 4 m, merging on", results["default"])
+    _print(
+        "2 robots, symmetric_office (0.05 m/cell), 360 beams, 4 m, merging on", results["default"]
+    )
     results["explore_bench_like"] = bench_env(
-        args.steps, args.seed, world="symmetric_office_coarse", n_robots=2, max_range_m=3.0, merger=args.merger
+        args.steps,
+        args.seed,
+        world="symmetric_office_coarse",
+        n_robots=2,
+        max_range_m=3.0,
+        merger=args.merger,
     )
     _print(
-        "2 robots, symmetric_office_coarse (250x250 cells, 0.1 m/cell, 3 m range; Explore-Bench's settings)",
+        "2 robots, symmetric_office_coarse (250x250 cells, 0.1 m/cell, 3 m range; "
+        "Explore-Bench's settings)",
         results["explore_bench_like"],
     )
     ref = 10.0
     print(
-        f"   vs Explore-Bench's grid env measured at about {ref:.0f} steps/s on this kind of machine: "
+        f"   vs Explore-Bench's grid env measured at about {ref:.0f} steps/s on this kind of "
+        "machine: "
         f"x{results['explore_bench_like']['steps_per_s'] / ref:.0f}"
     )
     if args.json:

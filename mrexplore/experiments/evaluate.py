@@ -43,7 +43,10 @@ def summarise(results: Sequence[EpisodeResult], times_s: Sequence[float]) -> dic
     }
     for t in times_s:
         cov = [coverage_at(r, t) for r in results]
-        out["coverage_at"][f"{t:g}"] = {"mean": statistics.fmean(cov), "std": statistics.pstdev(cov)}
+        out["coverage_at"][f"{t:g}"] = {
+            "mean": statistics.fmean(cov),
+            "std": statistics.pstdev(cov),
+        }
     return out
 
 
@@ -79,14 +82,19 @@ def eval_env_options(config: Mapping[str, Any]) -> dict[str, Any]:
 def evaluate_folder(
     folder: str | Path, n_seeds: int = 20, out: str | Path | None = None, progress: bool = True
 ) -> dict[str, Any]:
-    """Evaluate ``folder`` (model.zip + config.yaml) against the baselines; writes eval.json/.png."""
+    """Evaluate ``folder`` (model.zip + config.yaml) against the baselines.
+
+    Writes ``eval.json`` and ``eval.png`` to ``out`` (default: the folder).
+    """
     from mrexplore.policies import make_team_policy
 
     folder = Path(folder)
     config = yaml.safe_load((folder / "config.yaml").read_text())
     env_options = eval_env_options(config)
     seeds = list(range(EVAL_SEED_BASE, EVAL_SEED_BASE + n_seeds))
-    trained = TrainedTeamPolicy.load(folder, [f"robot_{i}" for i in range(int(env_options.get("n_robots", 2)))])
+    trained = TrainedTeamPolicy.load(
+        folder, [f"robot_{i}" for i in range(int(env_options.get("n_robots", 2)))]
+    )
     policies: dict[str, Any] = {f"trained ({config.get('algo', 'ppo')})": lambda agents: trained}
     for b in BASELINES:
         policies[b] = lambda agents, b=b: make_team_policy(b, agents)
@@ -107,12 +115,16 @@ def format_evaluation(doc: Mapping[str, Any]) -> str:
     """The evaluation as a text table."""
     results = doc["results"]
     times = list(next(iter(results.values()))["coverage_at"])
-    head = f"{'policy':<26} {'task time (s)':>16} {'success':>8} " + " ".join(f"{'cov@' + t + 's':>9}" for t in times)
+    head = f"{'policy':<26} {'task time (s)':>16} {'success':>8} " + " ".join(
+        f"{'cov@' + t + 's':>9}" for t in times
+    )
     lines = [f"evaluation on {len(doc['seeds'])} held-out seeds", head]
     for name, s in results.items():
         tt = s["task_time_s"]
         covs = " ".join(f"{s['coverage_at'][t]['mean']:>9.1%}" for t in times)
-        lines.append(f"{name:<26} {tt['mean']:>8.1f} +- {tt['std']:<5.1f} {s['success_rate']:>8.0%} {covs}")
+        lines.append(
+            f"{name:<26} {tt['mean']:>8.1f} +- {tt['std']:<5.1f} {s['success_rate']:>8.0%} {covs}"
+        )
     return "\n".join(lines)
 
 
@@ -144,7 +156,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="mrexplore evaluate", description=__doc__)
     p.add_argument("folder")
     p.add_argument("--seeds", type=int, default=20)
-    p.add_argument("--out", default=None, help="folder for eval.json/eval.png (default: the policy folder)")
+    p.add_argument(
+        "--out", default=None, help="folder for eval.json/eval.png (default: the policy folder)"
+    )
     args = p.parse_args(argv)
     evaluate_folder(args.folder, args.seeds, args.out)
     return 0

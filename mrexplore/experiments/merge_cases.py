@@ -2,9 +2,10 @@
 
 Two families:
 
-- :func:`real_map_case`: two overlapping crops of a real map from ``../shared/maps`` (``$MREXPLORE_MAPS``) (or any
-  int8 map), the second rotated by a random angle, their borders damaged a little (random unknown
-  blobs near the crop edges, as partial SLAM maps fray at their rims).
+- :func:`real_map_case`: two overlapping crops of a real map from ``../shared/maps``
+  (``$MREXPLORE_MAPS``) (or any int8 map), the second rotated by a random angle, their borders
+  damaged a little (random unknown blobs near the crop edges, as partial SLAM maps fray at
+  their rims).
 - :func:`symmetric_case`: two robots explore overlapping parts of a generated symmetric world
   (``symmetric_office`` or ``twin_wings``: two cell-for-cell identical rooms) with the lidar and
   their own-frame maps; half the cases rotate b's map by a random angle on top of the robots'
@@ -17,7 +18,6 @@ known cells that land on a's known cells under the truth.
 from __future__ import annotations
 
 import os
-
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -37,6 +37,8 @@ REAL_MAPS: dict[str, tuple[int, int]] = {
     "nav2/tb3_sandbox.yaml": (120, 200),
     "nav2/warehouse.yaml": (250, 450),
 }
+
+
 def _default_maps_dir() -> Path:
     """``$MREXPLORE_MAPS``, else ``shared/maps`` beside the checkout (the team's layout)."""
     env = os.environ.get("MREXPLORE_MAPS")

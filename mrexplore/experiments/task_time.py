@@ -60,7 +60,11 @@ def make_team(policy: str, agents: Sequence[str], task: str) -> Any:
     else:
         team = make_team_policy(policy, list(agents))
     if task == "navigate":
-        explore = make_team_policy(policy, list(agents[1:])) if len(agents) > 1 and not Path(policy).is_dir() else team
+        explore = (
+            make_team_policy(policy, list(agents[1:]))
+            if len(agents) > 1 and not Path(policy).is_dir()
+            else team
+        )
         return NavigateTeam(agents, explore, GoalPolicy())
     return team
 
@@ -86,7 +90,9 @@ def run_task_time(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     base = {"world": world, **dict(env_options or {})}
-    runs: dict[str, dict[str, list[EpisodeResult]]] = {t: {"single": [], "multi": []} for t in tasks}
+    runs: dict[str, dict[str, list[EpisodeResult]]] = {
+        t: {"single": [], "multi": []} for t in tasks
+    }
     seed_list = list(range(first_seed, first_seed + seeds))
     total = len(seed_list) * len(tasks) * 2
     bar = tqdm(total=total, desc="task-time episodes", disable=not progress, unit="ep")
@@ -121,7 +127,9 @@ def _document(
         "world": world,
         "policy": policy,
         "seeds": seed_list,
-        "options": {k: v for k, v in options.items() if isinstance(v, (int, float, str, bool, type(None)))},
+        "options": {
+            k: v for k, v in options.items() if isinstance(v, (int, float, str, bool, type(None)))
+        },
         "units": "simulated seconds",
         "tasks": {},
     }
@@ -145,21 +153,43 @@ def _document(
     return doc
 
 
-def _write_csv(path: Path, runs: Mapping[str, Mapping[str, list[EpisodeResult]]], seeds: list[int]) -> None:
+def _write_csv(
+    path: Path, runs: Mapping[str, Mapping[str, list[EpisodeResult]]], seeds: list[int]
+) -> None:
     with path.open("w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["task", "team", "n_robots", "seed", "task_time_s", "success", "coverage", "first_merge_time_s"])
+        w.writerow(
+            [
+                "task",
+                "team",
+                "n_robots",
+                "seed",
+                "task_time_s",
+                "success",
+                "coverage",
+                "first_merge_time_s",
+            ]
+        )
         for task, teams in runs.items():
             for team_name, results in teams.items():
-                for seed, r in zip(seeds, results):
-                    w.writerow([
-                        task, team_name, 1 if team_name == "single" else 2, seed,
-                        f"{r.task_time_s:.2f}", int(r.success), f"{r.coverage:.4f}",
-                        "" if r.first_merge_time_s is None else f"{r.first_merge_time_s:.2f}",
-                    ])
+                for seed, r in zip(seeds, results, strict=False):
+                    w.writerow(
+                        [
+                            task,
+                            team_name,
+                            1 if team_name == "single" else 2,
+                            seed,
+                            f"{r.task_time_s:.2f}",
+                            int(r.success),
+                            f"{r.coverage:.4f}",
+                            "" if r.first_merge_time_s is None else f"{r.first_merge_time_s:.2f}",
+                        ]
+                    )
 
 
-def _plot(path: Path, runs: Mapping[str, Mapping[str, list[EpisodeResult]]], doc: Mapping[str, Any]) -> None:
+def _plot(
+    path: Path, runs: Mapping[str, Mapping[str, list[EpisodeResult]]], doc: Mapping[str, Any]
+) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -178,7 +208,9 @@ def _plot(path: Path, runs: Mapping[str, Mapping[str, list[EpisodeResult]]], doc
             mean, std = curves.mean(axis=0), curves.std(axis=0)
             label = "1 robot" if team_name == "single" else "2 robots (merged maps)"
             ax0.plot(grid, mean, color=colour, label=label)
-            ax0.fill_between(grid, np.clip(mean - std, 0, 1), np.clip(mean + std, 0, 1), color=colour, alpha=0.2)
+            ax0.fill_between(
+                grid, np.clip(mean - std, 0, 1), np.clip(mean + std, 0, 1), color=colour, alpha=0.2
+            )
         ax0.set_xlabel("time (s)")
         ax0.set_ylabel("coverage")
         ax0.set_title("exploration: coverage vs time (mean, +-1 std)")
@@ -188,7 +220,14 @@ def _plot(path: Path, runs: Mapping[str, Mapping[str, list[EpisodeResult]]], doc
     for k, (team_name, colour) in enumerate((("single", "tab:red"), ("multi", "tab:blue"))):
         means = [doc["tasks"][t][team_name]["mean"] for t in tasks]
         stds = [doc["tasks"][t][team_name]["std"] for t in tasks]
-        ax1.bar(x + (k - 0.5) * 0.35, means, 0.35, yerr=stds, color=colour, label="1 robot" if k == 0 else "2 robots")
+        ax1.bar(
+            x + (k - 0.5) * 0.35,
+            means,
+            0.35,
+            yerr=stds,
+            color=colour,
+            label="1 robot" if k == 0 else "2 robots",
+        )
     ax1.set_xticks(x, [f"{t}\n(-{doc['tasks'][t]['reduction']:.0%})" for t in tasks])
     ax1.set_ylabel("task time (s)")
     ax1.set_title("task time, single vs multi")
@@ -201,12 +240,19 @@ def _plot(path: Path, runs: Mapping[str, Mapping[str, list[EpisodeResult]]], doc
 def format_table(doc: Mapping[str, Any]) -> str:
     """The results as a text table in the form of the paper's."""
     lines = [
-        f"Task time on '{doc['world']}' with policy '{doc['policy']}' over {len(doc['seeds'])} seeds (simulated s)",
-        f"{'task':<10} {'1 robot':>16} {'2 robots':>16} {'reduction':>10} {'success 1/2':>12} | paper 1 -> 2",
+        f"Task time on '{doc['world']}' with policy '{doc['policy']}' over "
+        f"{len(doc['seeds'])} seeds (simulated s)",
+        f"{'task':<10} {'1 robot':>16} {'2 robots':>16} {'reduction':>10} "
+        f"{'success 1/2':>12} | paper 1 -> 2",
     ]
     for task, e in doc["tasks"].items():
         paper = e.get("paper") or {}
-        p_txt = f"{paper['single']:.0f} -> {paper['multi']:.0f} s (-{1 - paper['multi'] / paper['single']:.0%})" if paper else "-"
+        p_txt = (
+            f"{paper['single']:.0f} -> {paper['multi']:.0f} s "
+            f"(-{1 - paper['multi'] / paper['single']:.0%})"
+            if paper
+            else "-"
+        )
         lines.append(
             f"{task:<10} {e['single']['mean']:>8.1f} +- {e['single']['std']:<5.1f}"
             f"{e['multi']['mean']:>8.1f} +- {e['multi']['std']:<5.1f}{e['reduction']:>10.1%}"

@@ -41,7 +41,9 @@ def load_hyperparams(algo: str, path: str | Path | None = None) -> dict[str, Any
     if path is not None:
         text = Path(path).read_text()
     else:
-        text = importlib.resources.files("mrexplore").joinpath("configs", f"{algo}.yaml").read_text()
+        text = (
+            (importlib.resources.files("mrexplore") / "configs" / f"{algo}.yaml").read_text()
+        )
     cfg = yaml.safe_load(text)
     for key in ("policy", "env", "hyperparams"):
         if key not in cfg:
@@ -123,7 +125,12 @@ def train(
         "env": env_opts,
         "hyperparams": cfg["hyperparams"],
         "policy_kwargs": cfg.get("policy_kwargs", {}),
-        "eval": {"seed_base": EVAL_SEED_BASE, "every": eval_every, "seeds": eval_seeds, "final_seeds": final_eval_seeds},
+        "eval": {
+            "seed_base": EVAL_SEED_BASE,
+            "every": eval_every,
+            "seeds": eval_seeds,
+            "final_seeds": final_eval_seeds,
+        },
         "versions": _versions(),
     }
     (out / "config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
@@ -133,7 +140,9 @@ def train(
     # One thread: on 2 cores, PyTorch's intra-op threads fight the env for the CPU (measured:
     # 128 PPO steps took 1.2 s with 1 thread, 8.7 s with 2).
     torch.set_num_threads(int(cfg.get("torch_threads", 1)))
-    venv = VecMonitor(make_vec_env(n_copies=copies, use_subprocess=use_subprocess, seed=seed, **env_opts))
+    venv = VecMonitor(
+        make_vec_env(n_copies=copies, use_subprocess=use_subprocess, seed=seed, **env_opts)
+    )
     tb = str(out / "tb") if importlib.util.find_spec("tensorboard") is not None else None
     model = algo_class(algo)(
         cfg["policy"],
@@ -147,7 +156,6 @@ def train(
     )
     eval_env = {**env_opts, "task": "explore"}
     periodic_seeds = list(range(EVAL_SEED_BASE, EVAL_SEED_BASE + eval_seeds))
-    agents = [f"robot_{i}" for i in range(int(env_opts.get("n_robots", 2)))]
     baseline = evaluate_policies(
         {b: (lambda ag, b=b: make_team_policy(b, ag)) for b in BASELINES if b != "random"},
         eval_env,
@@ -161,7 +169,9 @@ def train(
 
         def __init__(self) -> None:
             super().__init__()
-            self.bar = tqdm(total=int(timesteps), desc=f"train {algo}", unit="step", disable=not progress)
+            self.bar = tqdm(
+                total=int(timesteps), desc=f"train {algo}", unit="step", disable=not progress
+            )
             self.next_eval = eval_every
             self.t0 = time.perf_counter()
 
@@ -170,7 +180,10 @@ def train(
             if self.num_timesteps >= self.next_eval:
                 self.next_eval += eval_every
                 res = evaluate_policies(
-                    {"trained": lambda ag: TrainedTeamPolicy(self.model, ag)}, eval_env, periodic_seeds, progress=False
+                    {"trained": lambda ag: TrainedTeamPolicy(self.model, ag)},
+                    eval_env,
+                    periodic_seeds,
+                    progress=False,
                 )["trained"]
                 entry = {
                     "timesteps": int(self.num_timesteps),
@@ -183,11 +196,16 @@ def train(
                 self.logger.record("eval/final_coverage", entry["final_coverage"])
                 self.logger.record("eval/task_time_s", entry["task_time_s"])
                 for name, s in baseline.items():
-                    self.logger.record(f"eval/baseline_{name}_final_coverage", s["final_coverage"]["mean"])
+                    self.logger.record(
+                        f"eval/baseline_{name}_final_coverage", s["final_coverage"]["mean"]
+                    )
                 self.bar.write(
-                    f"[eval @ {self.num_timesteps}] trained: coverage {entry['final_coverage']:.1%}, "
+                    f"[eval @ {self.num_timesteps}] trained: coverage "
+                    f"{entry['final_coverage']:.1%}, "
                     f"task time {entry['task_time_s']:.1f} s | "
-                    + ", ".join(f"{n}: {s['final_coverage']['mean']:.1%}" for n, s in baseline.items())
+                    + ", ".join(
+                        f"{n}: {s['final_coverage']['mean']:.1%}" for n, s in baseline.items()
+                    )
                 )
             return True
 
@@ -195,13 +213,19 @@ def train(
             self.bar.close()
 
     ckpt_every = max(1, eval_every // max(1, venv.num_envs))
-    callbacks = CallbackList([_Progress(), CheckpointCallback(ckpt_every, str(out / "checkpoints"), name_prefix=algo)])
+    callbacks = CallbackList(
+        [_Progress(), CheckpointCallback(ckpt_every, str(out / "checkpoints"), name_prefix=algo)]
+    )
     t0 = time.perf_counter()
     model.learn(total_timesteps=int(timesteps), callback=callbacks)
     train_s = time.perf_counter() - t0
     model.save(str(out / "model.zip"))
     venv.close()
-    throughput = {"timesteps": int(model.num_timesteps), "wall_s": train_s, "env_steps_per_s": model.num_timesteps / train_s}
+    throughput = {
+        "timesteps": int(model.num_timesteps),
+        "wall_s": train_s,
+        "env_steps_per_s": model.num_timesteps / train_s,
+    }
     doc = evaluate_folder(out, n_seeds=final_eval_seeds, progress=progress)
     doc["training"] = {"throughput": throughput, "history": history, "baseline_periodic": baseline}
     (out / "eval.json").write_text(json.dumps(doc, indent=2))
@@ -213,10 +237,15 @@ def train(
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """CLI: ``mrexplore train --algo ppo --world symmetric_office --n-robots 2 --timesteps N --out DIR``."""
+    """CLI: ``mrexplore train --algo ppo --world symmetric_office --n-robots 2 --timesteps N``.
+
+    Writes to ``--out DIR``.
+    """
     p = argparse.ArgumentParser(prog="mrexplore train", description=__doc__)
     p.add_argument("--algo", default="ppo", choices=ALGOS)
-    p.add_argument("--world", default=None, help="a generator name (trained on fresh worlds) or a world spec")
+    p.add_argument(
+        "--world", default=None, help="a generator name (trained on fresh worlds) or a world spec"
+    )
     p.add_argument("--n-robots", type=int, default=None)
     p.add_argument("--timesteps", type=int, default=1_000_000)
     p.add_argument("--out", default="policies/ppo_symmetric_2r")

@@ -45,7 +45,9 @@ class TrainedTeamPolicy:
         self.deterministic = deterministic
 
     @classmethod
-    def load(cls, folder: str | Path, agents: Sequence[str], deterministic: bool = True) -> TrainedTeamPolicy:
+    def load(
+        cls, folder: str | Path, agents: Sequence[str], deterministic: bool = True
+    ) -> TrainedTeamPolicy:
         """Load ``folder/model.zip`` with the algorithm named in ``folder/config.yaml``."""
         folder = Path(folder)
         cfg_path = folder / "config.yaml"
@@ -68,7 +70,7 @@ class TrainedTeamPolicy:
             return {}
         batch = np.stack([observations[a] for a in agents])
         actions, _ = self.model.predict(batch, deterministic=self.deterministic)
-        return {a: int(x) for a, x in zip(agents, np.asarray(actions).reshape(-1))}
+        return {a: int(x) for a, x in zip(agents, np.asarray(actions).reshape(-1), strict=False)}
 
     def act(self, views: Mapping[str, Any]) -> dict[str, int]:
         raise TypeError("TrainedTeamPolicy acts on observations: call act_obs(observations)")

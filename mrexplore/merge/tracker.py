@@ -193,10 +193,18 @@ class MapMergeTracker:
         self.merge_every = int(merge_every)
         self.recheck_every = int(recheck_every)
         self.replace_margin = float(replace_margin)
-        if isinstance(confirmations, bool) or not isinstance(confirmations, (int, np.integer)) or confirmations < 1:
-            raise ConfigError(f"MapMergeTracker: confirmations must be an integer >= 1, got {confirmations!r}")
+        if (
+            isinstance(confirmations, bool)
+            or not isinstance(confirmations, (int, np.integer))
+            or confirmations < 1
+        ):
+            raise ConfigError(
+                f"MapMergeTracker: confirmations must be an integer >= 1, got {confirmations!r}"
+            )
         if not float(confirm_tol_cells) > 0.0:
-            raise ConfigError(f"MapMergeTracker: confirm_tol_cells must be > 0, got {confirm_tol_cells!r}")
+            raise ConfigError(
+                f"MapMergeTracker: confirm_tol_cells must be > 0, got {confirm_tol_cells!r}"
+            )
         if not 0.0 <= float(drop_below) <= 1.0:
             raise ConfigError(f"MapMergeTracker: drop_below must be in [0, 1], got {drop_below!r}")
         self.confirmations = int(confirmations)
@@ -383,7 +391,9 @@ class MapMergeTracker:
                 del self._edges[(i, j)]
                 self._edge_score.pop((i, j), None)
                 self._paths = None
-                self._patches = {k: p for k, p in self._patches.items() if i not in k and j not in k}
+                self._patches = {
+                    k: p for k, p in self._patches.items() if i not in k and j not in k
+                }
                 continue
             out = self._run(i, j)
             if out is None:

@@ -40,12 +40,19 @@ class World:
     def __post_init__(self) -> None:
         walls = np.asarray(self.walls)
         if walls.ndim != 2 or walls.size == 0:
-            raise WorldError(f"world '{self.name}': walls must be a non-empty 2-D array, got shape {walls.shape}")
+            raise WorldError(
+                f"world '{self.name}': walls must be a non-empty 2-D array, got shape {walls.shape}"
+            )
         if walls.dtype != np.bool_:
-            raise WorldError(f"world '{self.name}': walls must be a bool array, got dtype {walls.dtype}")
+            raise WorldError(
+                f"world '{self.name}': walls must be a bool array, got dtype {walls.dtype}"
+            )
         res = float(self.resolution_m)
         if not np.isfinite(res) or res <= 0.0:
-            raise WorldError(f"world '{self.name}': resolution must be a positive number of metres, got {self.resolution_m}")
+            raise WorldError(
+                f"world '{self.name}': resolution must be a positive number of metres, "
+                f"got {self.resolution_m}"
+            )
         if walls.all():
             raise WorldError(f"world '{self.name}' has no free cell")
         object.__setattr__(self, "walls", np.ascontiguousarray(walls))
@@ -68,7 +75,7 @@ class World:
         return (self.shape[1] * self.resolution_m, self.shape[0] * self.resolution_m)
 
     def cell_of(self, xy_m: NDArray[np.floating]) -> NDArray[np.float64]:
-        """World metres (N, 2) -> continuous cell coordinates (col, row) (N, 2); cell centres are integers."""
+        """World metres (N, 2) -> continuous cells (col, row) (N, 2); cell centres are integers."""
         xy = np.asarray(xy_m, dtype=np.float64).reshape(-1, 2)
         return (xy - np.asarray(self.origin_m)) / self.resolution_m - 0.5
 

@@ -17,7 +17,9 @@ from mrexplore.policies import make_team_policy
     ],
 )
 def test_merge_happens_and_is_never_wrong(aligned: bool, seed: int) -> None:
-    penv = mrexplore.parallel_env(world="symmetric_office", aligned_headings=aligned, max_time_s=400.0)
+    penv = mrexplore.parallel_env(
+        world="symmetric_office", aligned_headings=aligned, max_time_s=400.0
+    )
     penv.reset(seed=seed)
     team = make_team_policy("coordinated-frontier", penv.possible_agents)
     team.reset(np.random.default_rng(0))

@@ -1,4 +1,4 @@
-"""The PettingZoo env: official API checks, determinism, spaces, no ground truth, merging in the loop."""
+"""The PettingZoo env: official API checks, determinism, spaces, no ground truth, bad input."""
 
 from __future__ import annotations
 
@@ -87,7 +87,9 @@ def test_episode_observations_in_space_and_infos_complete() -> None:
         for a, o in obs.items():
             assert penv.observation_space(a).contains(o)
         assert penv.state_space.contains(penv.state())
-        obs, rew, term, trunc, infos = penv.step({a: penv.action_space(a).sample() for a in penv.agents})
+        obs, rew, _term, _trunc, infos = penv.step(
+            {a: penv.action_space(a).sample() for a in penv.agents}
+        )
         steps += 1
         for a, i in infos.items():
             assert {"coverage", "task_time_s", "merged", "merge_error", "collisions"} <= set(i)
@@ -106,7 +108,9 @@ def test_observation_carries_no_absolute_position() -> None:
     pad = 37
     # Rows are padded at the bottom (row 0 = lowest y) and columns at the left: +pad cells in x, y.
     walls = np.pad(base.walls, ((pad, 11), (pad, 5)), constant_values=True)
-    shifted = World(walls=walls, resolution_m=base.resolution_m, origin_m=base.origin_m, name="shifted")
+    shifted = World(
+        walls=walls, resolution_m=base.resolution_m, origin_m=base.origin_m, name="shifted"
+    )
     probe = mrexplore.parallel_env(world=base, n_robots=2, merger=None)
     probe.reset(seed=5)
     starts = probe.sim.start_poses.copy()

@@ -14,7 +14,11 @@ from mrexplore.experiments.task_time import run_task_time
 
 def test_task_time_end_to_end(tmp_path: Path) -> None:
     doc = run_task_time(
-        world="small_office", seeds=2, policy="nearest-frontier", out=tmp_path, progress=False,
+        world="small_office",
+        seeds=2,
+        policy="nearest-frontier",
+        out=tmp_path,
+        progress=False,
         env_options={"max_time_s": 120.0},
     )
     data = json.loads((tmp_path / "task_time.json").read_text())

@@ -185,8 +185,12 @@ def test_fused_observation_appears_only_once_unambiguous() -> None:
     assert obs["a"].shape == (3, 64, 64)
     np.testing.assert_array_equal(obs["a"], fused_map_image(fused, None, None, 64))
     warped_b = cv2.warpAffine(
-        env.unwrapped.local_map("b").view(np.uint8), T_ab[:2], fused.shape[::-1],
-        flags=cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=255,
+        env.unwrapped.local_map("b").view(np.uint8),
+        T_ab[:2],
+        fused.shape[::-1],
+        flags=cv2.INTER_NEAREST,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=255,
     ).view(np.int8)
     assert (fused >= np.maximum(env.unwrapped.local_map("a"), warped_b)).all()
     first = next(tt for tt, ma, _ in history if ma)
@@ -213,7 +217,9 @@ def test_pose_channel_places_teammate_through_the_estimated_transform() -> None:
         return make_transform(0, -ca[0], -ca[1]) @ true_T_ab() @ make_transform(0, cb[0], cb[1])
 
     # confirmations=1: the oracle is right at once (the default waits for a second agreeing look)
-    env = MapMergeWrapper(inner, merger=_oracle(crop_T), merge_every=1, view_m=12.0, confirmations=1)
+    env = MapMergeWrapper(
+        inner, merger=_oracle(crop_T), merge_every=1, view_m=12.0, confirmations=1
+    )
     obs, infos = env.reset()
     assert env.observation_space("a").shape == (4, 64, 64)
     assert infos["a"]["merged"] and infos["a"]["score"] == pytest.approx(0.99)

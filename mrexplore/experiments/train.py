@@ -41,9 +41,7 @@ def load_hyperparams(algo: str, path: str | Path | None = None) -> dict[str, Any
     if path is not None:
         text = Path(path).read_text()
     else:
-        text = (
-            (importlib.resources.files("mrexplore") / "configs" / f"{algo}.yaml").read_text()
-        )
+        text = (importlib.resources.files("mrexplore") / "configs" / f"{algo}.yaml").read_text()
     cfg = yaml.safe_load(text)
     for key in ("policy", "env", "hyperparams"):
         if key not in cfg:

@@ -61,6 +61,11 @@ def _window(
 
 def _shares(window: NDArray[np.int8], size: int) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
     """Free and occupied shares of ``window`` resampled to ``size`` x ``size`` (0..255 each)."""
+    if window.shape[0] >= 4 * size:
+        # A coarse view of a big window (the global view: 512 cells -> 64 px): reading every
+        # second cell halves the cost (measured 0.12 -> 0.06 ms) and changes a pixel's share by
+        # sampling only; each pixel still averages 16 of its 64 cells.
+        window = window[::2, ::2]
     # cv2.inRange on the int8 window is ~2x cheaper than numpy comparisons (measured).
     free = cv2.inRange(window, FREE, FREE_THRESHOLD)
     occ = cv2.inRange(window, OCCUPIED_THRESHOLD, 127)

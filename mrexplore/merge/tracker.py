@@ -139,6 +139,8 @@ class MapMergeTracker:
             this many cells of each other (default 2.0).
         drop_below: a re-check drops the kept transform when its agreement on the current maps
             falls below this (default 0.85; 0 never drops).
+        retry_growth: an unmerged pair is tried again only once the two maps together know this
+            share more cells than at the last attempt (default 0.02; 0 = any change).
         **merge_options: options for the named merger (validated at construction).
 
     >>> import numpy as np
@@ -159,6 +161,7 @@ class MapMergeTracker:
         confirmations: int = 2,
         confirm_tol_cells: float = 2.0,
         drop_below: float = 0.85,
+        retry_growth: float = 0.02,
         **merge_options: Any,
     ) -> None:
         if (
@@ -210,6 +213,11 @@ class MapMergeTracker:
         self.confirmations = int(confirmations)
         self.confirm_tol_cells = float(confirm_tol_cells)
         self.drop_below = float(drop_below)
+        if not 0.0 <= float(retry_growth) <= 10.0:
+            raise ConfigError(
+                f"MapMergeTracker: retry_growth must be in [0, 10], got {retry_growth!r}"
+            )
+        self.retry_growth = float(retry_growth)
         self._merge = _resolve_merger(merger, dict(merge_options))
         self.reset()
 
@@ -224,6 +232,8 @@ class MapMergeTracker:
         self._edge_score: dict[tuple[int, int], float] = {}
         # (i, j) -> (T_ij candidate, agreeing attempts so far, map versions at the last attempt)
         self._pending: dict[tuple[int, int], tuple[Transform, int, tuple[int, int]]] = {}
+        # (i, j) -> known cells of both maps at the last merge attempt
+        self._last_attempt_known: dict[tuple[int, int], int] = {}
         self._results: dict[tuple[int, int], MergeResult] = {}
         self._patches: dict[tuple[int, int], _Patch] = {}
         # what changed in each robot's map at its last version: a box in its cells, None = all
@@ -342,15 +352,25 @@ class MapMergeTracker:
             )
         return res, T
 
+    def _known_cells(self, i: int) -> int:
+        """Known cells of robot i's map (counted in its known box; only on merge steps)."""
+        crop = self._crop(i)
+        return 0 if crop is None else int(np.count_nonzero(crop[0] != UNKNOWN))
+
     def _attempt_merges(self) -> None:
         for i in range(self.n):
             for j in range(i + 1, self.n):
                 if not self._linked(i, j) or self.transform(i, j) is not None:
                     continue
-                versions = (self._version[i], self._version[j])
+                known = self._known_cells(i) + self._known_cells(j)
+                last = self._last_attempt_known.get((i, j))
+                if last is not None and known < last * (1.0 + self.retry_growth):
+                    # Too little new knowledge since the last attempt: the answer would be the
+                    # same (profiled: with random actions, repeated attempts on barely grown
+                    # maps were 2/3 of the env's step time).
+                    continue
+                self._last_attempt_known[(i, j)] = known
                 pending = self._pending.get((i, j))
-                if pending is not None and pending[2] == versions:
-                    continue  # neither map changed since the last attempt: nothing new to learn
                 out = self._run(i, j)
                 if out is None or out[1] is None:
                     self._pending.pop((i, j), None)  # a refusal breaks the run of agreements
@@ -365,7 +385,7 @@ class MapMergeTracker:
                     self._edge_score[(i, j)] = out[0].score
                     self._paths = None
                 else:
-                    self._pending[(i, j)] = (T, count, versions)
+                    self._pending[(i, j)] = (T, count, (self._version[i], self._version[j]))
 
     def _same(self, T1: Transform, T2: Transform, j: int) -> bool:
         """Do two estimates of T_ij put robot j's known box in the same place (within tolerance)?"""

@@ -41,7 +41,11 @@ def env(render_mode: str | None = None, **options: Any) -> Any:
     return parallel_to_aec(parallel_env(render_mode=render_mode, **options))
 
 
-raw_env = parallel_env
+def raw_env(render_mode: str | None = None, **options: Any) -> Any:
+    """The AEC version without PettingZoo's order-enforcing wrapper (PettingZoo convention)."""
+    from pettingzoo.utils.conversions import parallel_to_aec_wrapper
+
+    return parallel_to_aec_wrapper(parallel_env(render_mode=render_mode, **options))
 
 
 def _register_gymnasium() -> None:

@@ -60,11 +60,18 @@ def _bench(argv: Sequence[str]) -> int:
 
         wrappers_main(rest)
         return 0
-    print(
-        "usage: mrexplore bench {merge,env,policies,wrappers} [options]  (each takes --help);\n"
-        "the sensor benchmark is scripts/bench_sensor.py",
-        file=sys.stderr,
+    usage = (
+        "usage: mrexplore bench {merge,env,policies,wrappers} [options]  (each takes --help)\n"
+        "  merge     the merge table: method x detector on symmetric worlds and real maps\n"
+        "  env       environment steps per second with a per-stage breakdown\n"
+        "  policies  planner speed and policy cost per step\n"
+        "  wrappers  merge wrapper, single-robot env and SB3 adapter throughput\n"
+        "(the sensor benchmark is scripts/bench_sensor.py)"
     )
+    if what in ("-h", "--help"):
+        print(usage)
+        return 0
+    print(usage, file=sys.stderr)
     return 2
 
 
@@ -85,27 +92,40 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="mrexplore", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True)
 
-    d = sub.add_parser("demo", help="one two-robot episode -> demo/episode.gif, demo/final.png")
-    d.add_argument("--out", default="demo")
-    d.add_argument("--world", default="symmetric_office")
-    d.add_argument("--seed", type=int, default=0)
-    d.add_argument("--policy", default="coordinated-frontier")
-    d.add_argument("--n-robots", type=int, default=2)
+    d = sub.add_parser(
+        "demo",
+        help="one two-robot episode -> demo/episode.gif, demo/final.png",
+        description="Run one episode with the coordinated frontier policy and write a GIF of it "
+        "and a PNG of the end and of the moment of the merge; print task time, coverage and "
+        "the merge's error against the truth.",
+    )
+    d.add_argument("--out", default="demo", help="output folder (default: demo)")
+    d.add_argument("--world", default="symmetric_office", help="world name or map YAML")
+    d.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
+    d.add_argument("--policy", default="coordinated-frontier", help="team policy name")
+    d.add_argument("--n-robots", type=int, default=2, help="team size (default 2)")
 
     t = sub.add_parser(
-        "task-time", help="single vs multi-robot task times (the paper's experiment)"
+        "task-time",
+        help="single vs multi-robot task times (the paper's experiment)",
+        description="For each seed, run the single-robot and the two-robot episode from the "
+        "same start of robot_0, for exploration and navigation; write task_time.json/.csv/.png "
+        "and print a table like the paper's.",
     )
-    t.add_argument("--world", default="symmetric_office")
-    t.add_argument("--seeds", type=int, default=20)
-    t.add_argument("--first-seed", type=int, default=1000)
+    t.add_argument("--world", default="symmetric_office", help="world name or map YAML")
+    t.add_argument("--seeds", type=int, default=20, help="number of seeds (default 20)")
+    t.add_argument("--first-seed", type=int, default=1000, help="first seed (default 1000)")
     t.add_argument(
-        "--policy", default="coordinated-frontier", help="a policy name or a trained policy folder"
+        "--policy",
+        default="coordinated-frontier",
+        help="a policy name (random, nearest-frontier, cost-frontier, coordinated-frontier) "
+        "or a trained policy folder",
     )
-    t.add_argument("--out", default="results")
+    t.add_argument("--out", default="results", help="output folder (default: results)")
     t.add_argument(
         "--tasks", nargs="+", default=["explore", "navigate"], choices=["explore", "navigate"]
     )
-    t.add_argument("--max-time-s", type=float, default=600.0)
+    t.add_argument("--max-time-s", type=float, default=600.0, help="truncation, simulated s")
 
     for name, helptext in (
         ("merge", "merge two map_server maps: mrexplore merge a.yaml b.yaml -o merged.yaml"),
@@ -129,7 +149,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _demo(args)
         if args.command == "task-time":
             return _task_time(args)
-    except MrexploreError as exc:
+    except (MrexploreError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
         print(f"mrexplore: error: {exc}", file=sys.stderr)
         return 2
     return 2

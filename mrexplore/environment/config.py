@@ -36,7 +36,9 @@ class EnvConfig:
         n_beams, fov_deg, max_range_m, range_noise_m: the lidar.
         aligned_headings: all robots start with heading 0 in the world (the paper's setting);
             ``False`` draws start headings uniformly, so the maps are rotated w.r.t. each other.
-        odom_noise_trans, odom_noise_rot: odometry drift (fraction of distance; rad per rad).
+        odom_noise_trans, odom_noise_rot, odom_noise_rot_per_m: odometry drift, standard
+            deviations: translation as a fraction of the distance moved; heading in radians per
+            radian turned and per metre driven.
         min_start_separation_m: minimum distance between start positions.
     Merging:
         merger: merge method name for :func:`mrexplore.merge.merge_maps` (``"semantic"``,
@@ -71,6 +73,7 @@ class EnvConfig:
     aligned_headings: bool = True
     odom_noise_trans: float = 0.0
     odom_noise_rot: float = 0.0
+    odom_noise_rot_per_m: float = 0.0
     min_start_separation_m: float = 0.0
     merger: Any = "semantic"
     merge_every: int = 10
@@ -139,6 +142,7 @@ class EnvConfig:
             "range_noise_m",
             "odom_noise_trans",
             "odom_noise_rot",
+            "odom_noise_rot_per_m",
             "min_start_separation_m",
             "coverage_reward_per_m2",
             "time_penalty_per_s",

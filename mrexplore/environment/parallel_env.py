@@ -34,7 +34,6 @@ Version history: v0 (this): first release.
 
 from __future__ import annotations
 
-import functools
 import math
 import warnings
 from typing import Any, ClassVar
@@ -112,6 +111,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
             aligned_headings=cfg.aligned_headings,
             odom_noise_trans=cfg.odom_noise_trans,
             odom_noise_rot=cfg.odom_noise_rot,
+            odom_noise_rot_per_m=cfg.odom_noise_rot_per_m,
             min_start_separation_m=cfg.min_start_separation_m,
         )
         self.fusion = FusionStage(
@@ -132,19 +132,19 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         self._goal_cell: tuple[float, float] | None = None
         self._done = True
         self._renderer: Any = None
+        self._heard: dict[tuple[AgentID, AgentID], tuple[float, float]] = {}
+        self._current_links: NDArray[np.bool_] | None = None
         self._error_cache: dict[
             tuple[int, int], tuple[int, NDArray[np.float64], dict[str, float]]
         ] = {}
         self._last_coverage = 0.0
 
     # ------------------------------------------------------------------ spaces
-    @functools.cache  # noqa: B019 - PettingZoo wants the same object each call
     def observation_space(self, agent: AgentID) -> gymnasium.spaces.Box:
         """``Box(0, 255, (8, S, S), uint8)``; the same object for every call."""
         self._check_agent(agent)
         return self._obs_space
 
-    @functools.cache  # noqa: B019
     def action_space(self, agent: AgentID) -> gymnasium.spaces.Discrete:
         """``Discrete(4)`` (see :class:`mrexplore.robot.Action`); the same object for every call."""
         self._check_agent(agent)
@@ -183,6 +183,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         self.agents = list(self.possible_agents)
         self._collisions[:] = 0
         self._error_cache = {}
+        self._heard = {}
         self._done = False
         self.fusion.reset()
         self._goal_world = None
@@ -249,12 +250,19 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         transforms: dict[str, NDArray[np.float64]] = {}
         if merged:
             transforms = self.fusion.transforms(agent)
-            for other, T in transforms.items():
-                j = self.possible_agents.index(other)
-                c, r, _ = sim.pose_cell(j)
-                p = apply_transform(T, np.array([[c, r]]))[0]
-                teammates[other] = (float(p[0]), float(p[1]))
+            for other in transforms:
+                # Teammates' positions travel over the radio with their maps: out of range, a
+                # robot knows only where a teammate was when it was last heard.
+                heard = self._heard.get((agent, other))
+                if heard is not None:
+                    teammates[other] = heard
         goal = self._goal_cell if (self.config.task == "navigate" and i == 0) else None
+        links = self._current_links
+        in_range = frozenset(
+            o
+            for j, o in enumerate(self.possible_agents)
+            if j != i and (links is None or bool(links[i, j] and links[j, i]))
+        )
         return RobotView(
             agent=agent,
             map=self.fusion.fused(agent),
@@ -264,6 +272,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
             merged=merged,
             teammates=teammates,
             transforms=transforms,
+            in_range=in_range,
             goal_cell=goal,
             time_s=float(sim.time_s),
         )
@@ -331,6 +340,8 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
                 raise ValueError(f"agent {agent!r} is done and cannot act")
             if a is None:
                 continue
+            if isinstance(a, (bool, np.bool_)):
+                raise ValueError(f"action {a!r} of {agent} is a bool, not an action index")
             if not self._act_space.contains(a) and not (
                 isinstance(a, (int, np.integer)) and 0 <= int(a) < self._act_space.n
             ):
@@ -360,7 +371,24 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
     def _merge(self) -> None:
         assert self.sim is not None
         maps = {a: self.local_map(a) for a in self.possible_agents}
-        self.fusion.update(maps, int(self.sim.steps), self._links())
+        links = self._links()
+        self._current_links = links
+        self.fusion.update(maps, int(self.sim.steps), links)
+        self._update_heard(links)
+
+    def _update_heard(self, links: NDArray[np.bool_] | None) -> None:
+        """Refresh, for every merged and linked pair, where each robot last heard the other
+        (the teammate's own pose estimate mapped through the *estimated* transform)."""
+        assert self.sim is not None
+        for a in self.possible_agents:
+            i = self.possible_agents.index(a)
+            for other, T in self.fusion.transforms(a).items():
+                j = self.possible_agents.index(other)
+                if links is not None and not (links[i, j] and links[j, i]):
+                    continue
+                c, r, _ = self.sim.pose_cell(j)
+                p = apply_transform(T, np.array([[c, r]]))[0]
+                self._heard[(a, other)] = (float(p[0]), float(p[1]))
 
     def _observe(self) -> dict[AgentID, NDArray[np.uint8]]:
         assert self.sim is not None

@@ -33,6 +33,8 @@ class RobotView:
             teammates whose maps are merged with this one (estimated, never the truth).
         transforms: teammate name -> 3x3 float64 estimated transform from that teammate's map
             cells into this robot's map cells (same set of keys as ``teammates``).
+        in_range: teammates this robot can talk to now (maps, positions and chosen targets are
+            exchanged only with them; ``teammates`` holds where the others were last heard).
         goal_cell: (col, row) goal in this robot's map cells for the navigation task, else None.
         time_s: simulated time since reset, seconds.
     """
@@ -45,5 +47,6 @@ class RobotView:
     merged: bool = False
     teammates: dict[str, tuple[float, float]] = field(default_factory=dict)
     transforms: dict[str, NDArray[np.float64]] = field(default_factory=dict)
+    in_range: frozenset[str] = frozenset()
     goal_cell: tuple[float, float] | None = None
     time_s: float = 0.0

@@ -19,6 +19,7 @@ import numpy as np
 import yaml
 from tqdm import tqdm
 
+from mrexplore.errors import ConfigError
 from mrexplore.experiments.episode import EpisodeResult, run_episode
 from mrexplore.experiments.trained import TrainedTeamPolicy
 
@@ -89,6 +90,13 @@ def evaluate_folder(
     from mrexplore.policies import make_team_policy
 
     folder = Path(folder)
+    if not (folder / "config.yaml").is_file() or not (folder / "model.zip").is_file():
+        raise ConfigError(
+            f"{folder} is not a trained policy folder (it needs model.zip and config.yaml, "
+            "as written by `mrexplore train`)"
+        )
+    if n_seeds < 1:
+        raise ConfigError(f"evaluate needs at least 1 seed, got {n_seeds}")
     config = yaml.safe_load((folder / "config.yaml").read_text())
     env_options = eval_env_options(config)
     seeds = list(range(EVAL_SEED_BASE, EVAL_SEED_BASE + n_seeds))

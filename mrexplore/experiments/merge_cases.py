@@ -358,6 +358,11 @@ def real_cases(n: int, seed: int, maps_dir: Path = SHARED_MAPS) -> list[MergeCas
     rng = np.random.default_rng(seed)
     from mrexplore.world.map_io import read_map_yaml
 
+    if not Path(maps_dir).is_dir():
+        raise ConfigError(
+            f"real maps folder {maps_dir} not found: set $MREXPLORE_MAPS to the folder holding "
+            "nav2/ and turtlebot3/ (the team's shared/maps)"
+        )
     files = {k: read_map_yaml(maps_dir / k) for k in REAL_MAPS}
     keys = list(REAL_MAPS)
     out = []

@@ -19,6 +19,7 @@ import numpy as np
 from tqdm import tqdm
 
 from mrexplore.environment.view import RobotView
+from mrexplore.errors import ConfigError
 from mrexplore.experiments.episode import EpisodeResult, run_episode
 
 #: The seed paper's figures (Durdu & Korkmaz 2019, section 4): seconds.
@@ -87,6 +88,11 @@ def run_task_time(
     progress: bool = True,
 ) -> dict[str, Any]:
     """Run the experiment and write the result files; returns the JSON document."""
+    if seeds < 1:
+        raise ConfigError(f"task-time needs at least 1 seed, got {seeds}")
+    unknown = sorted(set(tasks) - set(TASKS))
+    if unknown:
+        raise ConfigError(f"unknown task(s) {unknown}; tasks are {list(TASKS)}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     base = {"world": world, **dict(env_options or {})}
@@ -106,7 +112,7 @@ def run_task_time(
                 bar.update(1)
     bar.close()
     doc = _document(runs, world, policy, seed_list, base)
-    (out / "task_time.json").write_text(json.dumps(doc, indent=2))
+    (out / "task_time.json").write_text(json.dumps(doc, indent=2, allow_nan=False))
     _write_csv(out / "task_time.csv", runs, seed_list)
     try:
         _plot(out / "task_time.png", runs, doc)

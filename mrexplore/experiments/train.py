@@ -3,10 +3,9 @@
 Hyperparameters live in YAML files per algorithm (``mrexplore/configs/{ppo,a2c,dqn}.yaml``, the
 rl-baselines3-zoo habit), not in code. Worlds for training are drawn from the seeded generators
 (``random:<generator>``), a fresh one per episode, so the policy cannot memorise one map;
-evaluation uses seeds from :data:`~mrexplore.experiments.evaluate.EVAL_SEED_BASE` up, never used
-in training. Writes ``model.zip``, ``config.yaml`` (every setting needed to rerun, the seed
-included), ``eval.json`` and ``checkpoints/``; TensorBoard logs in ``tb/`` when tensorboard is
-installed.
+evaluation uses seeds from 1,000,000 up (``EVAL_SEED_BASE``), never used in training. Writes
+``model.zip``, ``config.yaml`` (every setting needed to rerun, the seed included), ``eval.json``
+and ``checkpoints/``; TensorBoard logs in ``tb/`` when tensorboard is installed.
 """
 
 from __future__ import annotations
@@ -39,6 +38,8 @@ def load_hyperparams(algo: str, path: str | Path | None = None) -> dict[str, Any
     if algo not in ALGOS:
         raise ConfigError(f"unknown algorithm {algo!r}; choose one of {', '.join(ALGOS)}")
     if path is not None:
+        if not Path(path).is_file():
+            raise ConfigError(f"hyperparameter file {path} not found")
         text = Path(path).read_text()
     else:
         text = (importlib.resources.files("mrexplore") / "configs" / f"{algo}.yaml").read_text()

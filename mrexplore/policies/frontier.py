@@ -548,6 +548,9 @@ class CoordinatedFrontierPolicy(TeamPolicy):
             view = views[a]
             pts = []
             for b, T in view.transforms.items():
+                # Targets travel over the radio: only teammates in range share theirs.
+                if b not in view.in_range:
+                    continue
                 tb = self.robots[b].target if b in self.robots else None
                 if tb is not None and b != a:
                     pts.append(apply_transform(T, np.array([tb], dtype=np.float64))[0])

@@ -189,3 +189,27 @@ def test_render_frame_shape() -> None:
     penv.reset(seed=0)
     frame = penv.render()
     assert frame.ndim == 3 and frame.shape[2] == 3 and frame.dtype == np.uint8
+
+
+def test_out_of_range_teammates_are_where_they_were_last_heard() -> None:
+    """comm_range_m: once out of range, a robot keeps the fused map it had and the teammate's
+    last heard position, not its live one."""
+    penv = mrexplore.parallel_env(world="small_office", merger="semantic", comm_range_m=100.0)
+    penv.reset(seed=0)
+    # Force a merge with the true transform (evaluation code may; robots may not) to test the
+    # radio rule alone.
+    T = penv.sim.true_transform(0, 1)
+    penv.fusion.tracker._edges[(0, 1)] = T
+    penv.fusion.tracker._paths = None
+    penv.step({a: 3 for a in penv.agents})
+    heard = penv.robot_view("robot_0").teammates["robot_1"]
+    assert penv.robot_view("robot_0").in_range == frozenset({"robot_1"})
+    penv.config = penv.config.__class__(**{**penv.config.to_dict(), "comm_range_m": 1e-3})
+    for _ in range(8):
+        penv.step({"robot_0": 3, "robot_1": 0})
+    view = penv.robot_view("robot_0")
+    assert view.in_range == frozenset()
+    assert view.teammates["robot_1"] == heard  # robot_1 moved, robot_0 cannot know
+    c, r, _ = penv.sim.pose_cell(1)
+    live = mrexplore.grid.apply_transform(T, np.array([[c, r]]))[0]
+    assert np.hypot(*(live - np.array(heard))) > 1.0

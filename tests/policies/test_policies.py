@@ -39,6 +39,7 @@ def _view(
         merged=merged,
         teammates={k: (0.0, 0.0) for k in transforms},
         transforms=transforms,
+        in_range=frozenset(transforms),
         goal_cell=goal,
     )
 

@@ -57,6 +57,8 @@ class EnvConfig:
         global_view_m: side of the coarse, robot-centred view of the known map, metres.
         local_view_m: side of the fine, robot-centred view, metres.
         obs_size_px: each view is ``obs_size_px`` x ``obs_size_px`` pixels.
+        obs_heading_up: turn both views so the robot's heading points along +row (egocentric);
+            default False keeps the axes of the robot's own map frame.
     """
 
     world: Any = "symmetric_office"
@@ -90,6 +92,7 @@ class EnvConfig:
     global_view_m: float = 25.6
     local_view_m: float = 6.4
     obs_size_px: int = 64
+    obs_heading_up: bool = False
     merge_options: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:

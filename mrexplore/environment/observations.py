@@ -6,7 +6,9 @@ Nothing is read from the ground truth.
 
 Layout, shape ``(8, S, S)`` with ``S = obs_size_px`` (channel-first, so SB3's ``CnnPolicy`` takes
 it as is); every channel is 0..255. Both views are centred on the robot and axis-aligned with its
-own map frame (+col to the right, +row "up" = increasing array row):
+own map frame (+col to the right, +row "up" = increasing array row); with ``obs_heading_up=True``
+they are turned so that the robot's heading points along +row instead (egocentric views, easier
+for a learned policy whose actions are turn/forward):
 
 =====  ==========================================================================================
  ch    meaning
@@ -88,11 +90,17 @@ class ObservationBuilder:
     """
 
     def __init__(
-        self, resolution_m: float, global_view_m: float, local_view_m: float, size_px: int
+        self,
+        resolution_m: float,
+        global_view_m: float,
+        local_view_m: float,
+        size_px: int,
+        heading_up: bool = False,
     ) -> None:
         self.size = int(size_px)
         self.global_cells = max(self.size, round(global_view_m / resolution_m))
         self.local_cells = max(2, round(local_view_m / resolution_m))
+        self.heading_up = bool(heading_up)
         self.shape = (N_CHANNELS, self.size, self.size)
 
     def build(self, view: RobotView, trail_cells: NDArray[np.float64]) -> NDArray[np.uint8]:
@@ -100,45 +108,69 @@ class ObservationBuilder:
         s = self.size
         obs = np.zeros(self.shape, dtype=np.uint8)
         col, row, theta = view.pose_cell
-        g = _window(view.map, (col, row), self.global_cells)
-        obs[0], obs[1] = _shares(g, s)
+        # heading_up: turn the views so the robot's heading points along +row (the same way in
+        # every observation), which spares a policy with turn/forward actions from learning to
+        # rotate its input; otherwise the views keep the axes of the robot's own map frame.
+        phi = math.pi / 2 - theta if self.heading_up else 0.0
+        obs[0], obs[1] = self._shares_view(view.map, (col, row), self.global_cells, phi)
         scale_g = s / self.global_cells
-        half_g = self.global_cells // 2
-        self._dots(obs[2], trail_cells, (col, row), half_g, scale_g, radius=0)
+        self._dots(obs[2], trail_cells, (col, row), scale_g, phi, radius=0)
         if view.teammates:
             mates = np.array(list(view.teammates.values()), dtype=np.float64)
-            self._dots(obs[3], mates, (col, row), half_g, scale_g, radius=2)
+            self._dots(obs[3], mates, (col, row), scale_g, phi, radius=2)
 
-        loc = _window(view.map, (col, row), self.local_cells)
-        obs[4], obs[5] = _shares(loc, s)
+        obs[4], obs[5] = self._shares_view(view.map, (col, row), self.local_cells, phi)
         scale_l = s / self.local_cells
         centre = (s // 2, s // 2)
         radius_px = max(1, round(view.robot_radius_m / view.resolution_m * scale_l))
         cv2.circle(obs[6], centre, radius_px, 255, -1)
         tip = (
-            round(centre[0] + math.cos(theta) * 2.5 * radius_px),
-            round(centre[1] + math.sin(theta) * 2.5 * radius_px),
+            round(centre[0] + math.cos(theta + phi) * 2.5 * radius_px),
+            round(centre[1] + math.sin(theta + phi) * 2.5 * radius_px),
         )
         cv2.line(obs[6], centre, tip, 255, 1)
         if view.goal_cell is not None:
-            self._goal(obs[7], view.goal_cell, (col, row), scale_l)
+            self._goal(obs[7], view.goal_cell, (col, row), scale_l, phi)
         return obs
+
+    def _shares_view(
+        self, grid: NDArray[np.int8], centre: tuple[float, float], side: int, phi: float
+    ) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+        """Free/occupied shares of a ``side``-cell view centred on ``centre``, turned by ``phi``."""
+        s = self.size
+        if phi == 0.0:
+            return _shares(_window(grid, centre, side), s)
+        # A window 1.5x as wide (its inscribed circle covers the turned square), resampled to
+        # 1.5x the pixels, turned about its centre, and cropped back to s x s.
+        big_side, big_px = 3 * side // 2, 3 * s // 2
+        free, occ = _shares(_window(grid, centre, big_side), big_px)
+        c = (big_px - 1) / 2.0
+        cs, sn = math.cos(phi), math.sin(phi)
+        off = (big_px - s) // 2
+        # dst = R (src - c) + c - off: turn about the centre, then shift the crop to the origin
+        M = np.array([[cs, -sn, c - cs * c + sn * c - off], [sn, cs, c - sn * c - cs * c - off]])
+        out = tuple(
+            cv2.warpAffine(im, M, (s, s), flags=cv2.INTER_LINEAR, borderValue=0).astype(np.uint8)
+            for im in (free, occ)
+        )
+        return out[0], out[1]
 
     def _dots(
         self,
         channel: NDArray[np.uint8],
         cells: NDArray[np.float64],
         centre: tuple[float, float],
-        half: int,
         scale: float,
+        phi: float,
         radius: int,
     ) -> None:
-        """Mark ``cells`` (N, 2) on a robot-centred channel; points outside the view are dropped."""
+        """Mark ``cells`` (N, 2) on a robot-centred channel turned by ``phi``; points outside the
+        view are dropped."""
         if len(cells) == 0:
             return
-        rel = (np.asarray(cells, dtype=np.float64).reshape(-1, 2) - np.asarray(centre)) + half
-        px = np.floor(rel * scale).astype(np.int64)
+        rel = _turn(np.asarray(cells, dtype=np.float64).reshape(-1, 2) - np.asarray(centre), phi)
         s = channel.shape[0]
+        px = np.floor(rel * scale + s / 2).astype(np.int64)
         ok = (px[:, 0] >= 0) & (px[:, 0] < s) & (px[:, 1] >= 0) & (px[:, 1] < s)
         px = px[ok]
         if radius == 0:
@@ -153,11 +185,13 @@ class ObservationBuilder:
         goal: tuple[float, float],
         centre: tuple[float, float],
         scale: float,
+        phi: float,
     ) -> None:
         """A line from the robot towards the goal (clipped to the view) and a disk at the goal."""
         s = channel.shape[0]
         c = s // 2
-        dx, dy = (goal[0] - centre[0]) * scale, (goal[1] - centre[1]) * scale
+        d = _turn(np.array([[goal[0] - centre[0], goal[1] - centre[1]]]), phi)[0] * scale
+        dx, dy = float(d[0]), float(d[1])
         dist = math.hypot(dx, dy)
         limit = c - 1
         if dist > limit and dist > 0:
@@ -166,6 +200,14 @@ class ObservationBuilder:
         cv2.line(channel, (c, c), end, 128, 1)
         if dist <= limit:
             cv2.circle(channel, end, 2, 255, -1)
+
+
+def _turn(points: NDArray[np.float64], phi: float) -> NDArray[np.float64]:
+    """Rotate (N, 2) (col, row) offsets by ``phi`` radians."""
+    if phi == 0.0:
+        return points
+    cs, sn = math.cos(phi), math.sin(phi)
+    return points @ np.array([[cs, sn], [-sn, cs]])
 
 
 def is_unknown_everywhere(obs: NDArray[np.uint8]) -> bool:

@@ -87,7 +87,11 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         probe = self._fixed_world or load_world(cfg.world, rng=np.random.default_rng(0))
         self._resolution_m = probe.resolution_m
         self._obs_builder = ObservationBuilder(
-            self._resolution_m, cfg.global_view_m, cfg.local_view_m, cfg.obs_size_px
+            self._resolution_m,
+            cfg.global_view_m,
+            cfg.local_view_m,
+            cfg.obs_size_px,
+            heading_up=cfg.obs_heading_up,
         )
         self._obs_space = gymnasium.spaces.Box(0, 255, self._obs_builder.shape, dtype=np.uint8)
         self._act_space = gymnasium.spaces.Discrete(len(Action))

@@ -172,7 +172,7 @@ class GoalPolicy(Policy):
         if self.bumped:
             m = m.copy()
             for c, r in self.bumped:
-                c0, r0 = int(round(c)), int(round(r))
+                c0, r0 = round(c), round(r)
                 m[max(r0 - 1, 0) : r0 + 2, max(c0 - 1, 0) : c0 + 2] = OCCUPIED
         grid = PlanningGrid.build(
             m,

@@ -96,6 +96,11 @@ def run_task_time(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     base = {"world": world, **dict(env_options or {})}
+    if Path(policy).is_dir():
+        from mrexplore.experiments.trained import observation_options
+
+        # A trained policy sees the observations it was trained on.
+        base.update(observation_options(policy))
     runs: dict[str, dict[str, list[EpisodeResult]]] = {
         t: {"single": [], "multi": []} for t in tasks
     }

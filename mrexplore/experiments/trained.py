@@ -14,6 +14,17 @@ import yaml
 from numpy.typing import NDArray
 
 ALGOS = ("ppo", "a2c", "dqn")
+#: Env options that shape the observation: a trained policy must run with the ones it saw.
+OBSERVATION_OPTIONS = ("obs_heading_up", "global_view_m", "local_view_m", "obs_size_px")
+
+
+def observation_options(folder: str | Path) -> dict[str, Any]:
+    """The observation options a trained policy was trained with (from its config.yaml)."""
+    cfg_path = Path(folder) / "config.yaml"
+    if not cfg_path.is_file():
+        return {}
+    env = yaml.safe_load(cfg_path.read_text()).get("env", {})
+    return {k: env[k] for k in OBSERVATION_OPTIONS if k in env}
 
 
 def algo_class(algo: str) -> Any:

@@ -29,6 +29,7 @@ def _task_time(args: argparse.Namespace) -> int:
         first_seed=args.first_seed,
         tasks=args.tasks,
         env_options={"max_time_s": args.max_time_s},
+        nav_warmup_s=args.nav_warmup_s,
     )
     return 0
 
@@ -126,6 +127,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--tasks", nargs="+", default=["explore", "navigate"], choices=["explore", "navigate"]
     )
     t.add_argument("--max-time-s", type=float, default=600.0, help="truncation, simulated s")
+    t.add_argument(
+        "--nav-warmup-s",
+        type=float,
+        default=120.0,
+        help="navigation: seconds of exploring before robot_0 gets its goal (default 120)",
+    )
 
     for name, helptext in (
         ("merge", "merge two map_server maps: mrexplore merge a.yaml b.yaml -o merged.yaml"),

@@ -328,6 +328,18 @@ class Simulation:
         return newly
 
     # ------------------------------------------------------------------ queries
+    def place(self, i: int, pose_world: NDArray[np.float64]) -> None:
+        """Put robot ``i`` at ``pose_world`` (x_m, y_m, theta) and tell it where it is (its own
+        estimate becomes exact). An experimental protocol step (e.g. "navigate from the start
+        again"), not a motion: nothing is sensed on the way."""
+        pose = np.asarray(pose_world, dtype=np.float64).reshape(3)
+        if not self.motion.is_free(pose[None, :2])[0]:
+            raise ConfigError(f"cannot place robot {i} at {pose.tolist()}: not free for its body")
+        self.true_poses = self.true_poses.copy()
+        self.true_poses[i] = pose
+        self.est_poses = self.est_poses.copy()
+        self.est_poses[i] = self._own_frame(self.true_poses)[i]
+
     def pose_cell(self, i: int) -> tuple[float, float, float]:
         """Robot ``i``'s estimated pose in its own map cells: ``(col, row, theta_rad)``."""
         x, y, th = self.est_poses[i]

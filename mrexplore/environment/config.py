@@ -53,6 +53,13 @@ class EnvConfig:
         reward_mode: ``"time"`` (``-dt_s`` per step: return = -task time) or ``"coverage"``
             (``coverage_reward_per_m2`` per newly observed m^2 minus ``time_penalty_per_s * dt_s``).
         goal_min_distance_m, goal_radius_m: navigation goal placement and arrival radius.
+        nav_warmup_s: navigation: the team explores this long before ``robot_0`` is given its
+            goal (0 = at once); the task time counts from the goal. With a warm-up, the
+            single-robot and the team runs both start navigating with a partial map, the team's
+            merged: the setting in which the seed paper compares navigation times.
+        nav_return_to_start: navigation with a warm-up: put ``robot_0`` back at its start pose
+            when the goal is given, so single and team runs navigate from the same point with
+            the maps they built (alone or merged); otherwise it navigates from where it is.
     Observation:
         global_view_m: side of the coarse, robot-centred view of the known map, metres.
         local_view_m: side of the fine, robot-centred view, metres.
@@ -89,6 +96,8 @@ class EnvConfig:
     time_penalty_per_s: float = 0.04
     goal_min_distance_m: float = 10.0
     goal_radius_m: float = 0.4
+    nav_warmup_s: float = 0.0
+    nav_return_to_start: bool = True
     global_view_m: float = 25.6
     local_view_m: float = 6.4
     obs_size_px: int = 64
@@ -150,6 +159,7 @@ class EnvConfig:
             "coverage_reward_per_m2",
             "time_penalty_per_s",
             "goal_min_distance_m",
+            "nav_warmup_s",
         ):
             non_negative(name)
         if self.fov_deg > 360.0:

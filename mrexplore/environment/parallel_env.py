@@ -25,7 +25,8 @@ Truncation           simulated time >= ``max_time_s`` (600 s) or steps >= ``max_
 ``merged``, ``merge_error`` (``{"translation_cells", "rotation_deg"}`` of the worst merged
 teammate against the truth, or None; evaluation only, policies must not read it), ``score``,
 ``collisions`` (this robot's count), ``first_merge_time_s``, ``step``, and on the last step
-``TimeLimit.truncated``. For navigation also ``goal_reached``.
+``TimeLimit.truncated``. For navigation also ``goal_reached`` and ``goal_given``; there
+``task_time_s`` counts from the moment the goal is given (after ``nav_warmup_s`` of exploring).
 
 Policies read what a robot knows through :meth:`MultiRobotExplorationEnv.robot_view`.
 
@@ -214,7 +215,17 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
             raise RuntimeError("step() called on an env that is not running: call reset() first")
         act = self._parse_actions(actions)
         sim = self.sim
+        given_before = self._goal_given()
         collided = self._act(act)
+        if (
+            self.config.task == "navigate"
+            and self.config.nav_return_to_start
+            and self.config.nav_warmup_s > 0
+            and not given_before
+            and self._goal_given()
+        ):
+            # The warm-up is over: robot_0 navigates from its start with the map it has.
+            sim.place(0, sim.start_poses[0])
         self._merge()
         self._obs = self._observe()
         reward = self._reward()
@@ -260,7 +271,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
                 heard = self._heard.get((agent, other))
                 if heard is not None:
                     teammates[other] = heard
-        goal = self._goal_cell if (self.config.task == "navigate" and i == 0) else None
+        goal = self._goal_cell if (i == 0 and self._goal_given()) else None
         links = self._current_links
         in_range = frozenset(
             o
@@ -415,7 +426,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
     def _terminated(self) -> bool:
         assert self.sim is not None
         if self.config.task == "navigate":
-            return self._goal_reached()
+            return self._goal_given() and self._goal_reached()
         return self._last_coverage >= self.config.target_coverage
 
     def _truncated(self) -> bool:
@@ -443,6 +454,18 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         T_map0_from_world = invert_transform(T_world_from_map0)
         g = apply_transform(T_map0_from_world, goal_cell_world[None])[0]
         self._goal_cell = (float(g[0]), float(g[1]))
+
+    def _goal_given(self) -> bool:
+        """Navigation: robot_0 has its goal (the team first explores ``nav_warmup_s``)."""
+        assert self.sim is not None
+        return self.config.task == "navigate" and self.sim.time_s >= self.config.nav_warmup_s - 1e-9
+
+    def _task_time(self) -> float:
+        """Seconds of the task: since reset (explore) or since the goal was given (navigate)."""
+        assert self.sim is not None
+        if self.config.task == "navigate":
+            return max(0.0, float(self.sim.time_s) - self.config.nav_warmup_s)
+        return float(self.sim.time_s)
 
     def _goal_reached(self) -> bool:
         assert self.sim is not None and self._goal_world is not None
@@ -497,7 +520,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         first = self.fusion.first_merge_step(agent)
         info: dict[str, Any] = {
             "coverage": float(self._last_coverage),
-            "task_time_s": float(self.sim.time_s),
+            "task_time_s": self._task_time(),
             "step": int(self.sim.steps),
             "merged": self.fusion.merged(agent),
             "merge_error": self._merge_error(agent),
@@ -506,7 +529,8 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
             "collisions": int(self._collisions[i]),
         }
         if self.config.task == "navigate":
-            info["goal_reached"] = self._goal_reached()
+            info["goal_given"] = self._goal_given()
+            info["goal_reached"] = self._goal_given() and self._goal_reached()
         if truncated:
             info["TimeLimit.truncated"] = True
         return info

@@ -28,8 +28,9 @@ TASKS = ("explore", "navigate")
 
 
 class NavigateTeam:
-    """Navigation task team: ``robot_0`` drives to its goal; teammates run the exploration team
-    policy, so their (merged) maps show robot_0 the way through space it has not seen."""
+    """Navigation task team. Until ``robot_0`` has its goal (the warm-up), everybody explores with
+    the exploration team policy; then ``robot_0`` drives to its goal while teammates keep
+    exploring, so their (merged) maps show robot_0 the way through space it has not seen."""
 
     def __init__(self, agents: Sequence[str], explore_team: Any, goal_policy: Any) -> None:
         self.agents = list(agents)
@@ -41,12 +42,14 @@ class NavigateTeam:
         self.goal_policy.reset(rng)
 
     def act(self, views: Mapping[str, RobotView]) -> dict[str, int]:
+        lead = self.agents[0]
+        if lead not in views or views[lead].goal_cell is None:
+            return dict(self.explore_team.act(views))
         actions: dict[str, int] = {}
-        others = {a: v for a, v in views.items() if a != self.agents[0]}
+        others = {a: v for a, v in views.items() if a != lead}
         if others:
             actions.update(self.explore_team.act(others))
-        if self.agents[0] in views:
-            actions[self.agents[0]] = int(self.goal_policy.act(views[self.agents[0]]))
+        actions[lead] = int(self.goal_policy.act(views[lead]))
         return actions
 
 
@@ -61,12 +64,7 @@ def make_team(policy: str, agents: Sequence[str], task: str) -> Any:
     else:
         team = make_team_policy(policy, list(agents))
     if task == "navigate":
-        explore = (
-            make_team_policy(policy, list(agents[1:]))
-            if len(agents) > 1 and not Path(policy).is_dir()
-            else team
-        )
-        return NavigateTeam(agents, explore, GoalPolicy())
+        return NavigateTeam(agents, team, GoalPolicy())
     return team
 
 
@@ -86,8 +84,13 @@ def run_task_time(
     tasks: Sequence[str] = TASKS,
     env_options: Mapping[str, Any] | None = None,
     progress: bool = True,
+    nav_warmup_s: float = 120.0,
 ) -> dict[str, Any]:
-    """Run the experiment and write the result files; returns the JSON document."""
+    """Run the experiment and write the result files; returns the JSON document.
+
+    Navigation episodes first explore for ``nav_warmup_s`` (the same for one robot and for the
+    team), then ``robot_0`` gets a goal at least 10 m away; its task time counts from then.
+    """
     if seeds < 1:
         raise ConfigError(f"task-time needs at least 1 seed, got {seeds}")
     unknown = sorted(set(tasks) - set(TASKS))
@@ -111,12 +114,15 @@ def run_task_time(
         for team_name, n in (("single", 1), ("multi", 2)):
             for seed in seed_list:
                 opts = {**base, "n_robots": n, "task": task}
+                if task == "navigate":
+                    opts.setdefault("nav_warmup_s", nav_warmup_s)
                 agents = [f"robot_{i}" for i in range(n)]
                 team = make_team(policy, agents, task)
                 runs[task][team_name].append(run_episode(opts, team, seed))
                 bar.update(1)
     bar.close()
     doc = _document(runs, world, policy, seed_list, base)
+    doc["nav_warmup_s"] = nav_warmup_s
     (out / "task_time.json").write_text(json.dumps(doc, indent=2, allow_nan=False))
     _write_csv(out / "task_time.csv", runs, seed_list)
     try:

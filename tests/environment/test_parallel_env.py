@@ -213,3 +213,19 @@ def test_out_of_range_teammates_are_where_they_were_last_heard() -> None:
     c, r, _ = penv.sim.pose_cell(1)
     live = mrexplore.grid.apply_transform(T, np.array([[c, r]]))[0]
     assert np.hypot(*(live - np.array(heard))) > 1.0
+
+
+def test_navigation_warmup_hides_the_goal_then_restarts_robot0() -> None:
+    penv = mrexplore.parallel_env(world="small_office", task="navigate", nav_warmup_s=1.0)
+    _, infos = penv.reset(seed=4)
+    start = penv.sim.start_poses[0].copy()
+    assert penv.robot_view("robot_0").goal_cell is None and not infos["robot_0"]["goal_given"]
+    for _ in range(3):  # 0.75 s: still exploring
+        _, _, _, _, infos = penv.step({"robot_0": 0, "robot_1": 0})
+        assert infos["robot_0"]["task_time_s"] == 0.0 and not infos["robot_0"]["goal_given"]
+    _, _, _, _, infos = penv.step({"robot_0": 0, "robot_1": 0})  # t = 1.0 s: the goal is given
+    assert infos["robot_0"]["goal_given"] and infos["robot_0"]["task_time_s"] == 0.0
+    assert penv.robot_view("robot_0").goal_cell is not None
+    np.testing.assert_allclose(penv.sim.true_poses[0], start)  # back at its start
+    _, _, _, _, infos = penv.step({"robot_0": 3, "robot_1": 3})
+    assert infos["robot_0"]["task_time_s"] == pytest.approx(0.25)

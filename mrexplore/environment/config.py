@@ -183,6 +183,11 @@ class EnvConfig:
             raise ConfigError(
                 f"option max_cycles must be an integer >= 1 or None, got {self.max_cycles!r}"
             )
+        if self.task == "navigate" and self.nav_warmup_s >= self.max_time_s:
+            raise ConfigError(
+                f"option nav_warmup_s ({self.nav_warmup_s}) must be shorter than max_time_s "
+                f"({self.max_time_s}): the goal would never be given"
+            )
         if self.comm_range_m is not None:
             positive("comm_range_m")
         if not isinstance(self.merge_options, dict):

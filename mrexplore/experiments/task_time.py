@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import statistics
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -70,7 +71,7 @@ def make_team(policy: str, agents: Sequence[str], task: str) -> Any:
 
 def _stats(xs: Sequence[float]) -> dict[str, float]:
     return {
-        "mean": float(statistics.fmean(xs)) if xs else float("nan"),
+        "mean": float(statistics.fmean(xs)) if xs else 0.0,
         "std": float(statistics.pstdev(xs)) if len(xs) > 1 else 0.0,
     }
 
@@ -164,7 +165,8 @@ def _document(
                 "collisions": [r.collisions for r in results],
             }
         s, m = entry["single"]["mean"], entry["multi"]["mean"]
-        entry["reduction"] = float(1.0 - m / s) if s > 0 else float("nan")
+        # JSON has no NaN: a reduction that cannot be computed is null.
+        entry["reduction"] = float(1.0 - m / s) if s > 0 and math.isfinite(m) else None
         entry["paper"] = PAPER.get(task)
         doc["tasks"][task] = entry
     return doc
@@ -245,13 +247,17 @@ def _plot(
             color=colour,
             label="1 robot" if k == 0 else "2 robots",
         )
-    ax1.set_xticks(x, [f"{t}\n(-{doc['tasks'][t]['reduction']:.0%})" for t in tasks])
+    ax1.set_xticks(x, [f"{t}\n(-{_pct(doc['tasks'][t]['reduction'])})" for t in tasks])
     ax1.set_ylabel("task time (s)")
     ax1.set_title("task time, single vs multi")
     ax1.legend()
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _pct(x: float | None) -> str:
+    return "n/a" if x is None else f"{x:.1%}"
 
 
 def format_table(doc: Mapping[str, Any]) -> str:
@@ -272,7 +278,8 @@ def format_table(doc: Mapping[str, Any]) -> str:
         )
         lines.append(
             f"{task:<10} {e['single']['mean']:>8.1f} +- {e['single']['std']:<5.1f}"
-            f"{e['multi']['mean']:>8.1f} +- {e['multi']['std']:<5.1f}{e['reduction']:>10.1%}"
+            f"{e['multi']['mean']:>8.1f} +- {e['multi']['std']:<5.1f}"
+            f"{_pct(e['reduction']):>10}"
             f"{e['single']['success_rate']:>7.0%}/{e['multi']['success_rate']:.0%} | {p_txt}"
         )
     return "\n".join(lines)

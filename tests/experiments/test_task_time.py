@@ -20,6 +20,7 @@ def test_task_time_end_to_end(tmp_path: Path) -> None:
         out=tmp_path,
         progress=False,
         env_options={"max_time_s": 120.0},
+        nav_warmup_s=20.0,
     )
     data = json.loads((tmp_path / "task_time.json").read_text())
     assert data == json.loads(json.dumps(doc))
@@ -28,6 +29,7 @@ def test_task_time_end_to_end(tmp_path: Path) -> None:
         for team in ("single", "multi"):
             times = entry[team]["task_times_s"]
             assert len(times) == 2 and all(0 < t <= 120.0 for t in times)
+            assert entry[team]["success_rate"] > 0
             assert abs(entry[team]["mean"] - sum(times) / 2) < 1e-9
         expected = 1 - entry["multi"]["mean"] / entry["single"]["mean"]
         assert abs(entry["reduction"] - expected) < 1e-9

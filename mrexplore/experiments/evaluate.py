@@ -107,9 +107,21 @@ def evaluate_folder(
     for b in BASELINES:
         policies[b] = lambda agents, b=b: make_team_policy(b, agents)
     summaries = evaluate_policies(policies, env_options, seeds, progress=progress)
-    doc = {"policy_folder": str(folder), "env": env_options, "seeds": seeds, "results": summaries}
+    doc: dict[str, Any] = {
+        "policy_folder": str(folder),
+        "env": env_options,
+        "seeds": seeds,
+        "trained_actions": "deterministic" if trained.deterministic else "sampled",
+        "results": summaries,
+    }
     out_dir = Path(out) if out is not None else folder
     out_dir.mkdir(parents=True, exist_ok=True)
+    previous = out_dir / "eval.json"
+    if previous.is_file():
+        # Keep what training recorded (throughput, periodic evaluations) beside the new results.
+        training = json.loads(previous.read_text()).get("training")
+        if training is not None:
+            doc["training"] = training
     (out_dir / "eval.json").write_text(json.dumps(doc, indent=2))
     try:
         plot_evaluation(doc, out_dir / "eval.png")

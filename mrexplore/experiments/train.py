@@ -50,6 +50,17 @@ def load_hyperparams(algo: str, path: str | Path | None = None) -> dict[str, Any
     return dict(cfg)
 
 
+def save_for_inference(model: Any, path: str | Path) -> Path:
+    """Save ``model`` without its optimizer's moment estimates (Adam keeps two per weight,
+    doubling the file: 7.9 MB -> under 3 MB for our CnnPolicy). Loading and predicting are
+    unaffected; resuming training would restart the moments (use the checkpoint instead)."""
+    optimizer = getattr(model.policy, "optimizer", None)
+    if optimizer is not None:
+        optimizer.state.clear()
+    model.save(str(path))
+    return Path(path)
+
+
 def training_world(world: str | None, default: str) -> str:
     """A generator name becomes ``random:<name>`` (a new world per episode); other specs stay."""
     if world is None:
@@ -218,7 +229,8 @@ def train(
     t0 = time.perf_counter()
     model.learn(total_timesteps=int(timesteps), callback=callbacks)
     train_s = time.perf_counter() - t0
-    model.save(str(out / "model.zip"))
+    model.save(str(out / "checkpoints" / f"{algo}_final_with_optimizer.zip"))  # to resume
+    save_for_inference(model, out / "model.zip")
     venv.close()
     throughput = {
         "timesteps": int(model.num_timesteps),

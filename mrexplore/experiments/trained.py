@@ -45,19 +45,21 @@ class TrainedTeamPolicy:
     """Every robot acts with the same SB3 model on its own observation (parameter sharing).
 
     It reads the env's observations (``uses_observations = True``), which hold only what each
-    robot knows (see :mod:`mrexplore.environment.observations`).
+    robot knows (see :mod:`mrexplore.environment.observations`). Actions are *sampled* from the
+    policy by default: the arg-max action of our PPO policy loops (measured on 20 held-out worlds:
+    50 % coverage, stuck after 15 s, against 91 % when sampling, i.e. the policy as trained).
     """
 
     uses_observations = True
 
-    def __init__(self, model: Any, agents: Sequence[str], deterministic: bool = True) -> None:
+    def __init__(self, model: Any, agents: Sequence[str], deterministic: bool = False) -> None:
         self.model = model
         self.agents = list(agents)
         self.deterministic = deterministic
 
     @classmethod
     def load(
-        cls, folder: str | Path, agents: Sequence[str], deterministic: bool = True
+        cls, folder: str | Path, agents: Sequence[str], deterministic: bool = False
     ) -> TrainedTeamPolicy:
         """Load ``folder/model.zip`` with the algorithm named in ``folder/config.yaml``."""
         folder = Path(folder)
@@ -72,7 +74,12 @@ class TrainedTeamPolicy:
         return cls(model, agents, deterministic)
 
     def reset(self, rng: np.random.Generator) -> None:
-        """Nothing to reset (the model is stateless)."""
+        """Seed the action sampling from ``rng`` (SB3 samples with torch's generator), so the same
+        episode seed gives the same run."""
+        if not self.deterministic:
+            import torch
+
+            torch.manual_seed(int(rng.integers(2**62)))
 
     def act_obs(self, observations: Mapping[str, NDArray[np.uint8]]) -> dict[str, int]:
         """Actions for all robots from their observations, in one batch."""

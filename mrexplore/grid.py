@@ -64,6 +64,26 @@ def validate_grid(grid: object, name: str = "grid") -> Int8Grid:
     return arr.astype(np.int8, copy=False)
 
 
+def check_int8_map(grid: object, name: str = "grid") -> Int8Grid:
+    """Cheap per-step check: ``grid`` is a non-empty 2-D int8 array, else :class:`GridError`.
+
+    Unlike :func:`validate_grid` it does not scan the values: every-step callers (the merge
+    tracker, the fusion stage) hand over whole canvases, and the full check runs inside
+    :func:`mrexplore.merge.merge_maps` when a merge is attempted.
+    """
+    if (
+        not isinstance(grid, np.ndarray)
+        or grid.dtype != np.int8
+        or grid.ndim != 2
+        or grid.size == 0
+    ):
+        raise GridError(
+            f"{name} must be a non-empty 2-D int8 array (-1/0/100), got "
+            f"{getattr(grid, 'dtype', type(grid).__name__)} {getattr(grid, 'shape', '')}"
+        )
+    return grid
+
+
 def known_mask(grid: Int8Grid) -> NDArray[np.bool_]:
     """Cells with any information (not ``UNKNOWN``)."""
     return grid != UNKNOWN

@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.environment.view import RobotView
-from mrexplore.grid import FREE, FREE_THRESHOLD, OCCUPIED_THRESHOLD
+from mrexplore.grid import FREE, FREE_THRESHOLD, OCCUPIED_THRESHOLD, UNKNOWN
 
 N_CHANNELS = 8
 
@@ -53,7 +53,7 @@ def _window(
     h, w = grid.shape
     if c0 >= 0 and r0 >= 0 and c0 + side_cells <= w and r0 + side_cells <= h:
         return grid[r0 : r0 + side_cells, c0 : c0 + side_cells]
-    out = np.full((side_cells, side_cells), -1, dtype=np.int8)
+    out = np.full((side_cells, side_cells), UNKNOWN, dtype=np.int8)
     rs, cs = max(r0, 0), max(c0, 0)
     re, ce = min(r0 + side_cells, h), min(c0 + side_cells, w)
     if rs < re and cs < ce:
@@ -208,8 +208,3 @@ def _turn(points: NDArray[np.float64], phi: float) -> NDArray[np.float64]:
         return points
     cs, sn = math.cos(phi), math.sin(phi)
     return points @ np.array([[cs, sn], [-sn, cs]])
-
-
-def is_unknown_everywhere(obs: NDArray[np.uint8]) -> bool:
-    """True when the observation shows no known cell at all (used by tests)."""
-    return bool(obs[0].max() == 0 and obs[1].max() == 0)

@@ -139,6 +139,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         self._renderer: Any = None
         self._heard: dict[tuple[AgentID, AgentID], tuple[float, float]] = {}
         self._current_links: NDArray[np.bool_] | None = None
+        self._transforms: dict[AgentID, dict[AgentID, NDArray[np.float64]]] = {}
         self._error_cache: dict[
             tuple[int, int], tuple[int, NDArray[np.float64], dict[str, float]]
         ] = {}
@@ -238,9 +239,8 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         terms = dict.fromkeys(agents, terminated)
         truncs = dict.fromkeys(agents, truncated)
         infos = {a: self._info(a, truncated=truncated) for a in agents}
-        for i, a in enumerate(agents):
-            infos[a]["collided"] = bool(collided[i])
-        del sim
+        for a in agents:
+            infos[a]["collided"] = bool(collided[self.possible_agents.index(a)])
         if self._done:
             self.agents = []
         if self.render_mode == "human":
@@ -264,7 +264,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         teammates: dict[str, tuple[float, float]] = {}
         transforms: dict[str, NDArray[np.float64]] = {}
         if merged:
-            transforms = self.fusion.transforms(agent)
+            transforms = self._transforms[agent]
             for other in transforms:
                 # Teammates' positions travel over the radio with their maps: out of range, a
                 # robot knows only where a teammate was when it was last heard.
@@ -357,9 +357,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
                 continue
             if isinstance(a, (bool, np.bool_)):
                 raise ValueError(f"action {a!r} of {agent} is a bool, not an action index")
-            if not self._act_space.contains(a) and not (
-                isinstance(a, (int, np.integer)) and 0 <= int(a) < self._act_space.n
-            ):
+            if not self._act_space.contains(a):
                 raise ValueError(
                     f"action {a!r} of {agent} is outside the action space {self._act_space}"
                 )
@@ -389,6 +387,8 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         links = self._links()
         self._current_links = links
         self.fusion.update(maps, int(self.sim.steps), links)
+        # Each agent's estimated transforms, once per step (views, heard positions, infos).
+        self._transforms = {a: self.fusion.transforms(a) for a in self.possible_agents}
         self._update_heard(links)
 
     def _update_heard(self, links: NDArray[np.bool_] | None) -> None:
@@ -397,7 +397,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         assert self.sim is not None
         for a in self.possible_agents:
             i = self.possible_agents.index(a)
-            for other, T in self.fusion.transforms(a).items():
+            for other, T in self._transforms[a].items():
                 j = self.possible_agents.index(other)
                 if links is not None and not (links[i, j] and links[j, i]):
                     continue
@@ -478,7 +478,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         mean displacement (cells) of the teammate's known cells (an even sample of at most 4096),
         and the rotation error (degrees). The merge bench uses the same measure."""
         assert self.sim is not None
-        transforms = self.fusion.transforms(agent)
+        transforms = self._transforms[agent]
         if not transforms:
             return None
         i = self.possible_agents.index(agent)

@@ -53,7 +53,7 @@ def bench_env(steps: int = 2000, seed: int = 0, **options: Any) -> dict[str, Any
         done_steps += 1
     total = time.perf_counter() - t0
     parts = {k: acc[k] for k in ("act", "merge", "observe")}
-    parts["other"] = total - sum(parts.values()) - 0.0
+    parts["other"] = total - sum(parts.values())
     return {
         "options": {k: v for k, v in options.items()},
         "steps": done_steps,

@@ -39,7 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError, GridError
-from mrexplore.grid import UNKNOWN, Int8Grid, Transform, invert_transform
+from mrexplore.grid import UNKNOWN, Int8Grid, Transform, check_int8_map, invert_transform
 from mrexplore.merge.api import METHODS, merge_maps
 from mrexplore.merge.common import MergeResult, Verifier, known_bbox, translation, warp_into
 
@@ -274,12 +274,7 @@ class MapMergeTracker:
         for i, m in enumerate(maps):
             # Cheap checks only: a full value-range scan of a 1500 x 1500 canvas every step
             # would cost more than everything else here; merge_maps validates fully.
-            if not isinstance(m, np.ndarray) or m.dtype != np.int8 or m.ndim != 2 or m.size == 0:
-                raise GridError(
-                    f"MapMergeTracker.update: map {i} must be a non-empty 2-D int8 array, got "
-                    f"{getattr(m, 'dtype', type(m).__name__)} {getattr(m, 'shape', '')}"
-                )
-            self._observe(i, m)
+            self._observe(i, check_int8_map(m, f"MapMergeTracker.update: map {i}"))
         if step % self.merge_every == 0:
             self._attempt_merges()
         if self.recheck_every and step % self.recheck_every == 0 and step > 0:

@@ -147,8 +147,7 @@ def train(
 
     import torch
 
-    # One thread: on 2 cores, PyTorch's intra-op threads fight the env for the CPU (measured:
-    # 128 PPO steps took 1.2 s with 1 thread, 8.7 s with 2).
+    # One thread: on 2 cores, PyTorch's intra-op threads fight the env for the CPU.
     torch.set_num_threads(int(cfg.get("torch_threads", 1)))
     venv = VecMonitor(
         make_vec_env(n_copies=copies, use_subprocess=use_subprocess, seed=seed, **env_opts)

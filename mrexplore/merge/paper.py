@@ -16,6 +16,12 @@ both maps; the Pearson correlation C(i, j) of every pair (i in a, j in b), compu
 matrix product of z-scored, flattened windows (:func:`correlation_matrix`); the arg-max pair gives
 the match when C >= ``min_correlation`` ("positively high"; default 0.6), else "No matching".
 The result is a translation only, as in the paper: the method cannot recover a rotation.
+
+Ties: windows with identical content (two wall stubs) correlate equally, to the last bit or
+within BLAS rounding, and an arg-max then picks whichever comes first, which differed between
+machines (issue 10). The paper does not say; our rule (:func:`best_pair`): pairs within
+:data:`TIE_TOL` of the best are tied, and the tie goes to the translation that the most pairs
+with C >= ``min_correlation`` agree with (within one cell); then to the smaller translation.
 """
 
 from __future__ import annotations
@@ -40,6 +46,9 @@ from mrexplore.merge.common import (
 from mrexplore.merge.features import detect_points
 
 PAPER_DETECTORS: tuple[str, ...] = ("harris", "shi-tomasi", "fast", "sift", "orb")
+
+#: Correlations closer than this to the best one count as a tie (BLAS rounding is ~1e-15).
+TIE_TOL = 1e-9
 
 
 def window_size(
@@ -132,6 +141,33 @@ def correlation_matrix(X: NDArray[np.float64], Y: NDArray[np.float64]) -> NDArra
     return np.asarray(z(X) @ z(Y).T / X.shape[1], dtype=np.float64)
 
 
+def best_pair(
+    C: NDArray[np.float64], ta: NDArray[np.float64], tb: NDArray[np.float64], min_corr: float
+) -> tuple[int, int]:
+    """The arg-max pair ``(i, j)`` of C (Ka, Kb) with ties broken by a stated rule.
+
+    Tied pairs (within :data:`TIE_TOL` of the best) are ranked by support: how many pairs with
+    ``C >= min_corr`` give a translation ``ta[i] - tb[j]`` within one cell of theirs; then by the
+    translation's length, then its (x, y). Independent of keypoint order.
+
+    >>> C = np.array([[1.0, 1.0], [0.0, 0.9]])
+    >>> ta = np.array([[10.0, 0.0], [20.0, 5.0]]); tb = np.array([[0.0, 0.0], [10.0, 5.0]])
+    >>> best_pair(C, ta, tb, 0.6)  # (0, 0) and (1, 1) agree on (10, 0); (0, 1) gives (0, -5)
+    (0, 0)
+    """
+    best = float(C.max())
+    ti, tj = np.nonzero(best - TIE_TOL <= C)
+    if len(ti) == 1:
+        return int(ti[0]), int(tj[0])
+    si, sj = np.nonzero(min(min_corr, best - TIE_TOL) <= C)
+    t_tied = ta[ti] - tb[tj]  # (T, 2)
+    t_all = ta[si] - tb[sj]  # (S, 2)
+    support = (np.abs(t_tied[:, None, :] - t_all[None, :, :]).max(axis=2) <= 1.0).sum(axis=1)
+    length = np.hypot(t_tied[:, 0], t_tied[:, 1])
+    k = np.lexsort((t_tied[:, 1], t_tied[:, 0], length, -support))[0]
+    return int(ti[k]), int(tj[k])
+
+
 def merge_paper(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     """The paper's method (translation only). Options (all validated):
 
@@ -168,12 +204,12 @@ def merge_paper(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     if len(ta) == 0 or len(tb) == 0:
         return refuse(f"no trusted points (a: {len(ta)} of {len(pa)}, b: {len(tb)} of {len(pb)})")
     C = correlation_matrix(gradient_windows(a, ta, f), gradient_windows(b, tb, f))
-    order = np.argsort(C, axis=None)[::-1]
-    i, j = np.unravel_index(order[0], C.shape)
+    i, j = best_pair(C, ta, tb, min_corr)
     best = float(C[i, j])
+    # the ten strongest pairs for the figure, in a stated order (C, then index)
+    order = np.lexsort((np.arange(C.size), -C.ravel()))
     runner = float(C.flat[order[1]]) if C.size > 1 else None
-    top = order[: min(10, C.size)]
-    ii, jj = np.unravel_index(top, C.shape)
+    ii, jj = np.unravel_index(order[: min(10, C.size)], C.shape)
     matches = np.concatenate([ta[ii], tb[jj]], axis=1)
     T = translation(*(ta[i] - tb[j]))
     score = Verifier(a, b)(T).score

@@ -8,6 +8,8 @@ import pytest
 import mrexplore
 from mrexplore.policies import make_team_policy
 
+pytestmark = pytest.mark.expensive  # end-to-end episodes: deselect with -m "not expensive"
+
 
 @pytest.mark.parametrize(
     ("aligned", "seed"),

@@ -70,6 +70,7 @@ def _rollout(seed: int, steps: int, **options: object) -> list[tuple]:
     return trace
 
 
+@pytest.mark.expensive
 def test_determinism_over_1000_steps() -> None:
     # PettingZoo 1.27's parallel_seed_test effectively compares one step: this compares 1,000.
     a = _rollout(7, 1000, range_noise_m=0.02, odom_noise_trans=0.02, odom_noise_rot=0.02)

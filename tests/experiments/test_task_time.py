@@ -7,11 +7,13 @@ import json
 from pathlib import Path
 
 import cv2
+import pytest
 
 from mrexplore.cli import main
 from mrexplore.experiments.task_time import run_task_time
 
 
+@pytest.mark.expensive
 def test_task_time_end_to_end(tmp_path: Path) -> None:
     doc = run_task_time(
         world="small_office",
@@ -40,6 +42,7 @@ def test_task_time_end_to_end(tmp_path: Path) -> None:
     assert img is not None and img.shape[0] > 100
 
 
+@pytest.mark.expensive
 def test_demo_command_writes_pictures(tmp_path: Path) -> None:
     out = tmp_path / "demo"
     assert main(["demo", "--out", str(out), "--world", "small_office"]) == 0

@@ -46,6 +46,7 @@ def _tiny_yaml(tmp_path: Path, algo: str) -> Path:
 
 
 @pytest.mark.parametrize("algo", ["ppo", "a2c", "dqn"])
+@pytest.mark.expensive
 def test_tiny_training_run_writes_reloads_and_evaluates(tmp_path: Path, algo: str) -> None:
     out = tmp_path / "policy"
     config = train(
@@ -79,6 +80,7 @@ def test_tiny_training_run_writes_reloads_and_evaluates(tmp_path: Path, algo: st
         assert 0.0 <= summary["final_coverage"]["mean"] <= 1.0
 
 
+@pytest.mark.expensive
 def test_task_time_accepts_a_trained_policy_folder(tmp_path: Path) -> None:
     out = tmp_path / "policy"
     train(

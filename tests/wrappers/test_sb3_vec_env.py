@@ -122,6 +122,7 @@ def test_make_vec_env_refuses_bad_input_before_starting_workers() -> None:
         make_vec_env(n_copies=0, world=WORLD)
 
 
+@pytest.mark.expensive
 def test_subprocess_copies_of_our_env_match_in_process() -> None:
     opts = {**OPTS, "max_cycles": 3}
     local = make_vec_env(n_copies=2, seed=11, **opts)

@@ -20,7 +20,7 @@ python3 -m venv "$tmp/venv"
 . "$tmp/venv/bin/activate"
 python -m pip install -q --upgrade pip
 python -m pip install -q torch==2.13.0
-python -m pip install -q ".[all]"
+python -m pip install -q -e ".[all]"
 MPLBACKEND=Agg python -m pytest -q -p no:cacheprovider
 {
   echo "# Versions the test suite passed on (Python $(python -c 'import sys; print(sys.version.split()[0])'), $(date -u +%Y-%m-%d))."

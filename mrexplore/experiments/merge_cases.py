@@ -372,3 +372,93 @@ def real_cases(n: int, seed: int, maps_dir: Path = SHARED_MAPS) -> list[MergeCas
         case.resolution_m = files[k].resolution_m
         out.append(case)
     return out
+
+
+# --------------------------------------------------------------------------------------------
+# noisy, non-Manhattan real-map crops
+# --------------------------------------------------------------------------------------------
+
+
+def add_map_noise(
+    grid: Int8Grid,
+    rng: np.random.Generator,
+    ragged: float = 0.1,
+    speckle: float = 0.0005,
+    bend_cells: float = 1.0,
+) -> Int8Grid:
+    """A copy of ``grid`` degraded the way real SLAM maps are.
+
+    - ragged walls: the wall mask is blurred (sigma 0.7 cells), Gaussian noise of std
+      ``ragged`` is added and it is thresholded again on the known cells, so walls thicken, thin
+      and break in places;
+    - speckle: a share ``speckle`` of free cells become occupied (spurious returns);
+    - drift: the map is bent by a smooth displacement field, up to ``bend_cells`` at its rim
+      (odometry drift along a trajectory), so no single rigid transform fits every cell.
+    """
+    h, w = grid.shape
+    known = grid != UNKNOWN
+    wall = (grid >= 50).astype(np.float32)
+    soft = cv2.GaussianBlur(wall, (0, 0), 0.7) + rng.normal(0.0, ragged, size=(h, w))
+    out = np.where(known, np.where(soft > 0.3, 100, 0), UNKNOWN).astype(np.int8)
+    free = np.flatnonzero((out == 0).ravel())
+    k = int(speckle * free.size)
+    if k:
+        out.ravel()[rng.choice(free, size=k, replace=False)] = 100
+    if bend_cells > 0:
+        yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+        u, v = (xx - w / 2) / max(w / 2, 1), (yy - h / 2) / max(h / 2, 1)
+        sx, sy = rng.choice([-1.0, 1.0], size=2)
+        map_x = xx + float(sx * bend_cells) * v * v
+        map_y = yy + float(sy * bend_cells) * u * u
+        bent = cv2.remap(
+            out.view(np.uint8),
+            map_x,
+            map_y,
+            cv2.INTER_NEAREST,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=255,
+        )
+        out = bent.view(np.int8)
+    return out
+
+
+def noisy_real_cases(
+    n: int, seed: int, maps_dir: Path = SHARED_MAPS, min_overlap: float = 0.4
+) -> list[MergeCase]:
+    """``n`` hard real-map cases: the whole map is first turned by a random angle (its walls are
+    no longer on the grid axes, as in a SLAM map started at an angle), two crops overlapping by
+    at least ``min_overlap`` are taken, b is turned by another random angle, and both get
+    :func:`add_map_noise`. Cycles over :data:`REAL_MAPS`."""
+    if n < 0:
+        raise ConfigError(f"noisy_real_cases: n must be >= 0, got {n}")
+    rng = np.random.default_rng(seed)
+    from mrexplore.world.map_io import read_map_yaml
+
+    files = {k: read_map_yaml(maps_dir / k) for k in REAL_MAPS}
+    keys = list(REAL_MAPS)
+    out: list[MergeCase] = []
+    i = 0
+    while len(out) < n:
+        k = keys[i % len(keys)]
+        i += 1
+        phi = float(rng.uniform(-np.pi, np.pi))
+        turned, _ = rotate_map(files[k].grid, phi)
+        case = real_map_case(turned, rng, REAL_MAPS[k], rotate=True, name=f"{k}@noisy#{i}")
+        a = add_map_noise(case.a, rng)
+        b = add_map_noise(case.b, rng)
+        ov = overlap_share(a, b, case.T_ab)
+        if ov < min_overlap:
+            continue
+        out.append(
+            MergeCase(
+                a=a,
+                b=b,
+                T_ab=case.T_ab,
+                overlap=ov,
+                family="noisy",
+                name=case.name,
+                meta={**case.meta, "map_turn_deg": float(np.degrees(phi))},
+                resolution_m=files[k].resolution_m,
+            )
+        )
+    return out

@@ -178,15 +178,37 @@ def to_gray(grid: Int8Grid) -> NDArray[np.uint8]:
     return out
 
 
-def cell_codes(grid: Int8Grid, tolerance: int = 1) -> NDArray[np.uint8]:
+def reliable_walls(grid: Int8Grid) -> NDArray[np.bool_]:
+    """Wall cells (H, W) bool that have at least one wall among their 8 neighbours.
+
+    A lone occupied cell in open space is a spurious return far more often than structure (a
+    real SLAM map holds many; our own lidar maps none): it takes no part in verification, so a
+    speckled map is judged by its walls, not its noise.
+    """
+    wall = (grid >= OCCUPIED_THRESHOLD).view(np.uint8)
+    n = cv2.filter2D(wall, -1, np.ones((3, 3), np.float32), borderType=cv2.BORDER_CONSTANT)
+    return (wall > 0) & (n >= 2)
+
+
+def cell_codes(grid: Int8Grid, tolerance: int = 1, slack: int = 0) -> NDArray[np.uint8]:
     """Verifier codes (H, W) uint8: unknown / free / free within ``tolerance`` cells of a wall
-    (8-neighbourhood, i.e. a square window) / wall."""
-    wall = grid >= OCCUPIED_THRESHOLD
-    free = (grid >= 0) & (grid <= FREE_THRESHOLD)
+    (8-neighbourhood, i.e. a square window) / wall.
+
+    Free cells farther than ``tolerance`` but within ``tolerance + slack`` cells of a wall are
+    coded unknown: a wall landing there neither agrees nor contradicts (two maps of one place
+    bent by odometry drift put the same wall a cell or two apart). Lone wall cells
+    (:func:`reliable_walls`) count as free.
+    """
+    wall = reliable_walls(grid)
+    free = (grid >= 0) & (grid <= FREE_THRESHOLD) | ((grid >= OCCUPIED_THRESHOLD) & ~wall)
     k = 2 * int(tolerance) + 1
     near = cv2.dilate(wall.view(np.uint8), np.ones((k, k), np.uint8)).astype(bool)
     codes = np.zeros(grid.shape, dtype=np.uint8)
     codes[free] = CODE_FREE
+    if slack > 0:
+        k2 = 2 * (int(tolerance) + int(slack)) + 1
+        mid = cv2.dilate(wall.view(np.uint8), np.ones((k2, k2), np.uint8)).astype(bool)
+        codes[free & mid] = CODE_UNKNOWN
     codes[free & near] = CODE_FREE_NEAR_WALL
     codes[wall] = CODE_WALL
     return codes
@@ -271,10 +293,15 @@ class Verifier:
     """
 
     def __init__(
-        self, a: Int8Grid, b: Int8Grid, max_samples: int = 20000, tolerance: int = 1
+        self,
+        a: Int8Grid,
+        b: Int8Grid,
+        max_samples: int = 20000,
+        tolerance: int = 1,
+        slack: int = 0,
     ) -> None:
-        self.codes_a = cell_codes(a, tolerance)
-        self.codes_b = cell_codes(b, tolerance)
+        self.codes_a = cell_codes(a, tolerance, slack)
+        self.codes_b = cell_codes(b, tolerance, slack)
         self.points_b, self.cells_per_sample = _sample(self.codes_b == CODE_WALL, max_samples)
         self.points_a, _ = _sample(self.codes_a == CODE_WALL, max_samples)
 

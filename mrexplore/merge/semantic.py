@@ -506,6 +506,8 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
       twin rooms merged wrongly at t = 2.5 s (310 cells off); with 40 m^2, none of 18 episodes
       merged wrongly.
     - ``resolution_m`` (0.05): metres per cell of both maps (only used for ``min_common_m2``).
+    - ``slack_cells`` (0): free cells 2..1+slack cells from a wall neither agree nor disagree
+      (tolerance for drift; measured in ``docs/merging.md``: it also blunts the rival test).
     - ``scale`` (4): coarse search pooling factor (cells per block).
     - ``peaks_per_rotation`` (6): coarse translation peaks kept per rotation.
     - ``max_rotation_peaks`` (3): histogram cross-correlation peaks (each -> 4 rotations).
@@ -547,6 +549,7 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     ratio_power = opt.get_float("ratio_power", 2.0, lo=0.0, hi=20.0)
     min_common_m2 = opt.get_float("min_common_m2", 10.0, lo=0.0)
     resolution_m = opt.get_float("resolution_m", 0.05, lo=1e-6)
+    slack = opt.get_int("slack_cells", 0, lo=0, hi=10)
     opt.finish()
     info: dict[str, Any] = {}
 
@@ -574,8 +577,10 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     if min(n_wall_a, n_wall_b) < 20:
         return refuse(f"too few wall cells to align (a: {n_wall_a}, b: {n_wall_b}; need 20)")
 
-    verify = Verifier(ac, bc, max_samples=max_samples)
-    quick = Verifier(ac, bc, max_samples=min(max_samples, 2000) if max_samples else 2000)
+    verify = Verifier(ac, bc, max_samples=max_samples, slack=slack)
+    quick = Verifier(
+        ac, bc, max_samples=min(max_samples, 2000) if max_samples else 2000, slack=slack
+    )
 
     # --- 1. rotations ---
     thetas = rotation_candidates(wall_a, wall_b, max_rot_peaks, rot_step)
@@ -660,6 +665,10 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     # The best explains the most: agreement minus heavily weighted disagreement. Ranking by the
     # index alone ties every small, uncontradicted overlap (a corner on a corner) with the truth.
     chosen.sort(key=lambda h: -h.evidence)
+    info["hypotheses"] = [
+        (translation(bba[2], bba[0]) @ h.T @ translation(-bbb[2], -bbb[0]), h.agreement)
+        for h in chosen
+    ]
     best = chosen[0]
     assert best.agreement is not None
     # A rival is a pose far from the best that explains a comparable part of the maps: at least

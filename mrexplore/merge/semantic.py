@@ -47,6 +47,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from mrexplore.errors import ConfigError
 from mrexplore.grid import (
     FREE_THRESHOLD,
     OCCUPIED_THRESHOLD,
@@ -548,6 +549,8 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     min_common_m2 = opt.get_float("min_common_m2", 10.0, lo=0.0)
     resolution_m = opt.get_float("resolution_m", 0.05, lo=1e-6)
     opt.finish()
+    if options.get("detector") is not None and not use_paper:
+        raise ConfigError(f"{where}: detector= is used only with paper_candidates=True")
     info: dict[str, Any] = {}
 
     def refuse(reason: str, score: float = 0.0, **kw: Any) -> MergeResult:

@@ -13,7 +13,12 @@ def _demo(args: argparse.Namespace) -> int:
     from mrexplore.experiments.demo import run_demo
 
     run_demo(
-        out=args.out, world=args.world, seed=args.seed, policy=args.policy, n_robots=args.n_robots
+        out=args.out,
+        world=args.world,
+        seed=args.seed,
+        policy=args.policy,
+        n_robots=args.n_robots,
+        force=args.force,
     )
     return 0
 
@@ -30,6 +35,7 @@ def _task_time(args: argparse.Namespace) -> int:
         tasks=args.tasks,
         env_options={"max_time_s": args.max_time_s},
         nav_warmup_s=args.nav_warmup_s,
+        force=args.force,
     )
     return 0
 
@@ -105,6 +111,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
     d.add_argument("--policy", default="coordinated-frontier", help="team policy name")
     d.add_argument("--n-robots", type=int, default=2, help="team size (default 2)")
+    d.add_argument("--force", action="store_true", help="replace an earlier demo's pictures")
 
     t = sub.add_parser(
         "task-time",
@@ -132,6 +139,12 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         default=120.0,
         help="navigation: seconds of exploring before robot_0 gets its goal (default 120)",
+    )
+    t.add_argument(
+        "--force",
+        action="store_true",
+        help="replace earlier results in --out (an interrupted run with the same settings "
+        "resumes without it)",
     )
 
     for name, helptext in (

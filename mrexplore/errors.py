@@ -30,3 +30,7 @@ class MapFileNotFoundError(MrexploreError, FileNotFoundError):
 
 class ConfigError(MrexploreError, ValueError):
     """An option is unknown or has a bad value (a typo in a keyword argument, a negative range)."""
+
+
+class OutputExistsError(MrexploreError, FileExistsError):
+    """An output would overwrite an input or an existing result (pass ``--force`` to allow)."""

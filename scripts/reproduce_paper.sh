@@ -6,5 +6,5 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 mkdir -p results
-mrexplore bench merge --out results/merge_table
-mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --out results/
+mrexplore bench merge --out results/merge_table --force  # regenerates: replaces the old files
+mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --out results/ --force

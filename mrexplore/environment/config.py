@@ -12,10 +12,23 @@ import math
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+import numpy as np
+
 from mrexplore.errors import ConfigError
 
 RewardMode = Literal["time", "coverage"]
 Task = Literal["explore", "navigate"]
+
+
+#: Options that take only ``True``/``False`` (or numpy bools).
+BOOL_OPTIONS = ("aligned_headings", "nav_return_to_start", "obs_heading_up")
+#: Upper limits of the noise options (name, limit, unit): beyond them the simulated robot is
+#: not a robot any more (a 100 % odometry error per step throws poses off the map).
+NOISE_LIMITS = (
+    ("odom_noise_trans", 0.5, "std of the translation error as a fraction of the distance moved"),
+    ("odom_noise_rot", 1.0, "std of the heading error, radians per radian turned"),
+    ("odom_noise_rot_per_m", 1.0, "std of the heading error, radians per metre driven"),
+)
 
 
 @dataclass(frozen=True)
@@ -37,8 +50,8 @@ class EnvConfig:
         aligned_headings: all robots start with heading 0 in the world (the paper's setting);
             ``False`` draws start headings uniformly, so the maps are rotated w.r.t. each other.
         odom_noise_trans, odom_noise_rot, odom_noise_rot_per_m: odometry drift, standard
-            deviations: translation as a fraction of the distance moved; heading in radians per
-            radian turned and per metre driven.
+            deviations: translation as a fraction of the distance moved (at most 0.5); heading
+            in radians per radian turned and per metre driven (each at most 1.0).
         min_start_separation_m: minimum distance between start positions.
     Merging:
         merger: merge method name for :func:`mrexplore.merge.merge_maps` (``"semantic"``,
@@ -105,6 +118,8 @@ class EnvConfig:
     merge_options: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        self._normalise_types()
+
         def positive(name: str) -> None:
             v = getattr(self, name)
             if (
@@ -188,12 +203,38 @@ class EnvConfig:
                 f"option nav_warmup_s ({self.nav_warmup_s}) must be shorter than max_time_s "
                 f"({self.max_time_s}): the goal would never be given"
             )
+        for name, hi, unit in NOISE_LIMITS:
+            v = getattr(self, name)
+            if v > hi:
+                raise ConfigError(
+                    f"option {name}={v!r} is out of range: it must be in [0, {hi}] ({unit})"
+                )
+        if self.range_noise_m >= self.max_range_m:
+            raise ConfigError(
+                f"option range_noise_m={self.range_noise_m!r} must be below max_range_m "
+                f"({self.max_range_m} m)"
+            )
         if self.comm_range_m is not None:
             positive("comm_range_m")
         if not isinstance(self.merge_options, dict):
             raise ConfigError(
                 f"option merge_options must be a dict, got {type(self.merge_options).__name__}"
             )
+
+    def _normalise_types(self) -> None:
+        """Accept numpy scalars for numbers (``np.int64(2)``) and bools, refuse anything else for
+        a bool option (``"no"`` must not pass as True); store plain Python types."""
+        for name in BOOL_OPTIONS:
+            v = getattr(self, name)
+            if not isinstance(v, (bool, np.bool_)):
+                raise ConfigError(f"option {name} must be True or False, got {v!r}")
+            object.__setattr__(self, name, bool(v))
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, np.integer):
+                object.__setattr__(self, f.name, int(v))
+            elif isinstance(v, np.floating):
+                object.__setattr__(self, f.name, float(v))
 
     @classmethod
     def from_kwargs(cls, **kwargs: Any) -> EnvConfig:

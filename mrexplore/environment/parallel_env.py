@@ -162,12 +162,18 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
     ) -> tuple[dict[AgentID, NDArray[np.uint8]], dict[AgentID, dict[str, Any]]]:
         """Start an episode.
 
-        ``seed`` re-seeds the env's one Generator (``None`` continues it). From it, independent
-        child streams are spawned for the world, the starts, the goal and the run (noise), so that
-        robot_0's start and the navigation goal are the same for every team size.
+        ``seed`` (an integer >= 0) re-seeds the env's one Generator (``None`` continues it). From
+        it, independent child streams are spawned for the world, the starts, the goal and the run
+        (noise), so that robot_0's start and the navigation goal are the same for every team size.
         ``options``: ``{"starts": (n, 3) array}`` fixes the start poses (world metres, radians);
         other keys are ignored (PettingZoo's API test passes arbitrary options).
         """
+        if seed is not None and (
+            isinstance(seed, (bool, np.bool_))
+            or not isinstance(seed, (int, np.integer))
+            or seed < 0
+        ):
+            raise ConfigError(f"reset: seed must be an integer >= 0 or None, got {seed!r}")
         if seed is not None or self._rng is None:
             self._rng = np.random.default_rng(seed)
         world_rng, start_rng, goal_rng, self._run_rng = self._rng.spawn(4)

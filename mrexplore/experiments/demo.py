@@ -13,8 +13,10 @@ from typing import Any
 import cv2
 import numpy as np
 
+from mrexplore.errors import ConfigError
 from mrexplore.experiments.episode import run_episode
 from mrexplore.experiments.task_time import make_team
+from mrexplore.io_safety import atomic_path, check_out_dir, check_outputs, write_bytes
 from mrexplore.render import write_video
 
 
@@ -25,10 +27,19 @@ def run_demo(
     policy: str = "coordinated-frontier",
     n_robots: int = 2,
     record_every: int = 12,
+    force: bool = False,
     **env_options: Any,
 ) -> dict[str, Any]:
-    """Run the demo episode and write its pictures; returns the printed summary as a dict."""
-    out = Path(out)
+    """Run the demo episode and write its pictures; returns the printed summary as a dict.
+
+    Raises:
+        OutputExistsError: ``out`` is a file, or holds an earlier demo's pictures and ``force``
+            is False (checked before the episode runs).
+    """
+    out = check_out_dir(out, force=True, what="mrexplore demo")
+    check_outputs([out / "episode.gif", out / "final.png"], force=force, what="mrexplore demo")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ConfigError(f"demo: seed must be an integer >= 0, got {seed!r}")
     out.mkdir(parents=True, exist_ok=True)
     agents = [f"robot_{i}" for i in range(n_robots)]
     t0 = time.perf_counter()
@@ -39,7 +50,9 @@ def run_demo(
         record_every=record_every,
     )
     wall_s = time.perf_counter() - t0
-    gif = write_video(res.frames, out / "episode.gif", fps=8)
+    gif = out / "episode.gif"
+    with atomic_path(gif) as tmp:
+        write_video(res.frames, tmp, fps=8)
     final = res.frames[-1]
     if res.merge_frame is not None:
         label = np.full((26, final.shape[1], 3), 255, np.uint8)
@@ -54,7 +67,9 @@ def run_demo(
             cv2.LINE_AA,
         )
         final = np.vstack([final, label, res.merge_frame])
-    cv2.imwrite(str(out / "final.png"), cv2.cvtColor(final, cv2.COLOR_RGB2BGR))
+    ok, png = cv2.imencode(".png", cv2.cvtColor(final, cv2.COLOR_RGB2BGR))
+    if ok:
+        write_bytes(out / "final.png", png.tobytes())
     summary = {
         "world": world,
         "seed": seed,

@@ -19,6 +19,8 @@ from typing import Any
 import numpy as np
 
 import mrexplore
+from mrexplore.errors import ConfigError
+from mrexplore.io_safety import check_outputs, write_text
 
 
 def _timed(fn: Callable[..., Any], acc: dict[str, float], key: str) -> Callable[..., Any]:
@@ -80,11 +82,18 @@ def _print(title: str, r: dict[str, Any]) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Print env steps/s on the default world and on the Explore-Bench-like 0.1 m/cell world."""
     p = argparse.ArgumentParser(prog="mrexplore bench env", description=__doc__)
-    p.add_argument("--steps", type=int, default=2000)
+    p.add_argument("--steps", type=int, default=2000, help="steps per world (at least 1)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--merger", default="semantic")
     p.add_argument("--json", default=None, help="also write the figures to this JSON file")
+    p.add_argument("--force", action="store_true", help="replace an existing --json file")
     args = p.parse_args(argv)
+    if args.steps < 1:
+        raise ConfigError(f"bench env: --steps must be at least 1, got {args.steps}")
+    if args.seed < 0:
+        raise ConfigError(f"bench env: --seed must be an integer >= 0, got {args.seed}")
+    if args.json:
+        check_outputs([args.json], force=args.force, what="mrexplore bench env")
     results = {}
     results["default"] = bench_env(
         args.steps, args.seed, world="symmetric_office", n_robots=2, merger=args.merger
@@ -112,8 +121,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"x{results['explore_bench_like']['steps_per_s'] / ref:.0f}"
     )
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(results, f, indent=2)
+        write_text(args.json, json.dumps(results, indent=2))
     return 0
 
 

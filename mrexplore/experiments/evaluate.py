@@ -16,12 +16,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from tqdm import tqdm
 
 from mrexplore.errors import ConfigError
 from mrexplore.experiments.episode import EpisodeResult, run_episode
-from mrexplore.experiments.trained import TrainedTeamPolicy
+from mrexplore.experiments.trained import TrainedTeamPolicy, read_config
+from mrexplore.io_safety import atomic_path, check_out_dir, write_text
 
 EVAL_SEED_BASE = 1_000_000
 BASELINES = ("random", "nearest-frontier", "coordinated-frontier")
@@ -80,32 +80,58 @@ def eval_env_options(config: Mapping[str, Any]) -> dict[str, Any]:
     return opts
 
 
+def default_eval_dir(folder: str | Path) -> Path:
+    """Where ``mrexplore evaluate FOLDER`` writes by default: ``eval/<folder name>`` in the
+    current directory, never the policy folder itself (it may be a shipped policy)."""
+    return Path("eval") / Path(folder).resolve().name
+
+
 def evaluate_folder(
-    folder: str | Path, n_seeds: int = 20, out: str | Path | None = None, progress: bool = True
+    folder: str | Path,
+    n_seeds: int = 20,
+    out: str | Path | None = None,
+    progress: bool = True,
+    force: bool = False,
 ) -> dict[str, Any]:
     """Evaluate ``folder`` (model.zip + config.yaml) against the baselines.
 
-    Writes ``eval.json`` and ``eval.png`` to ``out`` (default: the folder).
+    Writes ``eval.json`` and ``eval.png`` to ``out`` when given (refused when ``out`` is the
+    policy folder, a file, or a non-empty folder without ``force``); with ``out=None`` it only
+    returns the document. Everything is checked and the model loaded before any episode runs.
+
+    Raises:
+        ConfigError: not a policy folder, ``n_seeds < 1``, broken config.yaml or model.zip.
+        OutputExistsError: ``out`` is refused (see above).
     """
     from mrexplore.policies import make_team_policy
 
     folder = Path(folder)
+    if isinstance(n_seeds, bool) or not isinstance(n_seeds, (int, np.integer)) or n_seeds < 1:
+        raise ConfigError(f"evaluate needs at least 1 seed, got {n_seeds!r}")
     if not (folder / "config.yaml").is_file() or not (folder / "model.zip").is_file():
         raise ConfigError(
             f"{folder} is not a trained policy folder (it needs model.zip and config.yaml, "
             "as written by `mrexplore train`)"
         )
-    if n_seeds < 1:
-        raise ConfigError(f"evaluate needs at least 1 seed, got {n_seeds}")
-    config = yaml.safe_load((folder / "config.yaml").read_text())
+    out_dir = (
+        None
+        if out is None
+        else check_out_dir(out, force=force, what="mrexplore evaluate", protect=[folder])
+    )
+    config = read_config(folder)
     env_options = eval_env_options(config)
-    seeds = list(range(EVAL_SEED_BASE, EVAL_SEED_BASE + n_seeds))
+    seeds = list(range(EVAL_SEED_BASE, EVAL_SEED_BASE + int(n_seeds)))
     trained = TrainedTeamPolicy.load(
         folder, [f"robot_{i}" for i in range(int(env_options.get("n_robots", 2)))]
     )
     policies: dict[str, Any] = {f"trained ({config.get('algo', 'ppo')})": lambda agents: trained}
     for b in BASELINES:
         policies[b] = lambda agents, b=b: make_team_policy(b, agents)
+    if progress:
+        print(
+            f"evaluating {folder} and {len(BASELINES)} baselines on {len(seeds)} held-out "
+            f"seed(s): {len(policies) * len(seeds)} episodes"
+        )
     summaries = evaluate_policies(policies, env_options, seeds, progress=progress)
     doc: dict[str, Any] = {
         "policy_folder": str(folder),
@@ -114,21 +140,21 @@ def evaluate_folder(
         "trained_actions": "deterministic" if trained.deterministic else "sampled",
         "results": summaries,
     }
-    out_dir = Path(out) if out is not None else folder
-    out_dir.mkdir(parents=True, exist_ok=True)
-    previous = out_dir / "eval.json"
-    if previous.is_file():
-        # Keep what training recorded (throughput, periodic evaluations) beside the new results.
-        training = json.loads(previous.read_text()).get("training")
-        if training is not None:
-            doc["training"] = training
-    (out_dir / "eval.json").write_text(json.dumps(doc, indent=2))
-    try:
-        plot_evaluation(doc, out_dir / "eval.png")
-    except ImportError as exc:
-        print(f"(no plot: {exc}; pip install 'mrexplore[plot]')")
+    if out_dir is not None:
+        write_evaluation(doc, out_dir)
     print(format_evaluation(doc))
     return doc
+
+
+def write_evaluation(doc: Mapping[str, Any], out_dir: Path) -> None:
+    """Write ``eval.json`` and ``eval.png`` (when matplotlib is there) to ``out_dir``."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    write_text(out_dir / "eval.json", json.dumps(doc, indent=2))
+    try:
+        with atomic_path(out_dir / "eval.png") as tmp:
+            plot_evaluation(doc, tmp)
+    except ImportError as exc:
+        print(f"(no plot: {exc}; pip install 'mrexplore[plot]')")
 
 
 def format_evaluation(doc: Mapping[str, Any]) -> str:
@@ -177,8 +203,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("folder")
     p.add_argument("--seeds", type=int, default=20)
     p.add_argument(
-        "--out", default=None, help="folder for eval.json/eval.png (default: the policy folder)"
+        "--out",
+        default=None,
+        help="new folder for eval.json/eval.png (default: eval/<policy folder name>; never the "
+        "policy folder itself)",
     )
+    p.add_argument("--force", action="store_true", help="replace the files of a non-empty --out")
     args = p.parse_args(argv)
-    evaluate_folder(args.folder, args.seeds, args.out)
+    out = args.out if args.out is not None else default_eval_dir(args.folder)
+    evaluate_folder(args.folder, args.seeds, out, force=args.force)
+    print(f"wrote {Path(out) / 'eval.json'} and eval.png")
     return 0

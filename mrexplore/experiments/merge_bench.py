@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -27,8 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from mrexplore.errors import ConfigError
+from mrexplore.errors import ConfigError, MrexploreError
 from mrexplore.experiments.merge_cases import MergeCase, real_cases, symmetric_cases
+from mrexplore.io_safety import check_outputs, write_text
 from mrexplore.merge import MapMergeTracker, merge_maps
 from mrexplore.merge.common import mean_displacement
 
@@ -122,6 +124,21 @@ def run_bench(
     """
     if n_cases < 1:
         raise ConfigError(f"run_bench: n_cases must be >= 1, got {n_cases}")
+    known_methods = {m for m, _, _ in DEFAULT_CONFIGS}
+    known_detectors = {d for _, d, _ in DEFAULT_CONFIGS if d is not None}
+    bad = sorted(set(methods or ()) - known_methods)
+    if bad:
+        raise ConfigError(
+            f"run_bench: unknown method(s) {bad}; choose from {sorted(known_methods)}"
+        )
+    bad = sorted(set(detectors or ()) - known_detectors)
+    if bad:
+        raise ConfigError(
+            f"run_bench: unknown detector(s) {bad}; choose from {sorted(known_detectors)}"
+        )
+    unknown_families = sorted(set(families) - {"symmetric", "real"})
+    if unknown_families:
+        raise ConfigError(f"run_bench: unknown family {unknown_families} (symmetric, real)")
     cfgs = (
         list(configs)
         if configs is not None
@@ -244,11 +261,19 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--families", default="symmetric,real")
     p.add_argument("--out", default=None, help="write STEM.json and STEM.md")
     p.add_argument("--tracker", action="store_true", help="also time the tracker per step")
+    p.add_argument("--force", action="store_true", help="replace existing STEM.json/STEM.md")
     args = p.parse_args(list(argv) if argv is not None else None)
     import cv2
 
     cv2.setNumThreads(1)  # one core, as the targets are stated
     try:
+        if args.out:
+            stem = Path(args.out)
+            check_outputs(
+                [stem.with_suffix(".json"), stem.with_suffix(".md")],
+                force=args.force,
+                what="mrexplore bench merge",
+            )
         rows = run_bench(
             args.n,
             methods=args.methods.split(",") if args.methods else None,
@@ -256,8 +281,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             seed=args.seed,
             families=args.families.split(","),
         )
-    except ConfigError as e:
-        print(f"error: {e}")
+    except MrexploreError as e:
+        print(f"mrexplore bench merge: error: {e}", file=sys.stderr)
         return 2
     md = to_markdown(rows)
     print(md)
@@ -268,7 +293,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.out:
         stem = Path(args.out)
         stem.parent.mkdir(parents=True, exist_ok=True)
-        stem.with_suffix(".json").write_text(json.dumps({"rows": rows, **extra}, indent=1))
-        stem.with_suffix(".md").write_text(md + "\n")
+        write_text(stem.with_suffix(".json"), json.dumps({"rows": rows, **extra}, indent=1))
+        write_text(stem.with_suffix(".md"), md + "\n")
         print(f"wrote {stem.with_suffix('.json')} and {stem.with_suffix('.md')}")
     return 0

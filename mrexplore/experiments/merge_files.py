@@ -24,6 +24,7 @@ from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError, MapFileError, MrexploreError
 from mrexplore.grid import Int8Grid, transform_angle
+from mrexplore.io_safety import check_outputs, write_bytes
 from mrexplore.merge import MergeResult, merge_maps
 from mrexplore.merge.common import to_gray
 
@@ -34,18 +35,32 @@ def merge_files(
     out_yaml: str | Path,
     method: str = "semantic",
     detector: str | None = None,
+    force: bool = False,
     **options: Any,
 ) -> MergeResult:
     """Merge map file b into map file a; write ``out_yaml`` (+ image) and a PNG figure when matched.
 
+    The outputs (``out_yaml``, its ``.pgm`` image and the ``.png`` figure) are checked before any
+    work: none may be an input (a YAML or the image it names) or an existing file unless
+    ``force``. ``min_common_m2`` is measured at the maps' own resolution (from the YAML).
+
     Raises:
         MapFileNotFoundError / MapFileError: a file is missing or malformed, or the two maps'
             resolutions differ (the merger works in cells: it cannot rescale).
+        OutputExistsError: an output would overwrite an input or an existing file.
         ConfigError: bad method, detector or option.
     """
     from mrexplore.world.map_io import read_map_yaml, write_map_yaml
 
+    out_yaml = Path(out_yaml)
+    png = out_yaml.with_suffix(".png")
     fa, fb = read_map_yaml(a_yaml), read_map_yaml(b_yaml)
+    check_outputs(
+        [out_yaml, out_yaml.with_suffix(".pgm"), png],
+        inputs=[p for p in (fa.path, fb.path, fa.image_path, fb.image_path) if p is not None],
+        force=force,
+        what="mrexplore merge",
+    )
     if not np.isclose(fa.resolution_m, fb.resolution_m, rtol=1e-6, atol=0.0):
         raise MapFileError(
             f"maps have different resolutions: {fa.path.name} {fa.resolution_m} m/cell, "
@@ -53,17 +68,15 @@ def merge_files(
         )
     if detector is not None:
         options["detector"] = detector
-    res = merge_maps(fa.grid, fb.grid, method=method, **options)
-    out_yaml = Path(out_yaml)
-    png = out_yaml.with_suffix(".png")
+    res = merge_maps(fa.grid, fb.grid, method=method, resolution_m=fa.resolution_m, **options)
     if res.matched and res.merged is not None:
         dc, dr = res.offset
         ox, oy, yaw = fa.origin_m
         origin = (ox - dc * fa.resolution_m, oy - dr * fa.resolution_m, yaw)
-        out_yaml.parent.mkdir(parents=True, exist_ok=True)
         write_map_yaml(out_yaml, res.merged, fa.resolution_m, origin)
-    png.parent.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(png), figure(fa.grid, fb.grid, res))
+    ok, encoded = cv2.imencode(".png", figure(fa.grid, fb.grid, res))
+    if ok:
+        write_bytes(png, encoded.tobytes())
     return res
 
 
@@ -118,9 +131,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("-o", "--out", required=True, help="output YAML (image and .png beside it)")
     p.add_argument("--method", default="semantic", help="semantic (default), paper or orb")
     p.add_argument("--detector", default=None, help="harris, shi-tomasi, fast, sift, orb")
+    p.add_argument(
+        "--force", action="store_true", help="replace existing outputs (even an input map)"
+    )
     args = p.parse_args(list(argv) if argv is not None else None)
     try:
-        res = merge_files(args.a, args.b, args.out, method=args.method, detector=args.detector)
+        res = merge_files(
+            args.a, args.b, args.out, method=args.method, detector=args.detector, force=args.force
+        )
     except (MrexploreError, ConfigError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

@@ -19,9 +19,11 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+import mrexplore
 from mrexplore.environment.view import RobotView
-from mrexplore.errors import ConfigError
+from mrexplore.errors import ConfigError, OutputExistsError
 from mrexplore.experiments.episode import EpisodeResult, run_episode
+from mrexplore.io_safety import atomic_path, check_out_dir, check_outputs, write_text
 
 #: The seed paper's figures (Durdu & Korkmaz 2019, section 4): seconds.
 PAPER = {"explore": {"single": 105.0, "multi": 65.0}, "navigate": {"single": 125.0, "multi": 85.0}}
@@ -76,6 +78,62 @@ def _stats(xs: Sequence[float]) -> dict[str, float]:
     }
 
 
+EPISODE_LOG = "episodes.jsonl"
+RESULT_FILES = ("task_time.json", "task_time.csv", "task_time.png")
+
+
+def _check_int(name: str, value: Any, lo: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
+        raise ConfigError(f"task-time: {name} must be an integer >= {lo}, got {value!r}")
+    return int(value)
+
+
+def _episode_to_json(r: EpisodeResult) -> dict[str, Any]:
+    return {**r.summary(), "times_s": r.times_s, "coverages": r.coverages}
+
+
+def _episode_from_json(d: Mapping[str, Any]) -> EpisodeResult:
+    return EpisodeResult(
+        task_time_s=float(d["task_time_s"]),
+        success=bool(d["success"]),
+        coverage=float(d["coverage"]),
+        times_s=[float(x) for x in d["times_s"]],
+        coverages=[float(x) for x in d["coverages"]],
+        first_merge_time_s=d["first_merge_time_s"],
+        merge_error=d["merge_error"],
+        collisions=int(d["collisions"]),
+    )
+
+
+def _load_log(path: Path, settings: Mapping[str, Any], force: bool) -> dict[str, EpisodeResult]:
+    """Episodes finished by an earlier run with the same settings (``task/team/seed`` -> result).
+
+    A log written with other settings is refused without ``force`` (and then started over)."""
+    if not path.is_file():
+        return {}
+    lines = path.read_text().splitlines()
+    try:
+        head = json.loads(lines[0]) if lines else {}
+    except ValueError:
+        head = {}
+    if head.get("settings") != json.loads(json.dumps(settings, default=str)):
+        if not force:
+            raise OutputExistsError(
+                f"task-time: {path} holds episodes of a run with other settings; choose another "
+                "--out or pass --force to start over"
+            )
+        path.unlink()
+        return {}
+    done: dict[str, EpisodeResult] = {}
+    for line in lines[1:]:
+        try:
+            rec = json.loads(line)
+            done[rec["key"]] = _episode_from_json(rec["result"])
+        except (ValueError, KeyError, TypeError):
+            continue  # a line cut by an interruption: that episode runs again
+    return done
+
+
 def run_task_time(
     world: str = "symmetric_office",
     seeds: int = 20,
@@ -86,48 +144,88 @@ def run_task_time(
     env_options: Mapping[str, Any] | None = None,
     progress: bool = True,
     nav_warmup_s: float = 120.0,
+    force: bool = False,
 ) -> dict[str, Any]:
     """Run the experiment and write the result files; returns the JSON document.
 
     Navigation episodes first explore for ``nav_warmup_s`` (the same for one robot and for the
     team), then ``robot_0`` gets a goal at least 10 m away; its task time counts from then.
+
+    Every argument (numbers, tasks, policy, world, env options) is checked before the first
+    episode. Finished episodes are appended to ``<out>/episodes.jsonl`` as they complete; a rerun
+    with the same settings skips them (resume after an interruption). Earlier results
+    (``task_time.json/.csv/.png``) are not replaced without ``force``.
+
+    Raises:
+        ConfigError: a bad argument.
+        OutputExistsError: ``out`` is a file, or holds results (or another run's episodes) and
+            ``force`` is False.
     """
-    if seeds < 1:
-        raise ConfigError(f"task-time needs at least 1 seed, got {seeds}")
+    seeds = _check_int("seeds", seeds, 1)
+    first_seed = _check_int("first_seed", first_seed, 0)
     unknown = sorted(set(tasks) - set(TASKS))
-    if unknown:
+    if unknown or not tasks:
         raise ConfigError(f"unknown task(s) {unknown}; tasks are {list(TASKS)}")
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    if isinstance(nav_warmup_s, bool) or not isinstance(nav_warmup_s, (int, float)):
+        raise ConfigError(f"task-time: nav_warmup_s must be a number, got {nav_warmup_s!r}")
+    out = check_out_dir(out, force=True, what="mrexplore task-time")
+    check_outputs([out / f for f in RESULT_FILES], force=force, what="mrexplore task-time")
     base = {"world": world, **dict(env_options or {})}
     if Path(policy).is_dir():
         from mrexplore.experiments.trained import observation_options
 
         # A trained policy sees the observations it was trained on.
         base.update(observation_options(policy))
+    seed_list = list(range(first_seed, first_seed + seeds))
+    jobs: list[tuple[str, str, int, dict[str, Any]]] = []
+    for task in tasks:
+        for team_name, n in (("single", 1), ("multi", 2)):
+            opts = {**base, "n_robots": n, "task": task}
+            if task == "navigate":
+                opts.setdefault("nav_warmup_s", nav_warmup_s)
+            # Build the env and the team once now: a bad option fails before any episode runs.
+            mrexplore.parallel_env(**opts).close()
+            make_team(policy, [f"robot_{i}" for i in range(n)], task)
+            jobs += [(task, team_name, seed, opts) for seed in seed_list]
+    settings = {
+        "world": world,
+        "policy": policy,
+        "options": {k: v for k, v in base.items() if k != "world"},
+        "nav_warmup_s": nav_warmup_s,
+    }
+    out.mkdir(parents=True, exist_ok=True)
+    log_path = out / EPISODE_LOG
+    done = _load_log(log_path, settings, force)
+    if not log_path.is_file():
+        write_text(log_path, json.dumps({"settings": settings}, default=str) + "\n")
     runs: dict[str, dict[str, list[EpisodeResult]]] = {
         t: {"single": [], "multi": []} for t in tasks
     }
-    seed_list = list(range(first_seed, first_seed + seeds))
-    total = len(seed_list) * len(tasks) * 2
-    bar = tqdm(total=total, desc="task-time episodes", disable=not progress, unit="ep")
-    for task in tasks:
-        for team_name, n in (("single", 1), ("multi", 2)):
-            for seed in seed_list:
-                opts = {**base, "n_robots": n, "task": task}
-                if task == "navigate":
-                    opts.setdefault("nav_warmup_s", nav_warmup_s)
-                agents = [f"robot_{i}" for i in range(n)]
-                team = make_team(policy, agents, task)
-                runs[task][team_name].append(run_episode(opts, team, seed))
+    todo = sum(f"{t}/{m}/{s}" not in done for t, m, s, _ in jobs)
+    if progress and todo < len(jobs):
+        print(f"resuming from {log_path}: {len(jobs) - todo} of {len(jobs)} episodes done")
+    bar = tqdm(total=len(jobs), desc="task-time episodes", disable=not progress, unit="ep")
+    bar.update(len(jobs) - todo)
+    with log_path.open("a") as log:
+        for task, team_name, seed, opts in jobs:
+            key = f"{task}/{team_name}/{seed}"
+            if key not in done:
+                n = int(opts["n_robots"])
+                team = make_team(policy, [f"robot_{i}" for i in range(n)], task)
+                done[key] = run_episode(opts, team, seed)
+                log.write(json.dumps({"key": key, "result": _episode_to_json(done[key])}) + "\n")
+                log.flush()
                 bar.update(1)
+            runs[task][team_name].append(done[key])
     bar.close()
     doc = _document(runs, world, policy, seed_list, base)
     doc["nav_warmup_s"] = nav_warmup_s
-    (out / "task_time.json").write_text(json.dumps(doc, indent=2, allow_nan=False))
-    _write_csv(out / "task_time.csv", runs, seed_list)
+    write_text(out / "task_time.json", json.dumps(doc, indent=2, allow_nan=False))
+    with atomic_path(out / "task_time.csv") as tmp:
+        _write_csv(tmp, runs, seed_list)
     try:
-        _plot(out / "task_time.png", runs, doc)
+        with atomic_path(out / "task_time.png") as tmp:
+            _plot(tmp, runs, doc)
     except ImportError as exc:
         print(f"(no plot: {exc}; install the 'plot' extra: pip install 'mrexplore[plot]')")
     print(format_table(doc))

@@ -21,6 +21,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 
 from mrexplore.errors import ConfigError
@@ -29,8 +30,10 @@ from mrexplore.experiments.evaluate import (
     EVAL_SEED_BASE,
     evaluate_folder,
     evaluate_policies,
+    write_evaluation,
 )
 from mrexplore.experiments.trained import ALGOS, TrainedTeamPolicy, algo_class
+from mrexplore.io_safety import atomic_path, check_out_dir, write_text
 
 
 def load_hyperparams(algo: str, path: str | Path | None = None) -> dict[str, Any]:
@@ -94,21 +97,44 @@ def _versions() -> dict[str, str]:
     return {k: str(v) for k, v in versions.items()}
 
 
+def final_eval_seed_count(timesteps: int) -> int:
+    """Held-out seeds of the final evaluation, scaled to the run: 2 for a smoke test, one per
+    15,000 steps, at most 20 (a 2,000-step run used to spend 9 of its 10 minutes on 20 seeds)."""
+    return max(2, min(20, int(timesteps) // 15_000))
+
+
+def _check_int(name: str, value: Any, lo: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
+        raise ConfigError(f"train: {name} must be an integer >= {lo}, got {value!r}")
+    return int(value)
+
+
 def train(
     algo: str = "ppo",
     timesteps: int = 1_000_000,
-    out: str | Path = "policies/ppo_symmetric_2r",
+    out: str | Path = "runs/ppo",
     world: str | None = None,
     n_robots: int | None = None,
     seed: int = 0,
     hyperparams_file: str | Path | None = None,
     eval_every: int = 50_000,
     eval_seeds: int = 5,
-    final_eval_seeds: int = 20,
+    final_eval_seeds: int | None = None,
     n_copies: int | None = None,
     progress: bool = True,
+    force: bool = False,
 ) -> dict[str, Any]:
-    """Train, evaluate periodically against the frontier baselines, save; returns the config."""
+    """Train, evaluate periodically against the frontier baselines, save; returns the config.
+
+    Every argument is checked, and ``out`` refused when it is a file or a non-empty folder
+    (without ``force``), before any work. ``final_eval_seeds=None`` scales the final
+    evaluation to the run (:func:`final_eval_seed_count`); 0 skips it. Each file is written
+    through a temporary name, so an interrupted run leaves no half-written file.
+
+    Raises:
+        ConfigError: a bad argument (``timesteps < 1``, ``seed < 0``, ...).
+        OutputExistsError: ``out`` is refused (see above).
+    """
     from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
     from stable_baselines3.common.vec_env import VecMonitor
     from tqdm import tqdm
@@ -116,14 +142,26 @@ def train(
     from mrexplore.policies import make_team_policy
     from mrexplore.wrappers.sb3_vec import make_vec_env
 
+    timesteps = _check_int("timesteps", timesteps, 1)
+    seed = _check_int("seed", seed, 0)
+    eval_every = _check_int("eval_every", eval_every, 1)
+    eval_seeds = _check_int("eval_seeds", eval_seeds, 1)
+    final_seeds = (
+        final_eval_seed_count(timesteps)
+        if final_eval_seeds is None
+        else _check_int("final_eval_seeds", final_eval_seeds, 0)
+    )
     cfg = load_hyperparams(algo, hyperparams_file)
     env_opts = dict(cfg["env"])
     env_opts["world"] = training_world(world, env_opts.get("world", "random:symmetric_office"))
     if n_robots is not None:
-        env_opts["n_robots"] = int(n_robots)
-    copies = int(n_copies if n_copies is not None else cfg.get("n_copies", 1))
+        env_opts["n_robots"] = _check_int("n_robots", n_robots, 1)
+    copies = _check_int("n_copies", n_copies if n_copies is not None else cfg.get("n_copies", 1), 1)
     use_subprocess = bool(cfg.get("use_subprocess", False))
-    out = Path(out)
+    out = check_out_dir(out, force=force, what="mrexplore train")
+    from mrexplore.environment.config import EnvConfig
+
+    EnvConfig.from_kwargs(**{k: v for k, v in env_opts.items() if k != "world"})  # options check
     out.mkdir(parents=True, exist_ok=True)
     config = {
         "algo": algo,
@@ -139,11 +177,11 @@ def train(
             "seed_base": EVAL_SEED_BASE,
             "every": eval_every,
             "seeds": eval_seeds,
-            "final_seeds": final_eval_seeds,
+            "final_seeds": final_seeds,
         },
         "versions": _versions(),
     }
-    (out / "config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
+    write_text(out / "config.yaml", yaml.safe_dump(config, sort_keys=False))
 
     import torch
 
@@ -165,12 +203,16 @@ def train(
     )
     eval_env = {**env_opts, "task": "explore"}
     periodic_seeds = list(range(EVAL_SEED_BASE, EVAL_SEED_BASE + eval_seeds))
-    baseline = evaluate_policies(
-        {b: (lambda ag, b=b: make_team_policy(b, ag)) for b in BASELINES if b != "random"},
-        eval_env,
-        periodic_seeds,
-        progress=False,
-    )
+    baseline: dict[str, Any] = {}
+    if eval_every <= timesteps:  # periodic evaluations will happen: compare with the baselines
+        if progress:
+            print(f"evaluating the frontier baselines on {eval_seeds} held-out seed(s) first")
+        baseline = evaluate_policies(
+            {b: (lambda ag, b=b: make_team_policy(b, ag)) for b in BASELINES if b != "random"},
+            eval_env,
+            periodic_seeds,
+            progress=False,
+        )
     history: list[dict[str, Any]] = []
 
     class _Progress(BaseCallback):
@@ -228,17 +270,23 @@ def train(
     t0 = time.perf_counter()
     model.learn(total_timesteps=int(timesteps), callback=callbacks)
     train_s = time.perf_counter() - t0
-    model.save(str(out / "checkpoints" / f"{algo}_final_with_optimizer.zip"))  # to resume
-    save_for_inference(model, out / "model.zip")
+    with atomic_path(out / "checkpoints" / f"{algo}_final_with_optimizer.zip") as tmp:
+        model.save(str(tmp))  # to resume
+    with atomic_path(out / "model.zip") as tmp:
+        save_for_inference(model, tmp)
     venv.close()
     throughput = {
         "timesteps": int(model.num_timesteps),
         "wall_s": train_s,
         "env_steps_per_s": model.num_timesteps / train_s,
     }
-    doc = evaluate_folder(out, n_seeds=final_eval_seeds, progress=progress)
-    doc["training"] = {"throughput": throughput, "history": history, "baseline_periodic": baseline}
-    (out / "eval.json").write_text(json.dumps(doc, indent=2))
+    training = {"throughput": throughput, "history": history, "baseline_periodic": baseline}
+    if final_seeds > 0:
+        doc = evaluate_folder(out, n_seeds=final_seeds, progress=progress)
+        doc["training"] = training
+        write_evaluation(doc, out)
+    else:
+        write_text(out / "eval.json", json.dumps({"training": training}, indent=2))
     print(
         f"trained {model.num_timesteps} steps in {train_s:.0f} s "
         f"({throughput['env_steps_per_s']:.0f} env steps/s including updates); wrote {out}"
@@ -257,19 +305,31 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--world", default=None, help="a generator name (trained on fresh worlds) or a world spec"
     )
     p.add_argument("--n-robots", type=int, default=None)
-    p.add_argument("--timesteps", type=int, default=1_000_000)
-    p.add_argument("--out", default="policies/ppo_symmetric_2r")
+    p.add_argument("--timesteps", type=int, default=1_000_000, help="at least 1")
+    p.add_argument(
+        "--out",
+        default=None,
+        help="new folder for model.zip, config.yaml, eval.json (default: runs/<algo>); an "
+        "existing non-empty folder is refused without --force",
+    )
+    p.add_argument("--force", action="store_true", help="replace the files of a non-empty --out")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--hyperparams", default=None, help="a YAML file instead of the shipped one")
     p.add_argument("--eval-every", type=int, default=50_000)
     p.add_argument("--eval-seeds", type=int, default=5)
-    p.add_argument("--final-eval-seeds", type=int, default=20)
+    p.add_argument(
+        "--final-eval-seeds",
+        type=int,
+        default=None,
+        help="held-out seeds of the final evaluation (default: scaled to --timesteps, 2 to 20; "
+        "0 skips it)",
+    )
     p.add_argument("--n-copies", type=int, default=None)
     args = p.parse_args(argv)
     train(
         algo=args.algo,
         timesteps=args.timesteps,
-        out=args.out,
+        out=args.out if args.out is not None else f"runs/{args.algo}",
         world=args.world,
         n_robots=args.n_robots,
         seed=args.seed,
@@ -278,5 +338,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         eval_seeds=args.eval_seeds,
         final_eval_seeds=args.final_eval_seeds,
         n_copies=args.n_copies,
+        force=args.force,
     )
     return 0

@@ -5,6 +5,8 @@ Loading needs stable-baselines3 (and torch) only: no training dependency beyond 
 
 from __future__ import annotations
 
+import json
+import zipfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -13,17 +15,68 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
+from mrexplore.errors import ConfigError
+
 ALGOS = ("ppo", "a2c", "dqn")
 #: Env options that shape the observation: a trained policy must run with the ones it saw.
 OBSERVATION_OPTIONS = ("obs_heading_up", "global_view_m", "local_view_m", "obs_size_px")
 
 
-def observation_options(folder: str | Path) -> dict[str, Any]:
-    """The observation options a trained policy was trained with (from its config.yaml)."""
+def read_config(folder: str | Path) -> dict[str, Any]:
+    """A policy folder's ``config.yaml`` as a mapping ({} when absent).
+
+    Raises:
+        ConfigError: the file is not YAML, not a mapping, or names an unknown ``algo``, or its
+            ``env`` is not a mapping.
+    """
     cfg_path = Path(folder) / "config.yaml"
     if not cfg_path.is_file():
         return {}
-    env = yaml.safe_load(cfg_path.read_text()).get("env", {})
+    try:
+        cfg = yaml.safe_load(cfg_path.read_text())
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise ConfigError(f"{cfg_path} is not valid YAML ({first})") from None
+    if cfg is None:
+        cfg = {}
+    if not isinstance(cfg, dict):
+        raise ConfigError(f"{cfg_path} must be a mapping of settings, got {type(cfg).__name__}")
+    algo = cfg.get("algo", "ppo")
+    if algo not in ALGOS:
+        raise ConfigError(f"{cfg_path}: unknown algo {algo!r}; choose one of {', '.join(ALGOS)}")
+    if not isinstance(cfg.get("env", {}), dict):
+        raise ConfigError(f"{cfg_path}: 'env' must be a mapping of env options")
+    return cfg
+
+
+def model_algo(model_path: str | Path) -> str | None:
+    """The algorithm a stable-baselines3 ``model.zip`` was saved by, read from its ``data``
+    (``ppo``, ``a2c``, ``dqn``; None when the file does not say).
+
+    Raises:
+        ConfigError: the file is not a stable-baselines3 model archive (corrupt, truncated).
+    """
+    try:
+        with zipfile.ZipFile(model_path) as z:
+            data = json.loads(z.read("data"))
+    except (zipfile.BadZipFile, KeyError, ValueError, OSError) as exc:
+        raise ConfigError(
+            f"{model_path} is not a stable-baselines3 model file ({type(exc).__name__}: {exc})"
+        ) from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"{model_path} is not a stable-baselines3 model file (bad 'data')")
+    if "clip_range" in data:
+        return "ppo"
+    if "target_update_interval" in data:
+        return "dqn"
+    if "n_steps" in data:
+        return "a2c"
+    return None
+
+
+def observation_options(folder: str | Path) -> dict[str, Any]:
+    """The observation options a trained policy was trained with (from its config.yaml)."""
+    env = read_config(folder).get("env", {})
     return {k: env[k] for k in OBSERVATION_OPTIONS if k in env}
 
 
@@ -37,7 +90,7 @@ def algo_class(algo: str) -> Any:
         ) from exc
     classes = {"ppo": sb3.PPO, "a2c": sb3.A2C, "dqn": sb3.DQN}
     if algo not in classes:
-        raise ValueError(f"unknown algorithm {algo!r}; choose one of {', '.join(ALGOS)}")
+        raise ConfigError(f"unknown algorithm {algo!r}; choose one of {', '.join(ALGOS)}")
     return classes[algo]
 
 
@@ -67,10 +120,20 @@ class TrainedTeamPolicy:
         model_path = folder / "model.zip"
         if not model_path.is_file():
             raise FileNotFoundError(f"no trained model at {model_path}")
-        algo = "ppo"
-        if cfg_path.is_file():
-            algo = str(yaml.safe_load(cfg_path.read_text()).get("algo", "ppo"))
-        model = algo_class(algo).load(str(model_path), device="cpu")
+        algo = str(read_config(folder).get("algo", "ppo"))
+        saved_by = model_algo(model_path)
+        if saved_by is not None and saved_by != algo:
+            raise ConfigError(
+                f"{cfg_path} says algo {algo!r} but {model_path} was saved by {saved_by!r}; "
+                "fix the config's 'algo'"
+            )
+        try:
+            model = algo_class(algo).load(str(model_path), device="cpu")
+        except (ValueError, KeyError, RuntimeError, EOFError, zipfile.BadZipFile) as exc:
+            raise ConfigError(
+                f"cannot load {model_path} as a {algo} model ({type(exc).__name__}: "
+                f"{str(exc).splitlines()[0] if str(exc) else ''})"
+            ) from None
         return cls(model, agents, deterministic)
 
     def reset(self, rng: np.random.Generator) -> None:

@@ -47,6 +47,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from mrexplore.errors import ConfigError
 from mrexplore.grid import (
     FREE_THRESHOLD,
     OCCUPIED_THRESHOLD,
@@ -551,6 +552,8 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     resolution_m = opt.get_float("resolution_m", 0.05, lo=1e-6)
     slack = opt.get_int("slack_cells", 0, lo=0, hi=10)
     opt.finish()
+    if options.get("detector") is not None and not use_paper:
+        raise ConfigError(f"{where}: detector= is used only with paper_candidates=True")
     info: dict[str, Any] = {}
 
     def refuse(reason: str, score: float = 0.0, **kw: Any) -> MergeResult:

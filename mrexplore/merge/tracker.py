@@ -90,6 +90,17 @@ def _map_box(T: Transform, box: Box) -> Box:
     )
 
 
+class NamedMerger:
+    """``merge_maps`` with a fixed method and options, as a plain (picklable) callable."""
+
+    def __init__(self, method: str, options: dict[str, Any]) -> None:
+        self.method = method
+        self.options = dict(options)
+
+    def __call__(self, a: Int8Grid, b: Int8Grid) -> MergeResult:
+        return merge_maps(a, b, method=self.method, **self.options)
+
+
 def _resolve_merger(merger: Any, options: dict[str, Any]) -> Merger:
     if isinstance(merger, str):
         if merger.lower() not in METHODS:
@@ -103,10 +114,7 @@ def _resolve_merger(merger: Any, options: dict[str, Any]) -> Merger:
         probe = np.full((4, 4), -1, dtype=np.int8)
         merge_maps(probe, probe, method=method, **options)
 
-        def run(a: Int8Grid, b: Int8Grid) -> MergeResult:
-            return merge_maps(a, b, method=method, **options)
-
-        return run
+        return NamedMerger(method, options)
     if options:
         raise ConfigError(
             f"MapMergeTracker: options {sorted(options)} only apply to a named merger, "

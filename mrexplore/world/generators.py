@@ -160,6 +160,9 @@ def _params(resolution_m: float, options: dict[str, Any], extra: set[str]) -> _P
             )
         return lo, hi
 
+    furniture = options.get("furniture", True)
+    if not isinstance(furniture, (bool, np.bool_)):
+        raise WorldError(f"option 'furniture' must be True or False, got {furniture!r}")
     return _Params(
         res=res,
         t=t,
@@ -167,7 +170,7 @@ def _params(resolution_m: float, options: dict[str, Any], extra: set[str]) -> _P
         clear=clear,
         corridor=_range("corridor_width_m", CORRIDOR_MIN_M, CORRIDOR_MAX_M),
         door=_range("door_width_m", DOOR_MIN_M, DOOR_MAX_M),
-        furniture=bool(options.get("furniture", True)),
+        furniture=bool(furniture),
     )
 
 

@@ -45,6 +45,7 @@ from mrexplore.grid import (
     Int8Grid,
     validate_grid,
 )
+from mrexplore.io_safety import write_bytes, write_text
 from mrexplore.world.world import World
 
 __all__ = [
@@ -82,6 +83,7 @@ class OccupancyFile:
         origin_m: (x_m, y_m, yaw_rad) of the lower-left corner of cell (0, 0), as in the YAML.
         path: the YAML file it came from (resolved).
         extra: the YAML's ``mrexplore`` block (generator facts), empty for plain map_server files.
+        image_path: the image file the YAML names (absolute), None when built by hand.
     """
 
     grid: Int8Grid
@@ -89,6 +91,7 @@ class OccupancyFile:
     origin_m: tuple[float, float, float]
     path: Path
     extra: dict[str, Any] = field(default_factory=dict)
+    image_path: Path | None = None
 
 
 def _number(doc: dict[str, Any], key: str, path: Path, default: float | None = None) -> float:
@@ -167,7 +170,9 @@ def read_map_yaml(path: str | Path) -> OccupancyFile:
     resolution = _number(doc, "resolution", yaml_path)
     if resolution <= 0.0:
         raise MapFileError(f"map file {yaml_path}: 'resolution' must be positive, got {resolution}")
-    origin_raw = doc.get("origin", [0.0, 0.0, 0.0])
+    if "origin" not in doc:  # map_server requires it: a silent 0 would misplace the map
+        raise MapFileError(f"map file {yaml_path}: missing required key 'origin' [x, y, yaw]")
+    origin_raw = doc["origin"]
     if not isinstance(origin_raw, (list, tuple)) or len(origin_raw) != 3:
         raise MapFileError(
             f"map file {yaml_path}: 'origin' must be [x, y, yaw], got {origin_raw!r}"
@@ -205,6 +210,7 @@ def read_map_yaml(path: str | Path) -> OccupancyFile:
         origin_m=(origin_vals[0], origin_vals[1], origin_vals[2]),
         path=yaml_path,
         extra=extra,
+        image_path=image_path.resolve(),
     )
 
 
@@ -308,7 +314,7 @@ def write_map_yaml(
     ok, encoded = cv2.imencode("." + fmt, pixels)
     if not ok:  # pragma: no cover - OpenCV always encodes 8-bit grey PGM/PNG
         raise MapFileError(f"OpenCV could not encode {image_path}")
-    image_path.write_bytes(encoded.tobytes())
+    write_bytes(image_path, encoded.tobytes())
     text = (
         f"image: {image_path.name}\n"
         f"mode: trinary\n"
@@ -325,7 +331,7 @@ def write_map_yaml(
             )
         except yaml.YAMLError as exc:
             raise MapFileError(f"extra map data is not plain YAML data: {exc}") from exc
-    yaml_path.write_text(text, encoding="utf-8")
+    write_text(yaml_path, text)
     return yaml_path
 
 

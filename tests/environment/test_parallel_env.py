@@ -230,3 +230,51 @@ def test_navigation_warmup_hides_the_goal_then_restarts_robot0() -> None:
     np.testing.assert_allclose(penv.sim.true_poses[0], start)  # back at its start
     _, _, _, _, infos = penv.step({"robot_0": 3, "robot_1": 3})
     assert infos["robot_0"]["task_time_s"] == pytest.approx(0.25)
+
+
+@pytest.mark.parametrize(
+    ("options", "words"),
+    [
+        ({"aligned_headings": "no"}, "aligned_headings must be True or False"),
+        ({"obs_heading_up": "yes"}, "obs_heading_up must be True or False"),
+        ({"nav_return_to_start": 0}, "nav_return_to_start must be True or False"),
+        ({"odom_noise_trans": 100}, r"odom_noise_trans=100 is out of range.*\[0, 0.5\]"),
+        ({"odom_noise_rot": 5.0}, r"odom_noise_rot=5.0 is out of range"),
+        ({"odom_noise_rot_per_m": 2.0}, r"odom_noise_rot_per_m=2.0 is out of range"),
+        ({"range_noise_m": 10.0}, "range_noise_m=10.0 must be below max_range_m"),
+    ],
+)
+def test_bad_option_values_name_the_option(options: dict, words: str) -> None:
+    with pytest.raises(ConfigError, match=words):
+        mrexplore.parallel_env(**{**SMALL, **options})
+
+
+def test_numpy_scalars_are_accepted_as_numbers_and_bools() -> None:
+    penv = mrexplore.parallel_env(
+        **{
+            **SMALL,
+            "n_robots": np.int64(2),
+            "obs_size_px": np.int32(40),
+            "max_range_m": np.float32(3.0),
+            "aligned_headings": np.bool_(False),
+        }
+    )
+    assert type(penv.config.n_robots) is int and penv.config.aligned_headings is False
+    penv.reset(seed=np.int64(3))
+
+
+@pytest.mark.parametrize("seed", [-1, 1.5, "3", True])
+def test_bad_reset_seed_is_a_config_error(seed: object) -> None:
+    penv = mrexplore.parallel_env(**SMALL)
+    with pytest.raises(ConfigError, match="seed must be an integer >= 0"):
+        penv.reset(seed=seed)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("merger", ["semantic", "paper", "orb"])
+def test_plain_pickle_with_a_named_merger(merger: str) -> None:
+    import pickle
+
+    penv = mrexplore.parallel_env(**{**SMALL, "merger": merger})
+    penv.reset(seed=0)
+    clone = pickle.loads(pickle.dumps(penv))
+    assert clone.agents == penv.agents

@@ -10,6 +10,8 @@ import cv2
 import pytest
 
 from mrexplore.cli import main
+from mrexplore.errors import OutputExistsError
+from mrexplore.experiments import task_time
 from mrexplore.experiments.task_time import run_task_time
 
 
@@ -49,3 +51,87 @@ def test_demo_command_writes_pictures(tmp_path: Path) -> None:
     assert (out / "episode.gif").stat().st_size > 1000
     img = cv2.imread(str(out / "final.png"))
     assert img is not None and img.shape[1] > 1000
+
+
+# --- validate first, resume, never overwrite (issue 14) -------------------------------------
+
+
+def _no_episodes(*args: object, **kwargs: object) -> None:
+    raise AssertionError("an episode ran before the arguments were checked")
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (["--max-time-s", "10", "--nav-warmup-s", "20"], "nav_warmup_s (20.0) must be shorter"),
+        (["--first-seed", "-1"], "first_seed must be an integer >= 0"),
+        (["--seeds", "0"], "seeds must be an integer >= 1"),
+        (["--policy", "nope"], "unknown policy 'nope'"),
+        (["--world", "no_such_world"], "no_such_world"),
+    ],
+)
+def test_task_time_checks_every_argument_before_any_episode(
+    tmp_path: Path, monkeypatch, args: list[str], words: str, capsys
+) -> None:  # type: ignore[no-untyped-def]
+    monkeypatch.setattr(task_time, "run_episode", _no_episodes)
+    rc = main(["task-time", "--world", "small_office", "--out", str(tmp_path / "r"), *args])
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert words in err and len(err.strip().splitlines()) == 1
+
+
+def test_task_time_resumes_and_keeps_results(tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    calls: list[int] = []
+    real = task_time.run_episode
+
+    def interrupted(opts, team, seed):  # type: ignore[no-untyped-def]
+        calls.append(seed)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(opts, team, seed)
+
+    kw = {
+        "world": "small_office",
+        "seeds": 1,
+        "policy": "nearest-frontier",
+        "out": tmp_path,
+        "tasks": ("explore",),
+        "env_options": {"max_time_s": 10.0},
+        "progress": False,
+    }
+    monkeypatch.setattr(task_time, "run_episode", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        run_task_time(**kw)  # type: ignore[arg-type]
+    assert not (tmp_path / "task_time.json").exists()
+    calls.clear()
+    doc = run_task_time(**kw)  # type: ignore[arg-type]
+    assert len(calls) == 1  # the single-robot episode was saved; only the team one ran again
+    assert len(doc["tasks"]["explore"]["single"]["task_times_s"]) == 1
+    with pytest.raises(OutputExistsError, match="already exists"):
+        run_task_time(**kw)  # type: ignore[arg-type]
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "episodes.jsonl").write_bytes((tmp_path / "episodes.jsonl").read_bytes())
+    with pytest.raises(OutputExistsError, match="other settings"):
+        run_task_time(**{**kw, "out": other, "policy": "random"})  # type: ignore[arg-type]
+    calls.clear()
+    run_task_time(**{**kw, "force": True})  # type: ignore[arg-type]
+    assert calls == []  # same settings: every episode came from the log
+
+
+def test_task_time_out_naming_a_file(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    (tmp_path / "f").write_text("x")
+    assert main(["task-time", "--out", str(tmp_path / "f"), "--seeds", "1"]) == 2
+    assert "existing file" in capsys.readouterr().err
+
+
+def test_demo_refuses_to_overwrite_and_bad_seed(tmp_path: Path, monkeypatch, capsys) -> None:  # type: ignore[no-untyped-def]
+    from mrexplore.experiments import demo
+
+    monkeypatch.setattr(demo, "run_episode", _no_episodes)
+    (tmp_path / "final.png").write_bytes(b"earlier")
+    assert main(["demo", "--out", str(tmp_path)]) == 2
+    assert "already exists" in capsys.readouterr().err
+    assert main(["demo", "--out", str(tmp_path / "new"), "--seed", "-1"]) == 2
+    assert "seed must be an integer >= 0" in capsys.readouterr().err
+    assert (tmp_path / "final.png").read_bytes() == b"earlier"

@@ -112,3 +112,108 @@ def test_bad_training_input() -> None:
         load_hyperparams("ppo", "/no/such/file.yaml")
     with pytest.raises(ConfigError, match="not a trained policy folder"):
         evaluate_folder("/no/such/folder", n_seeds=1)
+    with pytest.raises(ConfigError, match="timesteps"):
+        train(timesteps=0, out="/nonexistent/never/created")
+
+
+# --- refuse bad input at the door, never overwrite a policy (issue 14) ----------------------
+
+SHIPPED = Path(__file__).resolve().parents[2] / "policies" / "ppo_symmetric_2r"
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (["--timesteps", "0"], "timesteps must be an integer >= 1"),
+        (["--timesteps", "-5"], "timesteps must be an integer >= 1"),
+        (["--seed", "-1"], "seed must be an integer >= 0"),
+        (["--eval-seeds", "-1"], "eval_seeds must be an integer >= 1"),
+        (["--final-eval-seeds", "-1"], "final_eval_seeds must be an integer >= 0"),
+        (["--n-copies", "0"], "n_copies must be an integer >= 1"),
+    ],
+)
+def test_train_refuses_bad_numbers_before_any_work(
+    tmp_path: Path, args: list[str], words: str, capsys
+) -> None:  # type: ignore[no-untyped-def]
+    from mrexplore.cli import main
+
+    out = tmp_path / "p"
+    assert main(["train", "--out", str(out), *args]) == 2
+    err = capsys.readouterr().err
+    assert words in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_train_refuses_an_existing_policy_folder(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    from mrexplore.cli import main
+
+    (tmp_path / "p").mkdir()
+    (tmp_path / "p" / "model.zip").write_bytes(b"shipped")
+    assert main(["train", "--out", str(tmp_path / "p"), "--timesteps", "10"]) == 2
+    assert "not empty" in capsys.readouterr().err
+    assert (tmp_path / "p" / "model.zip").read_bytes() == b"shipped"
+    (tmp_path / "f").write_text("x")
+    assert main(["train", "--out", str(tmp_path / "f"), "--timesteps", "10"]) == 2
+    assert "existing file" in capsys.readouterr().err
+
+
+def test_final_evaluation_scales_with_the_run() -> None:
+    from mrexplore.experiments.train import final_eval_seed_count
+
+    assert final_eval_seed_count(2_000) == 2
+    assert final_eval_seed_count(300_000) == 20
+    assert final_eval_seed_count(10**9) == 20
+
+
+def _policy_copy(tmp_path: Path, config: str | None = None) -> Path:
+    import shutil
+
+    folder = tmp_path / "pol"
+    folder.mkdir()
+    shutil.copy(SHIPPED / "model.zip", folder / "model.zip")
+    shutil.copy(SHIPPED / "config.yaml", folder / "config.yaml")
+    if config is not None:
+        (folder / "config.yaml").write_text(config)
+    return folder
+
+
+@pytest.mark.parametrize(
+    ("config", "model", "words"),
+    [
+        ("algo: [unclosed\n", None, "is not valid YAML"),  # broken config.yaml
+        ("- a list\n", None, "must be a mapping"),
+        ("algo: dqn\nenv: {}\n", None, "was saved by 'ppo'"),  # algo does not match the model
+        ("algo: sac\n", None, "unknown algo 'sac'"),
+        (None, b"not a zip at all", "not a stable-baselines3 model file"),  # corrupt model.zip
+    ],
+)
+def test_evaluate_bad_policy_folder_is_one_clear_error(
+    tmp_path: Path, config: str | None, model: bytes | None, words: str, capsys
+) -> None:  # type: ignore[no-untyped-def]
+    from mrexplore.cli import main
+
+    folder = _policy_copy(tmp_path, config)
+    if model is not None:
+        (folder / "model.zip").write_bytes(model)
+    assert main(["evaluate", str(folder), "--seeds", "1", "--out", str(tmp_path / "e")]) == 2
+    err = capsys.readouterr().err
+    assert words in err and len(err.strip().splitlines()) == 1
+
+
+def test_evaluate_never_writes_into_the_policy_folder(tmp_path: Path, monkeypatch, capsys) -> None:  # type: ignore[no-untyped-def]
+    from mrexplore.cli import main
+    from mrexplore.experiments.evaluate import default_eval_dir
+
+    folder = _policy_copy(tmp_path)
+    before = sorted(p.name for p in folder.iterdir())
+    monkeypatch.chdir(tmp_path)
+    assert default_eval_dir(folder) == Path("eval") / "pol"
+    assert main(["evaluate", str(folder), "--seeds", "-1"]) == 2
+    assert "at least 1 seed" in capsys.readouterr().err
+    assert main(["evaluate", str(folder), "--out", str(folder), "--force"]) == 2
+    assert "will not write into" in capsys.readouterr().err
+    (tmp_path / "eval" / "pol").mkdir(parents=True)
+    (tmp_path / "eval" / "pol" / "eval.json").write_text("{}")
+    assert main(["evaluate", str(folder)]) == 2  # an earlier result: needs --force
+    assert "not empty" in capsys.readouterr().err
+    assert sorted(p.name for p in folder.iterdir()) == before

@@ -113,3 +113,31 @@ def test_random_grids_give_valid_results(a: np.ndarray, b: np.ndarray, method: s
         assert res.merged is not None and res.merged.dtype == np.int8
     else:
         assert res.reason
+
+
+def test_resolution_is_explicit_validated_and_reported(office_pair) -> None:  # type: ignore[no-untyped-def]
+    a, b, _ = office_pair
+    assumed = merge_maps(a, b, min_common_m2=100.0)
+    assert assumed.info["resolution_m"] == 0.05 and assumed.info["resolution_assumed"] is True
+    assert not assumed.matched and "38" in assumed.reason  # 38 m^2 at the assumed 0.05
+    given = merge_maps(a, b, min_common_m2=100.0, resolution_m=0.1)
+    assert given.matched and given.info["resolution_m"] == 0.1
+    assert merge_maps(a, b, method="orb", resolution_m=0.1).info["resolution_m"] == 0.1
+    for bad in (0.0, -0.05, float("nan"), "0.05", True):
+        with pytest.raises(ConfigError, match="resolution_m"):
+            merge_maps(a, b, resolution_m=bad)
+
+
+def test_semantic_detector_without_paper_candidates_is_an_error() -> None:
+    m = np.full((40, 40), -1, dtype=np.int8)
+    with pytest.raises(ConfigError, match="paper_candidates=True"):
+        merge_maps(m, m, detector="harris")
+    merge_maps(m, m, detector="harris", paper_candidates=True)  # used: fine
+
+
+@pytest.mark.parametrize("bad", ["no", "False", 1, 0, None])
+def test_bool_options_accept_only_bools(bad: object) -> None:
+    m = np.full((40, 40), -1, dtype=np.int8)
+    with pytest.raises(ConfigError, match="True or False"):
+        merge_maps(m, m, paper_candidates=bad)
+    merge_maps(m, m, paper_candidates=np.bool_(False))

@@ -70,3 +70,63 @@ def test_different_resolutions_raise(files, tmp_path: Path) -> None:  # type: ig
     pa, _, pc = files
     with pytest.raises(MapFileError, match="resolutions"):
         merge_files(pa, pc, tmp_path / "m.yaml")
+
+
+# --- never destroy a user's files (issue 14) ------------------------------------------------
+
+
+def _snapshot(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()}
+
+
+@pytest.mark.parametrize("target", ["a", "b"])
+def test_output_naming_an_input_is_refused_and_nothing_is_written(
+    files, tmp_path: Path, target: str, capsys
+) -> None:  # type: ignore[no-untyped-def]
+    pa, pb, _ = files
+    before = _snapshot(tmp_path)
+    out = {"a": pa, "b": pb}[target]
+    assert main([str(pa), str(pb), "-o", str(out)]) == 2
+    assert "would overwrite the input" in capsys.readouterr().err
+    assert _snapshot(tmp_path) == before  # neither the YAML nor its image (or a .png) changed
+
+
+def test_figure_png_colliding_with_an_input_image_is_refused(
+    tmp_path: Path, office_pair, capsys
+) -> None:  # type: ignore[no-untyped-def]
+    a, b, _ = office_pair
+    pa = write_map_yaml(tmp_path / "a.yaml", a, 0.05, image_format="png")  # image a.png
+    pb = write_map_yaml(tmp_path / "b.yaml", b, 0.05)
+    before = _snapshot(tmp_path)
+    # out.yaml elsewhere, but its figure would be tmp/a.png = a's own image
+    assert main([str(pa), str(pb), "-o", str(tmp_path / "a.yml")]) == 2
+    assert "a.png" in capsys.readouterr().err
+    assert _snapshot(tmp_path) == before
+
+
+def test_existing_output_needs_force(files, tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    pa, pb, _ = files
+    out = tmp_path / "m.yaml"
+    out.write_text("precious\n")
+    assert main([str(pa), str(pb), "-o", str(out)]) == 2
+    assert "already exists" in capsys.readouterr().err and out.read_text() == "precious\n"
+    assert main([str(pa), str(pb), "-o", str(out), "--force"]) == 0
+    assert read_map_yaml(out).grid.size > 0
+    assert not [p for p in tmp_path.iterdir() if ".tmp-" in p.name]  # no temporary left over
+
+
+def test_output_naming_a_folder_is_a_bad_input(files, tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    pa, pb, _ = files
+    (tmp_path / "d.yaml").mkdir()
+    assert main([str(pa), str(pb), "-o", str(tmp_path / "d.yaml")]) == 2
+    assert "folder" in capsys.readouterr().err
+
+
+def test_min_common_m2_is_measured_at_the_files_resolution(tmp_path: Path, office_pair) -> None:  # type: ignore[no-untyped-def]
+    # At 0.1 m/cell the two crops share ~150 m^2; assuming 0.05 m/cell made it ~38 m^2.
+    a, b, _ = office_pair
+    pa = write_map_yaml(tmp_path / "a.yaml", a, 0.1)
+    pb = write_map_yaml(tmp_path / "b.yaml", b, 0.1)
+    res = merge_files(pa, pb, tmp_path / "m.yaml", min_common_m2=100.0)
+    assert res.info["resolution_m"] == 0.1 and res.info["resolution_assumed"] is False
+    assert res.matched, res.reason

@@ -203,7 +203,13 @@ def test_world_from_file_no_border_when_edges_are_walls(tmp_path: Path) -> None:
         # not a mapping at all
         ("- just\n- a list\n", MapFileError, "mapping"),
         # image that does not exist
-        ("image: nothere.pgm\nresolution: 0.05\n", MapFileNotFoundError, "nothere.pgm"),
+        (
+            "image: nothere.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n",
+            MapFileNotFoundError,
+            "nothere",
+        ),
+        # no origin: map_server requires it (it used to default to 0 silently)
+        ("image: IMAGE\nresolution: 0.05\n", MapFileError, "missing required key 'origin'"),
     ],
 )
 def test_bad_yaml_raises_named_error(

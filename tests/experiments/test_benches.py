@@ -1,0 +1,36 @@
+"""Bad options of ``mrexplore bench merge|env`` are errors (exit 2) before any work."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from mrexplore.cli import main
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (["merge", "--methods", "bogus"], "unknown method(s) ['bogus']"),
+        (["merge", "--detectors", "nope"], "unknown detector(s) ['nope']"),
+        (["merge", "--families", "moon"], "unknown family"),
+        (["merge", "--n", "0"], "n_cases must be >= 1"),
+        (["env", "--steps", "0"], "--steps must be at least 1"),
+        (["env", "--seed", "-1"], "--seed must be an integer >= 0"),
+    ],
+)
+def test_bench_bad_options_exit_2(args: list[str], words: str, capsys) -> None:  # type: ignore[no-untyped-def]
+    assert main(["bench", *args]) == 2
+    err = capsys.readouterr().err
+    assert words in err and len(err.strip().splitlines()) == 1
+
+
+def test_bench_outputs_are_not_overwritten(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    (tmp_path / "r.md").write_text("earlier")
+    assert main(["bench", "merge", "--n", "1", "--out", str(tmp_path / "r")]) == 2
+    assert "already exists" in capsys.readouterr().err
+    (tmp_path / "e.json").write_text("earlier")
+    assert main(["bench", "env", "--steps", "1", "--json", str(tmp_path / "e.json")]) == 2
+    assert "already exists" in capsys.readouterr().err
+    assert (tmp_path / "r.md").read_text() == (tmp_path / "e.json").read_text() == "earlier"

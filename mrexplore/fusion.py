@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from mrexplore.grid import check_int8_map
 
 #: Known space (m^2) two maps must share before the every-step merger accepts a match.
-IN_LOOP_MIN_COMMON_M2 = 40.0
+IN_LOOP_MIN_COMMON_M2 = 20.0
 
 
 class FusionStage:

@@ -5,11 +5,11 @@ Each step the caller hands over the robots' own-frame maps. The tracker
 - every ``merge_every`` steps tries to merge each pair of robots that are in communication range
   and not yet connected (directly or through a chain of merged pairs), calling the merger on the
   maps cropped to their known bounding boxes;
-- accepts a pair's transform only once ``confirmations`` consecutive attempts, each on maps
-  that grew since the last, found the same transform (within ``confirm_tol_cells``): a
-  look-alike match made on two small partial maps tends to move or vanish as the maps grow,
-  the true one stays put (measured: in-loop wrong merges on ``small_office`` with rotated starts
-  came from single attempts on maps with ~150-270 agreeing wall cells);
+- accepts a pair's transform only once ``confirmations`` consecutive attempts found the same
+  transform (within ``confirm_tol_cells``), each resting on ``confirm_growth`` more shared wall
+  cells than the one before: evidence accumulated over time. A look-alike match stays confined
+  to the look-alike part (its shared evidence cannot grow without a contradiction, which
+  refuses and breaks the run), the true one spreads as the maps grow;
 - keeps an accepted transform; every ``recheck_every`` steps re-runs the merger on merged pairs
   and replaces the transform only when the new one scores clearly better (by
   ``replace_margin``) than the kept one does *on the same current maps*: no flip-flopping;
@@ -149,6 +149,9 @@ class MapMergeTracker:
             falls below this (default 0.85; 0 never drops).
         retry_growth: an unmerged pair is tried again only once the two maps together know this
             share more cells than at the last attempt (default 0.02; 0 = any change).
+        confirm_growth: an agreeing attempt confirms the pending transform only when the shared
+            wall cells under it (``MergeResult.overlap_cells``) grew by this share since the
+            attempt before (default 0: any agreeing attempt on grown maps confirms).
         **merge_options: options for the named merger (validated at construction).
 
     >>> import numpy as np
@@ -170,6 +173,7 @@ class MapMergeTracker:
         confirm_tol_cells: float = 2.0,
         drop_below: float = 0.85,
         retry_growth: float = 0.02,
+        confirm_growth: float = 0.0,
         **merge_options: Any,
     ) -> None:
         if (
@@ -226,6 +230,11 @@ class MapMergeTracker:
                 f"MapMergeTracker: retry_growth must be in [0, 10], got {retry_growth!r}"
             )
         self.retry_growth = float(retry_growth)
+        if not 0.0 <= float(confirm_growth) <= 10.0:
+            raise ConfigError(
+                f"MapMergeTracker: confirm_growth must be in [0, 10], got {confirm_growth!r}"
+            )
+        self.confirm_growth = float(confirm_growth)
         self._merge = _resolve_merger(merger, dict(merge_options))
         self.reset()
 
@@ -238,8 +247,8 @@ class MapMergeTracker:
         self._version = [0] * self.n
         self._edges: dict[tuple[int, int], Transform] = {}  # (i, j), i < j: T_ij direct
         self._edge_score: dict[tuple[int, int], float] = {}
-        # (i, j) -> (T_ij candidate, agreeing attempts so far, map versions at the last attempt)
-        self._pending: dict[tuple[int, int], tuple[Transform, int, tuple[int, int]]] = {}
+        # (i, j) -> (T_ij candidate, agreeing attempts so far, shared wall cells it rested on)
+        self._pending: dict[tuple[int, int], tuple[Transform, int, int]] = {}
         # (i, j) -> known cells of both maps at the last merge attempt
         self._last_attempt_known: dict[tuple[int, int], int] = {}
         self._results: dict[tuple[int, int], MergeResult] = {}
@@ -379,8 +388,16 @@ class MapMergeTracker:
                     self._pending.pop((i, j), None)  # a refusal breaks the run of agreements
                     continue
                 T = out[1]
+                evidence = int(out[0].overlap_cells)
                 count = 1
                 if pending is not None and self._same(pending[0], T, j):
+                    # The same transform again counts as a confirmation only when it now rests
+                    # on clearly more shared evidence (wall cells both maps see under it): a
+                    # look-alike match stays confined to the look-alike part, the truth spreads
+                    # as the maps grow. Without new evidence the run is kept, not extended.
+                    grown = evidence >= pending[2] * (1.0 + self.confirm_growth)
+                    if not grown:
+                        continue
                     count = pending[1] + 1
                 if count >= self.confirmations:
                     self._pending.pop((i, j), None)
@@ -388,7 +405,7 @@ class MapMergeTracker:
                     self._edge_score[(i, j)] = out[0].score
                     self._paths = None
                 else:
-                    self._pending[(i, j)] = (T, count, (self._version[i], self._version[j]))
+                    self._pending[(i, j)] = (T, count, evidence)
 
     def _same(self, T1: Transform, T2: Transform, j: int) -> bool:
         """Do two estimates of T_ij put robot j's known box in the same place (within tolerance)?"""

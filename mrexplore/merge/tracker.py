@@ -460,6 +460,10 @@ class MapMergeTracker:
         """True once robot i's map is connected to at least one teammate's."""
         return len(self.group(i)) > 1
 
+    def map_version(self, i: int) -> int:
+        """A counter that grows whenever robot i's map content changes (0 before any map)."""
+        return self._version[i]
+
     def group(self, i: int) -> set[int]:
         """Robots whose maps are merged with robot i's (including i)."""
         return {i} | {v for (s, v) in self._all_paths() if s == i}

@@ -49,3 +49,20 @@ def test_demo_command_writes_pictures(tmp_path: Path) -> None:
     assert (out / "episode.gif").stat().st_size > 1000
     img = cv2.imread(str(out / "final.png"))
     assert img is not None and img.shape[1] > 1000
+
+
+def test_task_time_json_has_map_accuracy(tmp_path: Path) -> None:
+    run_task_time(
+        world="small_office",
+        seeds=1,
+        tasks=["explore"],
+        out=tmp_path,
+        progress=False,
+        env_options={"max_time_s": 5.0},
+    )
+    data = json.loads((tmp_path / "task_time.json").read_text())
+    for team in ("single", "multi"):
+        entry = data["tasks"]["explore"][team]
+        (c,) = entry["max_fused_contradiction"]
+        assert isinstance(c, float) and 0.0 <= c < 0.05
+        assert entry["merged_wrongly_s"] == [0.0]

@@ -53,6 +53,10 @@ def _bench(argv: Sequence[str]) -> int:
         from mrexplore.experiments.merge_bench import main as merge_main
 
         return int(merge_main(rest))
+    if what == "loop":
+        from mrexplore.experiments.loop_study import main as loop_main
+
+        return int(loop_main(rest))
     if what == "env":
         from mrexplore.experiments.env_bench import main as env_main
 
@@ -68,8 +72,9 @@ def _bench(argv: Sequence[str]) -> int:
         wrappers_main(rest)
         return 0
     usage = (
-        "usage: mrexplore bench {merge,env,policies,wrappers} [options]  (each takes --help)\n"
+        "usage: mrexplore bench {merge,loop,env,policies,wrappers} [options]  (each takes --help)\n"
         "  merge     the merge table: method x detector on symmetric worlds and real maps\n"
+        "  loop      in-loop study: merges, task time against an oracle merger, wrong merges\n"
         "  env       environment steps per second with a per-stage breakdown\n"
         "  policies  planner speed and policy cost per step\n"
         "  wrappers  merge wrapper, single-robot env and SB3 adapter throughput\n"
@@ -149,7 +154,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     for name, helptext in (
         ("merge", "merge two map_server maps: mrexplore merge a.yaml b.yaml -o merged.yaml"),
-        ("bench", "benchmarks: mrexplore bench {merge,env,policies,wrappers}"),
+        ("bench", "benchmarks: mrexplore bench {merge,loop,env,policies,wrappers}"),
         ("train", "train a shared policy with stable-baselines3"),
         ("evaluate", "evaluate a trained policy against the baselines"),
     ):

@@ -50,6 +50,12 @@ class FusionStage:
         self.enabled = merger is not None and len(self.agents) > 1
         self._maps: list[NDArray[np.int8]] = []
         self._first_merge_step: dict[str, int | None] = dict.fromkeys(self.agents)
+        # fused_version: a counter that only grows (never reset, so a version never repeats),
+        # the version of the last update without a merger, and per agent (what the fused map
+        # was last seen as, its version)
+        self._counter = 0
+        self._update_version = 0
+        self._seen: dict[str, tuple[tuple[str, Any], int]] = {}
         self.tracker: Any = None
         if self.enabled:
             from mrexplore.merge import MapMergeTracker
@@ -74,6 +80,7 @@ class FusionStage:
         """Forget every transform (a new episode)."""
         self._maps = []
         self._first_merge_step = dict.fromkeys(self.agents)
+        self._seen = {}
         if self.tracker is not None:
             self.tracker.reset()
 
@@ -91,6 +98,8 @@ class FusionStage:
         if missing:
             raise KeyError(f"no local map for agent(s) {missing}")
         self._maps = [check_int8_map(local_maps[a], f"local map of {a}") for a in self.agents]
+        self._counter += 1
+        self._update_version = self._counter
         if self.tracker is None:
             return
         self.tracker.update(self._maps, step, links)
@@ -112,6 +121,32 @@ class FusionStage:
         if self.tracker is not None and self.tracker.merged(i):
             return np.asarray(self.tracker.fused(i))
         return self._maps[i]
+
+    def fused_version(self, agent: str) -> int:
+        """A number that changes whenever :meth:`fused` of ``agent`` may have changed.
+
+        For caching per-map evaluations (the env's map-accuracy metrics). With a merger it
+        changes only when the fused map (or, unmerged, the own map) really changed: the tracker
+        returns the same fused array until a map or transform changes, and counts own-map
+        changes. Without a merger (``merger=None`` or one agent) there is no change detection:
+        it changes at every :meth:`update`. It never repeats across :meth:`reset`.
+        """
+        if self.tracker is None:
+            return self._update_version
+        i = self.index[agent]
+        key: tuple[str, Any]
+        if self.tracker.merged(i):
+            key = ("fused", self.tracker.fused(i))  # the same object until something changed
+        else:
+            key = ("own", self.tracker.map_version(i))
+        seen = self._seen.get(agent)
+        if seen is not None:
+            (kind, ref), version = seen
+            if kind == key[0] and (ref is key[1] if kind == "fused" else ref == key[1]):
+                return version
+        self._counter += 1
+        self._seen[agent] = (key, self._counter)
+        return self._counter
 
     def transforms(self, agent: str) -> dict[str, NDArray[np.float64]]:
         """Estimated transforms from each merged teammate's cells into ``agent``'s cells."""

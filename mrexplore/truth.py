@@ -6,6 +6,10 @@ Frames. World cells are the cells of :class:`mrexplore.world.World` (``(col, row
 centres). A robot's map cells are those of its :class:`mrexplore.mapping.OccupancyMap`: its start
 position at ``origin_cell``, +col along its start heading. Transforms are 3x3 float64 on
 ``(col, row, 1)``; ``T_ab`` maps b's cells into a's.
+
+Map accuracy (:class:`MapScorer`, :func:`map_contradiction`): a robot's map (its own or its
+fused map) is warped into the world frame with the *true* transform and compared with the walls,
+so a map merged with a wrong transform shows as knowledge that contradicts the truth.
 """
 
 from __future__ import annotations
@@ -17,7 +21,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError, GridError
-from mrexplore.grid import Transform, apply_transform, transform_angle
+from mrexplore.grid import (
+    FREE,
+    FREE_THRESHOLD,
+    OCCUPIED_THRESHOLD,
+    UNKNOWN,
+    Int8Grid,
+    Transform,
+    apply_transform,
+    transform_angle,
+)
 from mrexplore.robot import configuration_space, disc_kernel, largest_component
 from mrexplore.world.world import World
 
@@ -127,3 +140,122 @@ def transform_error(
     disp = np.linalg.norm(apply_transform(T_est, pts) - apply_transform(T_true, pts), axis=1)
     rot = abs(math.degrees(transform_angle(np.asarray(T_est) @ np.linalg.inv(T_true))))
     return float(disp.mean()), float(rot)
+
+
+def map_in_world(
+    map_grid: Int8Grid, T_world_from_map: Transform, world_shape: tuple[int, int]
+) -> Int8Grid:
+    """A robot's int8 map (H_m, W_m) warped into the world's cells: int8 ``world_shape``.
+
+    Nearest neighbour: each world cell takes the value of the map cell its centre falls in
+    (``T_world_from_map`` maps map cells ``(col, row, 1)`` to world cells); world cells whose
+    preimage lies outside the map are unknown. The cost is one pass over the world's cells,
+    whatever the size of the map's canvas (no copy or conversion of the map).
+    """
+    m = np.ascontiguousarray(map_grid)
+    if m.dtype != np.int8 or m.ndim != 2:
+        raise GridError(f"map_in_world needs a 2-D int8 map, got {m.dtype} {m.shape}")
+    # int8 viewed as uint8: unknown (-1) becomes 255, 0..100 stay; the border is unknown too.
+    out = cv2.warpAffine(
+        m.view(np.uint8),
+        np.asarray(T_world_from_map, dtype=np.float64)[:2],
+        (int(world_shape[1]), int(world_shape[0])),
+        flags=cv2.INTER_NEAREST,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=int(np.int8(UNKNOWN).view(np.uint8)),
+    )
+    return np.asarray(out).view(np.int8)
+
+
+class MapScorer:
+    """Scores robots' maps against one world's truth (evaluation only).
+
+    Args:
+        walls: bool (H, W) the world's wall grid (True = wall, obstacle or outside).
+        reachable: bool (H, W) the free cells that count for coverage (for :meth:`held_free`);
+            None if not needed.
+
+    A map's *claims* are its known-free cells (occupancy 0..``FREE_THRESHOLD`` %) and its
+    known-occupied cells (>= ``OCCUPIED_THRESHOLD`` %), warped into the world by
+    :func:`map_in_world`. A claim *contradicts* the truth when it is
+
+    - a free claim on a true wall cell, or
+    - an occupied claim with no true wall cell within 1 cell (its 3x3 neighbourhood, so a wall
+      seen one cell off, by range noise or the nearest-neighbour warp, is not a contradiction).
+
+    Claims that land outside the world's grid are not counted (a map placed by a correct
+    transform lies inside it, the world's outer walls included).
+    """
+
+    def __init__(
+        self, walls: NDArray[np.bool_], reachable: NDArray[np.bool_] | None = None
+    ) -> None:
+        w = np.asarray(walls)
+        if w.dtype != np.bool_ or w.ndim != 2 or w.size == 0:
+            raise GridError(f"walls must be a non-empty 2-D bool array, got {w.dtype} {w.shape}")
+        if reachable is not None and np.shape(reachable) != w.shape:
+            raise GridError(f"reachable {np.shape(reachable)} and walls {w.shape} differ in shape")
+        self.walls = w
+        self.shape = (int(w.shape[0]), int(w.shape[1]))
+        # cells with a true wall within 1 cell (8-neighbourhood); outside the grid counts as wall
+        self._near_wall = cv2.dilate(
+            w.astype(np.uint8),
+            np.ones((3, 3), np.uint8),
+            borderType=cv2.BORDER_CONSTANT,
+            borderValue=1,
+        ).astype(bool)
+        self.reachable = None if reachable is None else np.asarray(reachable, dtype=bool)
+
+    def warp(self, map_grid: Int8Grid, T_world_from_map: Transform) -> Int8Grid:
+        """:func:`map_in_world` onto this world's grid."""
+        return map_in_world(map_grid, T_world_from_map, self.shape)
+
+    def contradiction(self, in_world: Int8Grid) -> float:
+        """Share in [0, 1] of the claims of a warped map (int8 (H, W)) that contradict the truth
+        (see the class doc); NaN when it makes no claim inside the world."""
+        free = (in_world >= FREE) & (in_world <= FREE_THRESHOLD)
+        occ = in_world >= OCCUPIED_THRESHOLD
+        n = int(np.count_nonzero(free)) + int(np.count_nonzero(occ))
+        if n == 0:
+            return float("nan")
+        bad = int(np.count_nonzero(free & self.walls)) + int(
+            np.count_nonzero(occ & ~self._near_wall)
+        )
+        return bad / n
+
+    def held_free(self, in_world: Int8Grid) -> int:
+        """Reachable free cells that a warped map (int8 (H, W)) marks free at their true place."""
+        if self.reachable is None:
+            raise GridError("MapScorer.held_free needs the reachable cells (reachable=...)")
+        free = (in_world >= FREE) & (in_world <= FREE_THRESHOLD)
+        return int(np.count_nonzero(free & self.reachable))
+
+
+def map_contradiction(
+    map_grid: Int8Grid, T_world_from_map: Transform, walls: NDArray[np.bool_]
+) -> float:
+    """Share in [0, 1] of a robot's map's claims that contradict the truth (evaluation only).
+
+    Args:
+        map_grid: int8 (H_m, W_m) the robot's own or fused map in its own frame (-1/0/100).
+        T_world_from_map: 3x3 true transform from the map's cells to world cells
+            (:meth:`mrexplore.sim.Simulation.world_from_map`).
+        walls: bool (H, W) the world's walls.
+
+    The map is warped into the world (nearest neighbour, the world's size). Its claims are its
+    known-free cells (occupancy <= ``FREE_THRESHOLD`` %) and known-occupied cells
+    (>= ``OCCUPIED_THRESHOLD`` %); a free claim on a true wall cell, or an occupied claim with no
+    true wall within 1 cell (3x3 neighbourhood), contradicts the truth. Returns
+    ``contradicting claims / claims`` inside the world, NaN when there is no claim there.
+    Builds a :class:`MapScorer` each call; the env keeps one per episode.
+
+    >>> walls = np.zeros((5, 5), dtype=bool); walls[:, 0] = True
+    >>> m = np.full((5, 5), -1, dtype=np.int8); m[:, 0] = 100; m[:, 1:3] = 0
+    >>> map_contradiction(m, np.eye(3), walls)
+    0.0
+    >>> m[0, 0] = 0; m[2, 3] = 100  # a free cell on a wall; a wall with no wall near it
+    >>> round(map_contradiction(m, np.eye(3), walls), 3)
+    0.125
+    """
+    scorer = MapScorer(walls)
+    return scorer.contradiction(scorer.warp(map_grid, T_world_from_map))

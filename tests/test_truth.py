@@ -10,8 +10,11 @@ import pytest
 from mrexplore.errors import GridError
 from mrexplore.grid import apply_transform, make_transform
 from mrexplore.truth import (
+    MapScorer,
     T_world_from_map,
     coverage,
+    map_contradiction,
+    map_in_world,
     reachable_cspace,
     reachable_free,
     transform_error,
@@ -102,3 +105,71 @@ def test_transform_error() -> None:
     assert transform_error(shifted, T, pts) == pytest.approx((2.0, 0.0))
     rotated = make_transform(0.2 + math.radians(10.0), 5.0, -3.0)
     assert transform_error(rotated, T, pts)[1] == pytest.approx(10.0)
+
+
+# ---------------------------------------------------------------------------- map accuracy
+
+
+def test_map_in_world_places_cells_and_leaves_the_rest_unknown() -> None:
+    m = np.full((6, 6), -1, dtype=np.int8)
+    m[1, 2] = 0
+    m[4, 4] = 100
+    T = make_transform(0.0, 3.0, 1.0)  # map (c, r) -> world (c + 3, r + 1)
+    w = map_in_world(m, T, (8, 10))
+    assert w.shape == (8, 10) and w.dtype == np.int8
+    assert w[2, 5] == 0 and w[5, 7] == 100
+    assert np.count_nonzero(w != -1) == 2
+    # a quarter turn: map +col becomes world +row
+    Tr = make_transform(math.pi / 2, 7.0, 0.0)
+    wr = map_in_world(m, Tr, (8, 10))
+    c, r = apply_transform(Tr, np.array([[2.0, 1.0]]))[0]
+    assert wr[round(r), round(c)] == 0
+
+
+def test_contradiction_counts_free_on_walls_and_walls_far_from_walls() -> None:
+    walls = np.zeros((7, 7), dtype=bool)
+    walls[:, 3] = True  # one wall column
+    scorer = MapScorer(walls)
+    m = np.full((7, 7), -1, dtype=np.int8)
+    assert math.isnan(scorer.contradiction(m))  # no claim
+    m[:, 3] = 100  # correct walls
+    m[:, 1] = 0  # correct free space
+    m[0, 4] = 100  # a wall one cell off: within tolerance
+    m[3, 5] = 50  # neither free nor occupied: not a claim
+    assert scorer.contradiction(m) == 0.0
+    m[6, 3] = 0  # a free claim on a true wall
+    m[2, 5] = 100  # a wall claim with no true wall within 1 cell
+    claims = 7 + 6 + 1 + 1 + 1
+    assert scorer.contradiction(m) == pytest.approx(2 / claims)
+    assert map_contradiction(m, np.eye(3), walls) == pytest.approx(2 / claims)
+
+
+def test_held_free_counts_reachable_free_claims() -> None:
+    walls = np.zeros((5, 5), dtype=bool)
+    reachable = np.zeros((5, 5), dtype=bool)
+    reachable[1:4, 1:4] = True
+    m = np.full((5, 5), -1, dtype=np.int8)
+    m[0:3, 0:3] = 0
+    assert MapScorer(walls, reachable).held_free(m) == 4
+    with pytest.raises(GridError):
+        MapScorer(walls).held_free(m)
+    with pytest.raises(GridError):
+        MapScorer(walls, reachable[:4])
+
+
+def test_a_correct_map_agrees_and_a_misplaced_one_contradicts() -> None:
+    from mrexplore.sim import Simulation
+    from mrexplore.world import load_world
+
+    world = load_world("small_office")
+    sim = Simulation(world, 1)
+    rng = np.random.default_rng(0)
+    sim.reset(rng)
+    for k in range(40):
+        sim.step(np.array([1 if k < 16 else 0]), rng)  # turn, then drive
+    m = sim.maps[0].to_int8()
+    T = sim.world_from_map(0)
+    good = map_contradiction(m, T, world.walls)
+    bad = map_contradiction(m, make_transform(0.0, 12.0, 7.0) @ T, world.walls)
+    assert good < 0.02
+    assert bad > 0.1

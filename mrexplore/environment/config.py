@@ -18,6 +18,7 @@ from mrexplore.errors import ConfigError
 
 RewardMode = Literal["time", "coverage"]
 Task = Literal["explore", "navigate"]
+CoverageMode = Literal["observed", "held"]
 
 
 #: Options that take only ``True``/``False`` (or numpy bools).
@@ -60,8 +61,17 @@ class EnvConfig:
         recheck_every: steps between re-checks of an accepted transform.
         comm_range_m: maps are exchanged only while robots are within this distance (None = always).
     Episode and reward:
-        target_coverage: exploration ends when the team has observed this share of the
-            reachable free cells.
+        target_coverage: exploration ends when the coverage (``coverage_mode``) reaches this
+            share of the reachable free cells.
+        coverage_mode: what counts as covered (evaluation; the robots never see it):
+            ``"observed"`` (default): the team's union of the cells its sensors observed;
+            ``"held"``: the largest, over robots, share of reachable free cells that the
+            robot's own-or-fused map marks free at the true place (the map warped into the
+            world with the true transform). Knowledge placed by a wrong merge then does not
+            count, so a wrong merge costs task time, and a team finishes only when some robot
+            holds a correct map. (Misplaced free cells that land on true free space still
+            count: a wrong merge costs less than the share it misplaces.) Costs one world-sized
+            warp per changed map per step.
         max_time_s: truncation time; ``max_cycles`` (steps) truncates too when given.
         reward_mode: ``"time"`` (``-dt_s`` per step: return = -task time) or ``"coverage"``
             (``coverage_reward_per_m2`` per newly observed m^2 minus ``time_penalty_per_s * dt_s``).
@@ -102,6 +112,7 @@ class EnvConfig:
     recheck_every: int = 100
     comm_range_m: float | None = None
     target_coverage: float = 0.95
+    coverage_mode: CoverageMode = "observed"
     max_time_s: float = 600.0
     max_cycles: int | None = None
     reward_mode: RewardMode = "time"
@@ -151,6 +162,10 @@ class EnvConfig:
         if self.reward_mode not in ("time", "coverage"):
             raise ConfigError(
                 f"option reward_mode must be 'time' or 'coverage', got {self.reward_mode!r}"
+            )
+        if self.coverage_mode not in ("observed", "held"):
+            raise ConfigError(
+                f"option coverage_mode must be 'observed' or 'held', got {self.coverage_mode!r}"
             )
         for name in (
             "radius_m",

@@ -15,18 +15,34 @@ State space          ``Box(0, 255, (8 * n, 64, 64), uint8)``: all observations s
 Reward               team reward (same for all): ``"time"``: ``-dt_s`` per step, so the return
                      is minus the task time; ``"coverage"``: ``coverage_reward_per_m2`` x newly
                      observed m^2 minus ``time_penalty_per_s * dt_s``.
-Termination          explore: team coverage >= ``target_coverage`` (0.95);
+Termination          explore: coverage >= ``target_coverage`` (0.95), see ``coverage_mode``;
                      navigate: ``robot_0`` within ``goal_radius_m`` of its goal.
 Truncation           simulated time >= ``max_time_s`` (600 s) or steps >= ``max_cycles``; infos
                      then carry ``TimeLimit.truncated = True``.
 ===================  ==========================================================================
 
-``infos[agent]``: ``coverage`` (team share of reachable free cells observed), ``task_time_s``,
+``infos[agent]``: ``coverage`` (the share of reachable free cells that termination and the
+``"coverage"`` reward use: with ``coverage_mode="observed"`` (default) the team's union of observed
+cells; with ``"held"`` the largest, over robots, share that the robot's own-or-fused map marks
+free at the true place, so knowledge placed by a wrong merge does not count), ``task_time_s``,
 ``merged``, ``merge_error`` (``{"translation_cells", "rotation_deg"}`` of the worst merged
 teammate against the truth, or None; evaluation only, policies must not read it), ``score``,
 ``collisions`` (this robot's count), ``first_merge_time_s``, ``step``, and on the last step
 ``TimeLimit.truncated``. For navigation also ``goal_reached`` and ``goal_given``; there
 ``task_time_s`` counts from the moment the goal is given (after ``nav_warmup_s`` of exploring).
+
+Map accuracy, evaluation only (scored against the truth; nothing of it reaches a robot, a policy
+or the merger), two float keys present on every step:
+
+- ``fused_contradiction``: the share of the claims of the agent's current own-or-fused map (its
+  known-free and known-occupied cells, warped into the world with the true transform) that
+  contradict the truth: a free cell on a true wall, or an occupied cell with no true wall within
+  1 cell (:class:`mrexplore.truth.MapScorer`). About 0.005 for a correct map without odometry
+  noise; a wrong merge raises it. NaN when the map makes no claim inside the world. Recomputed
+  only when the fused map changed (:meth:`mrexplore.fusion.FusionStage.fused_version`).
+- ``merged_wrongly_s``: simulated seconds since reset during which this agent held a transform
+  to some teammate whose merge error (``translation_cells``, the mean displacement of the
+  teammate's known cells) was >= ``WRONG_MERGE_CELLS`` (5) cells; 0.0 when never.
 
 Policies read what a robot knows through :meth:`MultiRobotExplorationEnv.robot_view`.
 
@@ -53,9 +69,14 @@ from mrexplore.grid import UNKNOWN, apply_transform, invert_transform, transform
 from mrexplore.robot import Action, RobotConfig
 from mrexplore.sensors import LidarConfig
 from mrexplore.sim import SimConfig, Simulation
+from mrexplore.truth import MapScorer
 from mrexplore.world import World, load_world
 
 AgentID = str
+
+#: A merge error (mean displacement of the teammate's known cells) at least this large is a
+#: wrong merge (cells; the merge benchmark's threshold too).
+WRONG_MERGE_CELLS = 5.0
 
 
 class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
@@ -144,6 +165,12 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
             tuple[int, int], tuple[int, NDArray[np.float64], dict[str, float]]
         ] = {}
         self._last_coverage = 0.0
+        # evaluation only: the truth scorer of this episode's maps, per robot the cached
+        # (fused-map version, contradiction share, held free cells or None), and the seconds
+        # each robot held a wrong transform
+        self._scorer: MapScorer | None = None
+        self._accuracy: dict[int, tuple[int, float, int | None]] = {}
+        self._wrong_s = np.zeros(cfg.n_robots, dtype=np.float64)
 
     # ------------------------------------------------------------------ spaces
     def observation_space(self, agent: AgentID) -> gymnasium.spaces.Box:
@@ -202,8 +229,11 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         self._goal_cell = None
         if self.config.task == "navigate":
             self._place_goal(goal_rng)
-        self._last_coverage = self.sim.coverage()
+        self._scorer = MapScorer(self.world.walls, self.sim.reachable)
+        self._accuracy = {}
+        self._wrong_s[:] = 0.0
         self._merge()
+        self._last_coverage = self._coverage_now()
         self._obs = self._observe()
         infos = {a: self._info(a, truncated=False) for a in self.agents}
         return dict(self._obs), infos
@@ -234,6 +264,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
             # The warm-up is over: robot_0 navigates from its start with the map it has.
             sim.place(0, sim.start_poses[0])
         self._merge()
+        self._count_wrong_merges()
         self._obs = self._observe()
         reward = self._reward()
         terminated = self._terminated()
@@ -421,13 +452,44 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
     def _reward(self) -> float:
         assert self.sim is not None and self.world is not None
         cfg = self.config
-        cov = self.sim.coverage()
+        cov = self._coverage_now()
         gain = cov - self._last_coverage
         self._last_coverage = cov
         if cfg.reward_mode == "time":
             return -cfg.dt_s
         area_m2 = gain * self.sim.reachable_cells * self.world.resolution_m**2
         return float(cfg.coverage_reward_per_m2 * area_m2 - cfg.time_penalty_per_s * cfg.dt_s)
+
+    def _coverage_now(self) -> float:
+        """The coverage of ``coverage_mode`` (see the module doc), in [0, 1]."""
+        assert self.sim is not None
+        if self.config.coverage_mode == "observed" or self.sim.reachable_cells == 0:
+            return self.sim.coverage()
+        held = max(self._map_accuracy(i)[1] or 0 for i in range(self.config.n_robots))
+        return held / self.sim.reachable_cells
+
+    def _map_accuracy(self, i: int) -> tuple[float, int | None]:
+        """Robot i's own-or-fused map against the truth: (contradiction share or NaN, reachable
+        free cells it marks free at the true place, counted only with ``coverage_mode="held"``).
+        Cached on the fusion stage's fused-map version: an unchanged map costs nothing."""
+        assert self.sim is not None and self._scorer is not None
+        agent = self.possible_agents[i]
+        version = self.fusion.fused_version(agent)
+        cached = self._accuracy.get(i)
+        if cached is not None and cached[0] == version:
+            return cached[1], cached[2]
+        warped = self._scorer.warp(self.fusion.fused(agent), self.sim.world_from_map(i))
+        share = self._scorer.contradiction(warped)
+        held = self._scorer.held_free(warped) if self.config.coverage_mode == "held" else None
+        self._accuracy[i] = (version, share, held)
+        return share, held
+
+    def _count_wrong_merges(self) -> None:
+        """Add this step's ``dt_s`` to each robot holding a transform >= 5 cells off."""
+        for i, agent in enumerate(self.possible_agents):
+            err = self._merge_error(agent)
+            if err is not None and err["translation_cells"] >= WRONG_MERGE_CELLS:
+                self._wrong_s[i] += self.config.dt_s
 
     def _terminated(self) -> bool:
         assert self.sim is not None
@@ -533,6 +595,8 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
             "score": self.fusion.score(agent),
             "first_merge_time_s": None if first is None else first * self.config.dt_s,
             "collisions": int(self._collisions[i]),
+            "fused_contradiction": float(self._map_accuracy(i)[0]),
+            "merged_wrongly_s": float(self._wrong_s[i]),
         }
         if self.config.task == "navigate":
             info["goal_given"] = self._goal_given()

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -10,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 import mrexplore
+from mrexplore.environment.parallel_env import WRONG_MERGE_CELLS
 
 
 @dataclass
@@ -24,6 +26,12 @@ class EpisodeResult:
         first_merge_time_s: when robot_0 was first merged (None if never, or single robot).
         merge_error: robot_0's merge error against the truth at the end (None if not merged).
         collisions: total collisions of the team.
+        max_fused_contradiction: the largest ``fused_contradiction`` of any robot at any step
+            (share of its own-or-fused map's claims that contradict the truth; NaN if never
+            defined). Evaluation only, see :mod:`mrexplore.environment.parallel_env`.
+        merged_wrongly_s: the largest, over robots, ``merged_wrongly_s`` at the end: simulated
+            seconds a robot held a transform >= 5 cells off the truth.
+        wrong_merge: some robot held a transform >= 5 cells off the truth at some step.
         frames: rendered frames when recording, else empty.
         merge_frame: the frame rendered at the first merge, when recording.
     """
@@ -38,9 +46,13 @@ class EpisodeResult:
     collisions: int
     frames: list[NDArray[np.uint8]] = field(default_factory=list)
     merge_frame: NDArray[np.uint8] | None = None
+    max_fused_contradiction: float = math.nan
+    merged_wrongly_s: float = 0.0
+    wrong_merge: bool = False
 
     def summary(self) -> dict[str, Any]:
-        """JSON-friendly fields (no frames)."""
+        """JSON-friendly fields (no frames; NaN becomes None)."""
+        c = self.max_fused_contradiction
         return {
             "task_time_s": self.task_time_s,
             "success": self.success,
@@ -48,7 +60,29 @@ class EpisodeResult:
             "first_merge_time_s": self.first_merge_time_s,
             "merge_error": self.merge_error,
             "collisions": self.collisions,
+            "max_fused_contradiction": None if math.isnan(c) else c,
+            "merged_wrongly_s": self.merged_wrongly_s,
+            "wrong_merge": self.wrong_merge,
         }
+
+
+class _MapQuality:
+    """Running maxima of the env's map-accuracy infos over the robots and the steps."""
+
+    def __init__(self) -> None:
+        self.max_contradiction = math.nan
+        self.wrong = False
+        self.wrong_s = 0.0
+
+    def add(self, infos: Mapping[str, Mapping[str, Any]]) -> None:
+        for info in infos.values():
+            c = float(info.get("fused_contradiction", math.nan))
+            if not math.isnan(c) and not c <= self.max_contradiction:
+                self.max_contradiction = c
+            err = info.get("merge_error")
+            if err is not None and err["translation_cells"] >= WRONG_MERGE_CELLS:
+                self.wrong = True
+            self.wrong_s = max(self.wrong_s, float(info.get("merged_wrongly_s", 0.0)))
 
 
 def run_episode(
@@ -57,6 +91,7 @@ def run_episode(
     seed: int,
     record_every: int = 0,
     on_step: Callable[[int], None] | None = None,
+    prepare: Callable[[Any], None] | None = None,
 ) -> EpisodeResult:
     """Run one episode to its end.
 
@@ -67,10 +102,16 @@ def run_episode(
         seed: the episode seed (env reset seed; the policy gets its own Generator from it).
         record_every: render a frame every this many steps (0 = no frames).
         on_step: called with the step number after each step (progress bars).
+        prepare: called with the env once it is built, before ``reset`` (e.g. to bind a
+            benchmark's oracle merger to the env's simulator).
     """
     render_mode = "rgb_array" if record_every > 0 else None
     penv = mrexplore.parallel_env(render_mode=render_mode, **env_options)
+    if prepare is not None:
+        prepare(penv)
     obs, infos = penv.reset(seed=seed)
+    quality = _MapQuality()
+    quality.add(infos)
     # Trained policies act on the env's observations; planners act on robot views.
     uses_obs = bool(getattr(team_policy, "uses_observations", False))
     team_policy.reset(np.random.default_rng([seed, 1]))
@@ -92,6 +133,7 @@ def run_episode(
         obs, _, terms, truncs, infos = penv.step(actions)
         step += 1
         info0 = infos[a0]
+        quality.add(infos)
         times.append(float(info0["task_time_s"]))
         covs.append(float(info0["coverage"]))
         terminated = bool(terms[a0])
@@ -116,4 +158,7 @@ def run_episode(
         collisions=collisions,
         frames=frames,
         merge_frame=merge_frame,
+        max_fused_contradiction=quality.max_contradiction,
+        merged_wrongly_s=quality.wrong_s,
+        wrong_merge=quality.wrong,
     )

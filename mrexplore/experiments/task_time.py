@@ -261,6 +261,13 @@ def _document(
                 "final_coverage": [r.coverage for r in results],
                 "first_merge_time_s": merges,
                 "collisions": [r.collisions for r in results],
+                # map accuracy against the truth (evaluation only), per episode: the largest
+                # share of contradicting claims in a robot's own-or-fused map (null: none),
+                # and the seconds some robot held a transform >= 5 cells off
+                "max_fused_contradiction": [
+                    r.summary()["max_fused_contradiction"] for r in results
+                ],
+                "merged_wrongly_s": [r.merged_wrongly_s for r in results],
             }
         s, m = entry["single"]["mean"], entry["multi"]["mean"]
         # JSON has no NaN: a reduction that cannot be computed is null.

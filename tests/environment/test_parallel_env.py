@@ -154,6 +154,7 @@ def test_navigation_goal_same_for_single_and_team() -> None:
         ({"n_robots": 0}, ConfigError),  # no robot
         ({"max_range_m": -1.0}, ConfigError),  # negative range
         ({"reward_mode": "speed"}, ConfigError),  # unknown reward mode
+        ({"coverage_mode": "seen"}, ConfigError),  # unknown coverage mode
         ({"world": "no_such_world"}, WorldError),  # unknown world
     ],
 )

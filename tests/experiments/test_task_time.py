@@ -135,3 +135,20 @@ def test_demo_refuses_to_overwrite_and_bad_seed(tmp_path: Path, monkeypatch, cap
     assert main(["demo", "--out", str(tmp_path / "new"), "--seed", "-1"]) == 2
     assert "seed must be an integer >= 0" in capsys.readouterr().err
     assert (tmp_path / "final.png").read_bytes() == b"earlier"
+
+
+def test_task_time_json_has_map_accuracy(tmp_path: Path) -> None:
+    run_task_time(
+        world="small_office",
+        seeds=1,
+        tasks=["explore"],
+        out=tmp_path,
+        progress=False,
+        env_options={"max_time_s": 5.0},
+    )
+    data = json.loads((tmp_path / "task_time.json").read_text())
+    for team in ("single", "multi"):
+        entry = data["tasks"]["explore"][team]
+        (c,) = entry["max_fused_contradiction"]
+        assert isinstance(c, float) and 0.0 <= c < 0.05
+        assert entry["merged_wrongly_s"] == [0.0]

@@ -1,0 +1,382 @@
+"""The in-loop merge study: what merging is worth in an exploration team, against an oracle.
+
+For each world and seed, a team explores to ``target_coverage`` (95 %) within ``max_time_s``
+(600 s) with the coordinated-frontier policy, from random start headings, with range and
+odometry noise on (:data:`LOOP_ENV_OPTIONS`). Variants (same world, same seed, same start of
+``robot_0``):
+
+- ``semantic``: 2 robots, the default merger, through the env's tracker;
+- ``oracle``: 2 robots, :class:`OracleMerger`: the true transform as soon as the two maps share
+  any known cell, through the same tracker (same confirmations, re-checks and drops);
+- ``none``: 2 robots that never merge;
+- ``single``: 1 robot.
+
+Per episode it records whether the maps were merged, the first merge, the task time, whether
+the target was reached, whether a transform >= 5 cells off the truth was held at any step, the
+seconds it was held (``merged_wrongly_s``) and the largest share of contradicting claims in a
+robot's own-or-fused map (``fused_contradiction``): see
+:mod:`mrexplore.environment.parallel_env`. Prints a table per world and writes ``<out>.json``
+and ``<out>.md``. ``--jobs N`` runs episodes in N processes; every episode depends only on its
+world, variant and seed, so the results equal a serial run.
+
+Run: ``mrexplore bench loop --seeds 20 --jobs 2 --out results/loop_study``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import multiprocessing
+import statistics
+from collections.abc import Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mrexplore.errors import ConfigError, MrexploreError
+from mrexplore.grid import UNKNOWN, Int8Grid
+from mrexplore.merge.common import MergeResult, translation, warp_into
+
+#: The worlds of the study (two symmetric generated floors, two real maps).
+WORLDS: tuple[str, ...] = ("symmetric_office", "twin_wings", "tb3_office", "depot")
+#: Variants: merger for two robots, or one robot.
+VARIANTS: tuple[str, ...] = ("semantic", "oracle", "none", "single")
+POLICY = "coordinated-frontier"
+#: Env options of every episode: random start headings, range noise 2 cm (std), odometry
+#: translation noise 1 % of the distance, heading noise 0.005 rad per radian turned and
+#: 0.001 rad per metre driven (std): moderate drift, about 2 deg of heading after a 600 s run.
+LOOP_ENV_OPTIONS: dict[str, Any] = {
+    "aligned_headings": False,
+    "range_noise_m": 0.02,
+    "odom_noise_trans": 0.01,
+    "odom_noise_rot": 0.005,
+    "odom_noise_rot_per_m": 0.001,
+    "target_coverage": 0.95,
+}
+
+
+class OracleMerger:
+    """A benchmark merger that knows the truth: the true transform as soon as the maps share
+    any known cell (evaluation only; the env's options never name it).
+
+    Built on :meth:`mrexplore.sim.Simulation.true_transform`; call :meth:`bind` with the env
+    before its ``reset`` (the env makes a new simulation at every reset; the oracle reads the
+    current one at each call). The :class:`~mrexplore.merge.MapMergeTracker` calls
+    :meth:`merge_pair` with the robots' ids and crop offsets, so the oracle goes through the
+    same tracker as real mergers (confirmations, re-checks, drops).
+    """
+
+    def __init__(self) -> None:
+        self._env: Any = None
+
+    def bind(self, env: Any) -> None:
+        """Read the truth from ``env.sim`` (a :class:`MultiRobotExplorationEnv`)."""
+        self._env = env
+
+    def merge(self, a: Int8Grid, b: Int8Grid) -> MergeResult:
+        """Not usable without robot ids: the tracker calls :meth:`merge_pair`."""
+        raise ConfigError("OracleMerger needs the robots' ids: use it through MapMergeTracker")
+
+    def merge_pair(
+        self,
+        i: int,
+        j: int,
+        a: Int8Grid,
+        b: Int8Grid,
+        offset_a: tuple[int, int],
+        offset_b: tuple[int, int],
+    ) -> MergeResult:
+        """Merge robot j's cropped map ``b`` into robot i's cropped map ``a``.
+
+        ``offset_a``/``offset_b``: ``(col, row)`` of each crop's cell (0, 0) in its robot's
+        canvas. Returns the true ``T_ab`` between the crops when some cell is known in both
+        maps under it (``overlap_cells`` > 0), else a refusal.
+        """
+        sim = None if self._env is None else self._env.sim
+        if sim is None:
+            raise ConfigError("OracleMerger is not bound to a reset env: call bind(env) first")
+        T = (
+            translation(-offset_a[0], -offset_a[1])
+            @ sim.true_transform(i, j)
+            @ translation(offset_b[0], offset_b[1])
+        )
+        b_in_a = warp_into(b, T, a.shape)
+        shared = int(np.count_nonzero((a != UNKNOWN) & (b_in_a != UNKNOWN)))
+        if shared == 0:
+            return MergeResult(
+                matched=False, transform=None, score=0.0, method="oracle", reason="no shared cell"
+            )
+        return MergeResult(
+            matched=True, transform=T, score=1.0, method="oracle", overlap_cells=shared
+        )
+
+
+def episode_options(world: str, variant: str, max_time_s: float) -> dict[str, Any]:
+    """Env options of one episode of ``variant`` (the oracle's merger object not included)."""
+    opts: dict[str, Any] = {**LOOP_ENV_OPTIONS, "world": world, "max_time_s": float(max_time_s)}
+    opts["n_robots"] = 1 if variant == "single" else 2
+    opts["merger"] = None if variant in ("none", "single") else "semantic"
+    return opts
+
+
+def run_loop_episode(world: str, variant: str, seed: int, max_time_s: float) -> dict[str, Any]:
+    """One episode of the study; a JSON-friendly record (simulated seconds, NaN -> None)."""
+    from mrexplore.experiments.episode import run_episode
+    from mrexplore.experiments.task_time import make_team
+
+    opts = episode_options(world, variant, max_time_s)
+    oracle = None
+    if variant == "oracle":
+        oracle = OracleMerger()
+        opts["merger"] = oracle
+    agents = [f"robot_{k}" for k in range(opts["n_robots"])]
+    team = make_team(POLICY, agents, "explore")
+    r = run_episode(opts, team, seed, prepare=None if oracle is None else oracle.bind)
+    s = r.summary()
+    return {
+        "world": world,
+        "variant": variant,
+        "seed": int(seed),
+        "merged": r.first_merge_time_s is not None,
+        "first_merge_time_s": r.first_merge_time_s,
+        "task_time_s": r.task_time_s,
+        "reached": r.success,
+        "coverage": r.coverage,
+        "wrong_merge": r.wrong_merge,
+        "merged_wrongly_s": r.merged_wrongly_s,
+        "max_fused_contradiction": s["max_fused_contradiction"],
+    }
+
+
+def _run_task(task: tuple[str, str, int, float]) -> dict[str, Any]:
+    import cv2
+
+    cv2.setNumThreads(1)  # one core per process: --jobs decides the parallelism
+    return run_loop_episode(*task)
+
+
+def validate(
+    worlds: Sequence[str],
+    seeds: int,
+    first_seed: int,
+    variants: Sequence[str],
+    max_time_s: float,
+    jobs: int,
+) -> None:
+    """Check every option before any work; a bad one is a :class:`ConfigError` naming it."""
+    from mrexplore.world import load_world
+
+    if not worlds:
+        raise ConfigError("loop study: --worlds is empty")
+    for w in worlds:
+        try:
+            load_world(w)
+        except MrexploreError as exc:
+            raise ConfigError(f"loop study: bad world {w!r}: {exc}") from exc
+    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
+        raise ConfigError(f"loop study: --seeds must be an integer >= 1, got {seeds!r}")
+    if isinstance(first_seed, bool) or not isinstance(first_seed, int) or first_seed < 0:
+        raise ConfigError(f"loop study: --first-seed must be an integer >= 0, got {first_seed!r}")
+    if not variants:
+        raise ConfigError(f"loop study: --variants is empty; choose from {list(VARIANTS)}")
+    bad = [v for v in variants if v not in VARIANTS]
+    if bad:
+        raise ConfigError(f"loop study: unknown variant(s) {bad}; variants are {list(VARIANTS)}")
+    if len(set(variants)) != len(variants) or len(set(worlds)) != len(worlds):
+        raise ConfigError("loop study: a world or variant is listed twice")
+    if not (isinstance(max_time_s, (int, float)) and math.isfinite(max_time_s) and max_time_s > 0):
+        raise ConfigError(f"loop study: --max-time-s must be a positive number, got {max_time_s!r}")
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise ConfigError(f"loop study: --jobs must be an integer >= 1, got {jobs!r}")
+
+
+def run_study(
+    worlds: Sequence[str] = WORLDS,
+    seeds: int = 20,
+    first_seed: int = 1000,
+    variants: Sequence[str] = VARIANTS,
+    max_time_s: float = 600.0,
+    jobs: int = 1,
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Run every (world, variant, seed) episode; returns the JSON document.
+
+    With ``jobs > 1`` the episodes run in that many processes (spawned, so no state is shared);
+    the records come back in the serial order, identical to a serial run.
+    """
+    validate(worlds, seeds, first_seed, variants, max_time_s, jobs)
+    seed_list = list(range(first_seed, first_seed + seeds))
+    tasks = [(w, v, s, float(max_time_s)) for w in worlds for v in variants for s in seed_list]
+    records: list[dict[str, Any] | None] = [None] * len(tasks)
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(tasks), desc="loop episodes", disable=not progress, unit="ep")
+    if jobs == 1:
+        for k, t in enumerate(tasks):
+            records[k] = run_loop_episode(*t)
+            bar.update(1)
+    else:
+        ctx = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
+            futures = {pool.submit(_run_task, t): k for k, t in enumerate(tasks)}
+            for fut in as_completed(futures):
+                records[futures[fut]] = fut.result()
+                bar.update(1)
+    bar.close()
+    episodes = [r for r in records if r is not None]
+    return {
+        "policy": POLICY,
+        "env_options": {**LOOP_ENV_OPTIONS, "max_time_s": float(max_time_s)},
+        "worlds": list(worlds),
+        "variants": list(variants),
+        "seeds": seed_list,
+        "units": "simulated seconds",
+        "episodes": episodes,
+        "summary": summarize(episodes, worlds, variants),
+    }
+
+
+def _median(xs: Sequence[float]) -> float | None:
+    return float(statistics.median(xs)) if xs else None
+
+
+def summarize(
+    episodes: Sequence[Mapping[str, Any]], worlds: Sequence[str], variants: Sequence[str]
+) -> dict[str, dict[str, dict[str, Any]]]:
+    """Per world and variant: episodes, share merged, median first merge, mean and std of the
+    task time, share reached, wrong-merge episodes, seconds merged wrongly, the largest fused
+    contradiction, and the mean task time relative to the oracle's (None without an oracle)."""
+    out: dict[str, dict[str, dict[str, Any]]] = {}
+    for w in worlds:
+        out[w] = {}
+        for v in variants:
+            eps = [e for e in episodes if e["world"] == w and e["variant"] == v]
+            times = [float(e["task_time_s"]) for e in eps]
+            merges = [float(e["first_merge_time_s"]) for e in eps if e["merged"]]
+            contr = [
+                float(e["max_fused_contradiction"])
+                for e in eps
+                if e["max_fused_contradiction"] is not None
+            ]
+            out[w][v] = {
+                "episodes": len(eps),
+                "merged": sum(bool(e["merged"]) for e in eps),
+                "median_first_merge_s": _median(merges),
+                "task_time_mean_s": float(statistics.fmean(times)) if times else None,
+                "task_time_std_s": float(statistics.pstdev(times)) if len(times) > 1 else 0.0,
+                "reached": sum(bool(e["reached"]) for e in eps),
+                "wrong_merge_episodes": sum(bool(e["wrong_merge"]) for e in eps),
+                "merged_wrongly_s": float(sum(float(e["merged_wrongly_s"]) for e in eps)),
+                "max_fused_contradiction": max(contr) if contr else None,
+            }
+        oracle = out[w].get("oracle", {}).get("task_time_mean_s")
+        for v in variants:
+            m = out[w][v]["task_time_mean_s"]
+            out[w][v]["vs_oracle"] = float(m / oracle - 1.0) if oracle and m is not None else None
+    return out
+
+
+def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
+    """One table per world (text as printed, or markdown)."""
+    n = len(doc["seeds"])
+    o = doc["env_options"]
+    head = (
+        f"In-loop study: policy {doc['policy']}, {n} seeds from {doc['seeds'][0]}, random "
+        f"headings, range noise {o['range_noise_m']} m, odometry noise {o['odom_noise_trans']} "
+        f"/ {o['odom_noise_rot']} rad/rad / {o['odom_noise_rot_per_m']} rad/m; explore to "
+        f"{o['target_coverage']:.0%} within {o['max_time_s']:.0f} s (simulated s)"
+    )
+    cols = (
+        "variant",
+        "merged",
+        "1st merge med",
+        "task time mean +- std",
+        "reached",
+        "wrong",
+        "wrong s",
+        "max contr",
+        "vs oracle",
+    )
+    lines = [head, ""]
+    for w, rows in doc["summary"].items():
+        body = []
+        for v, s in rows.items():
+            two = v != "single"
+            med = s["median_first_merge_s"]
+            mean = s["task_time_mean_s"]
+            body.append(
+                (
+                    v,
+                    f"{s['merged']}/{s['episodes']}" if two else "-",
+                    "-" if med is None else f"{med:.1f} s",
+                    "-" if mean is None else f"{mean:.1f} +- {s['task_time_std_s']:.1f} s",
+                    f"{s['reached']}/{s['episodes']}",
+                    str(s["wrong_merge_episodes"]) if two else "-",
+                    f"{s['merged_wrongly_s']:.1f}" if two else "-",
+                    "-"
+                    if s["max_fused_contradiction"] is None
+                    else f"{s['max_fused_contradiction']:.3f}",
+                    "-" if s["vs_oracle"] is None else f"{s['vs_oracle']:+.1%}",
+                )
+            )
+        if markdown:
+            lines += [f"### {w}", "", "| " + " | ".join(cols) + " |"]
+            lines.append("|" + "---|" * len(cols))
+            lines += ["| " + " | ".join(r) + " |" for r in body]
+        else:
+            widths = [max(len(c), *(len(r[k]) for r in body)) for k, c in enumerate(cols)]
+            lines.append(f"{w}:")
+            for r in (cols, *body):
+                lines.append("  ".join(x.ljust(widths[k]) for k, x in enumerate(r)).rstrip())
+        lines.append("")
+    lines.append(
+        "merged: episodes whose maps were merged; wrong: episodes in which a robot held a "
+        "transform >= 5 cells off the truth at some step; wrong s: seconds merged wrongly, summed "
+        "over episodes; max contr: largest share of a robot's own-or-fused map contradicting the "
+        "truth; vs oracle: mean task time relative to the oracle's."
+    )
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """CLI: ``mrexplore bench loop [--worlds ..] [--seeds N] [--first-seed S] [--variants ..]
+    [--max-time-s T] [--jobs N] [--out STEM] [--force]``; returns the exit code."""
+    p = argparse.ArgumentParser(
+        prog="mrexplore bench loop", description=__doc__.split("\n\n")[0] if __doc__ else None
+    )
+    p.add_argument("--worlds", nargs="+", default=list(WORLDS), help="worlds (default: all four)")
+    p.add_argument("--seeds", type=int, default=20, help="seeds per world (default 20)")
+    p.add_argument("--first-seed", type=int, default=1000, help="first seed (default 1000)")
+    p.add_argument(
+        "--variants", nargs="+", default=list(VARIANTS), help=f"of {list(VARIANTS)} (default all)"
+    )
+    p.add_argument("--max-time-s", type=float, default=600.0, help="truncation, simulated s")
+    p.add_argument("--jobs", type=int, default=1, help="episodes in this many processes")
+    p.add_argument("--out", default="results/loop_study", help="writes OUT.json and OUT.md")
+    p.add_argument("--force", action="store_true", help="overwrite existing outputs")
+    args = p.parse_args(list(argv) if argv is not None else None)
+    stem = Path(args.out)
+    outputs = [Path(f"{stem}.json"), Path(f"{stem}.md")]
+    try:
+        validate(
+            args.worlds, args.seeds, args.first_seed, args.variants, args.max_time_s, args.jobs
+        )
+        existing = [str(f) for f in outputs if f.exists()]
+        if existing and not args.force:
+            raise ConfigError(f"loop study: {existing} exist; pass --force to overwrite")
+        doc = run_study(
+            args.worlds, args.seeds, args.first_seed, args.variants, args.max_time_s, args.jobs
+        )
+    except ConfigError as exc:
+        print(f"mrexplore bench loop: error: {exc}")
+        return 2
+    text = format_tables(doc)
+    print(text)
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    outputs[0].write_text(json.dumps(doc, indent=1, allow_nan=False))
+    outputs[1].write_text(format_tables(doc, markdown=True) + "\n")
+    print(f"wrote {outputs[0]} and {outputs[1]}")
+    return 0

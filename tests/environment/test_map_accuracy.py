@@ -1,0 +1,123 @@
+"""Map-accuracy infos (fused_contradiction, merged_wrongly_s) and coverage_mode="held"."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+
+import mrexplore
+from mrexplore.experiments.loop_study import OracleMerger
+from mrexplore.grid import make_transform
+from mrexplore.merge.common import MergeResult
+from mrexplore.truth import MapScorer
+
+SMALL: dict[str, Any] = {"world": "small_office", "n_robots": 2}
+
+
+class ShiftedOracle(OracleMerger):
+    """The true transform moved by 40 cells (2 m): a deliberately wrong merge."""
+
+    def merge_pair(self, *args: Any) -> MergeResult:
+        res = super().merge_pair(*args)
+        if res.transform is not None:
+            res.transform = make_transform(0.0, 40.0, 0.0) @ res.transform
+        return res
+
+
+def _scripted_run(merger: Any, steps: int, **options: Any) -> list[dict[str, dict[str, Any]]]:
+    """Fixed actions (independent of the maps), so runs with different mergers move alike."""
+    penv = mrexplore.parallel_env(**{**SMALL, "merger": merger, **options})
+    if isinstance(merger, OracleMerger):
+        merger.bind(penv)
+    _, infos = penv.reset(seed=0)  # robots start 2 m apart: the oracle merges at once
+    rng = np.random.default_rng(5)
+    out = [infos]
+    for _ in range(steps):
+        acts = {a: int(rng.choice(4, p=[0.7, 0.15, 0.15, 0.0])) for a in penv.agents}
+        _, _, _, _, infos = penv.step(acts)
+        out.append(infos)
+    return out
+
+
+def test_infos_carry_map_accuracy_on_every_step() -> None:
+    penv = mrexplore.parallel_env(**{**SMALL, "max_cycles": 30})
+    _, infos = penv.reset(seed=1)
+    rng = np.random.default_rng(0)
+    while True:
+        for i in infos.values():
+            c, w = i["fused_contradiction"], i["merged_wrongly_s"]
+            assert isinstance(c, float) and (math.isnan(c) or 0.0 <= c <= 1.0)
+            assert c < 0.05  # a correct own map (no odometry noise) barely contradicts
+            assert isinstance(w, float) and w == 0.0
+            assert {"coverage", "merged", "merge_error", "first_merge_time_s"} <= set(i)
+        if not penv.agents:
+            break
+        _, _, _, _, infos = penv.step({a: int(rng.integers(4)) for a in penv.agents})
+
+
+def test_contradiction_is_cached_on_the_fused_map_version(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    penv = mrexplore.parallel_env(**{**SMALL, "range_noise_m": 0.0})
+    penv.reset(seed=0)
+    penv.step({a: 3 for a in penv.agents})  # stay: the maps settle
+    calls = []
+    warp = penv._scorer.warp
+    monkeypatch.setattr(penv._scorer, "warp", lambda *a: calls.append(1) or warp(*a))
+    for _ in range(5):
+        penv.step({a: 3 for a in penv.agents})
+    assert calls == []  # unchanged maps cost nothing
+    penv.step({a: 0 for a in penv.agents})  # moving changes the maps
+    assert len(calls) == 2
+
+
+def test_a_wrong_transform_is_seen_and_lowers_held_coverage() -> None:
+    steps = 120
+    # no re-check: the tracker would drop the wrong transform at step 100
+    opts = {"coverage_mode": "held", "recheck_every": 10_000}
+    right = _scripted_run(OracleMerger(), steps, **opts)
+    wrong = _scripted_run(ShiftedOracle(), steps, **opts)
+    merged = [k for k, infos in enumerate(right) if infos["robot_0"]["merged"]]
+    assert merged and merged[0] < steps - 20, "the oracle should merge early"
+    end_r, end_w = right[-1]["robot_0"], wrong[-1]["robot_0"]
+    assert end_w["merged"] and end_w["merge_error"]["translation_cells"] >= 5.0
+    assert end_r["merge_error"]["translation_cells"] < 1.0
+    assert end_w["merged_wrongly_s"] > 0.0 and end_r["merged_wrongly_s"] == 0.0
+    assert end_w["fused_contradiction"] > end_r["fused_contradiction"] + 0.02
+    # Same motion, same own maps: the wrong merge costs held coverage. Not on every step:
+    # misplaced free cells that land on true free space still count, and while one robot
+    # enters a new room a shifted teammate map can by chance cover cells the true union lacks.
+    held_r = np.array([right[k]["robot_0"]["coverage"] for k in merged])
+    held_w = np.array([wrong[k]["robot_0"]["coverage"] for k in merged])
+    assert held_w.mean() < held_r.mean() - 0.01
+    assert end_w["coverage"] < end_r["coverage"] - 0.01
+
+
+def test_observed_mode_ignores_a_wrong_transform() -> None:
+    right = _scripted_run(OracleMerger(), 80)
+    wrong = _scripted_run(ShiftedOracle(), 80)
+    assert wrong[-1]["robot_0"]["merged_wrongly_s"] > 0.0
+    assert [i["robot_0"]["coverage"] for i in wrong] == [i["robot_0"]["coverage"] for i in right]
+
+
+def test_held_coverage_is_the_best_robots_correctly_placed_free_space() -> None:
+    penv = mrexplore.parallel_env(**{**SMALL, "coverage_mode": "held", "target_coverage": 0.3})
+    _, infos = penv.reset(seed=3)
+    scorer = MapScorer(penv.world.walls, penv.sim.reachable)
+    rng = np.random.default_rng(1)
+    done = False
+    while not done:
+        _, _, terms, truncs, infos = penv.step(
+            {a: int(rng.choice(4, p=[0.7, 0.15, 0.15, 0.0])) for a in penv.agents}
+        )
+        held = max(
+            scorer.held_free(scorer.warp(penv.fusion.fused(a), penv.sim.world_from_map(k)))
+            for k, a in enumerate(penv.possible_agents)
+        )
+        assert infos["robot_0"]["coverage"] == pytest.approx(held / penv.sim.reachable_cells)
+        assert infos["robot_0"]["coverage"] <= penv.sim.coverage() + 1e-9
+        done = terms["robot_0"] or truncs["robot_0"]
+    assert terms["robot_0"] and infos["robot_0"]["coverage"] >= 0.3

@@ -1,0 +1,166 @@
+"""The in-loop study: the oracle merger, option checks, tables, and --jobs equal to serial."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import mrexplore
+from mrexplore.errors import ConfigError
+from mrexplore.experiments.loop_study import (
+    OracleMerger,
+    format_tables,
+    main,
+    run_study,
+    summarize,
+)
+from mrexplore.merge.common import translation
+
+
+def test_oracle_answers_the_truth_once_the_maps_share_a_cell() -> None:
+    oracle = OracleMerger()
+    penv = mrexplore.parallel_env(world="small_office", merger=oracle)
+    oracle.bind(penv)
+    penv.reset(seed=0)  # robots 2 m apart: their first scans overlap
+    a, b = penv.local_map("robot_0"), penv.local_map("robot_1")
+    res = oracle.merge_pair(0, 1, a, b, (0, 0), (0, 0))
+    assert res.matched and res.overlap_cells > 0 and res.method == "oracle"
+    np.testing.assert_allclose(res.transform, penv.sim.true_transform(0, 1))
+    # crops: the answer maps crop cells to crop cells
+    res2 = oracle.merge_pair(0, 1, a[5:, 7:], b[3:, 2:], (7, 5), (2, 3))
+    expected = translation(-7, -5) @ penv.sim.true_transform(0, 1) @ translation(2, 3)
+    np.testing.assert_allclose(res2.transform, expected)
+    nothing = np.full_like(b, -1)
+    assert not oracle.merge_pair(0, 1, a, nothing, (0, 0), (0, 0)).matched
+
+
+def test_oracle_needs_ids_and_a_bound_env() -> None:
+    oracle = OracleMerger()
+    m = np.zeros((4, 4), dtype=np.int8)
+    with pytest.raises(ConfigError):
+        oracle.merge(m, m)
+    with pytest.raises(ConfigError):
+        oracle.merge_pair(0, 1, m, m, (0, 0), (0, 0))
+
+
+def test_oracle_merges_through_the_tracker_with_confirmations() -> None:
+    oracle = OracleMerger()
+    penv = mrexplore.parallel_env(world="small_office", merger=oracle)
+    oracle.bind(penv)
+    _, infos = penv.reset(seed=0)
+    assert not infos["robot_0"]["merged"]  # one attempt at step 0: not yet confirmed
+    rng = np.random.default_rng(5)
+    while not infos["robot_0"]["merged"]:
+        _, _, _, _, infos = penv.step(
+            {a: int(rng.choice(4, p=[0.7, 0.15, 0.15, 0.0])) for a in penv.agents}
+        )
+    assert infos["robot_0"]["first_merge_time_s"] == pytest.approx(2.5)  # second attempt
+    assert infos["robot_0"]["merge_error"]["translation_cells"] < 1e-6
+    T = penv.fusion.transforms("robot_0")["robot_1"]
+    np.testing.assert_allclose(T, penv.sim.true_transform(0, 1), atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["--worlds", "no_such_world"],
+        ["--seeds", "0"],
+        ["--first-seed", "-1"],
+        ["--variants", "semantic", "magic"],
+        ["--variants", "none", "none"],
+        ["--max-time-s", "-5"],
+        ["--max-time-s", "nan"],
+        ["--jobs", "0"],
+    ],
+)
+def test_bad_options_fail_before_any_work(
+    argv: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "study"
+    assert main([*argv, "--out", str(out)]) == 2
+    assert "error" in capsys.readouterr().out
+    assert not list(tmp_path.iterdir())
+
+
+def test_outputs_are_not_overwritten_without_force(tmp_path: Path) -> None:
+    out = tmp_path / "study"
+    Path(f"{out}.md").write_text("keep me")
+    argv = ["--worlds", "small_office", "--seeds", "1", "--variants", "none", "single"]
+    argv += ["--max-time-s", "2", "--out", str(out)]
+    assert main(argv) == 2
+    assert Path(f"{out}.md").read_text() == "keep me"
+    assert main([*argv, "--force"]) == 0
+    doc = json.loads(Path(f"{out}.json").read_text())
+    assert [e["variant"] for e in doc["episodes"]] == ["none", "single"]
+    assert all(e["task_time_s"] == pytest.approx(2.0) for e in doc["episodes"])
+    assert "### small_office" in Path(f"{out}.md").read_text()
+
+
+def _ep(variant: str, seed: int, t: float, merged_at: float | None, **kw: Any) -> dict[str, Any]:
+    return {
+        "world": "w",
+        "variant": variant,
+        "seed": seed,
+        "merged": merged_at is not None,
+        "first_merge_time_s": merged_at,
+        "task_time_s": t,
+        "reached": t < 600,
+        "coverage": 0.95,
+        "wrong_merge": kw.get("wrong", False),
+        "merged_wrongly_s": kw.get("wrong_s", 0.0),
+        "max_fused_contradiction": kw.get("contr"),
+    }
+
+
+def test_summary_and_tables() -> None:
+    eps = [
+        _ep("semantic", 0, 300.0, 100.0, wrong=True, wrong_s=12.5, contr=0.2),
+        _ep("semantic", 1, 600.0, None, contr=0.01),
+        _ep("oracle", 0, 200.0, 20.0, contr=0.01),
+        _ep("oracle", 1, 400.0, 30.0),
+    ]
+    s = summarize(eps, ["w"], ["semantic", "oracle"])["w"]
+    assert s["semantic"]["merged"] == 1 and s["semantic"]["median_first_merge_s"] == 100.0
+    assert s["semantic"]["task_time_mean_s"] == 450.0 and s["semantic"]["reached"] == 1
+    assert s["semantic"]["wrong_merge_episodes"] == 1 and s["semantic"]["merged_wrongly_s"] == 12.5
+    assert s["semantic"]["max_fused_contradiction"] == 0.2
+    assert s["semantic"]["vs_oracle"] == pytest.approx(0.5)
+    assert s["oracle"]["median_first_merge_s"] == 25.0 and s["oracle"]["vs_oracle"] == 0.0
+    doc = {
+        "policy": "p",
+        "seeds": [0, 1],
+        "env_options": {
+            "range_noise_m": 0.02,
+            "odom_noise_trans": 0.01,
+            "odom_noise_rot": 0.005,
+            "odom_noise_rot_per_m": 0.001,
+            "target_coverage": 0.95,
+            "max_time_s": 600.0,
+        },
+        "summary": {"w": s},
+    }
+    text = format_tables(doc)
+    assert "+50.0%" in text and "450.0 +- 150.0 s" in text and "1/2" in text
+    assert "| semantic | 1/2 |" in format_tables(doc, markdown=True)
+    assert not math.isnan(s["oracle"]["task_time_std_s"])
+
+
+@pytest.mark.expensive
+def test_jobs_give_the_serial_results() -> None:
+    kw: dict[str, Any] = {
+        "worlds": ["small_office"],
+        "seeds": 2,
+        "first_seed": 0,
+        "variants": ["semantic", "oracle"],
+        "max_time_s": 15.0,
+        "progress": False,
+    }
+    serial = run_study(jobs=1, **kw)
+    parallel = run_study(jobs=2, **kw)
+    assert parallel == serial
+    assert len(serial["episodes"]) == 4

@@ -1,0 +1,37 @@
+"""FusionStage.fused_version: changes exactly when a fused map may have changed."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mrexplore.fusion import FusionStage
+
+
+def _maps() -> dict[str, np.ndarray]:
+    m = np.full((40, 40), -1, dtype=np.int8)
+    m[10:20, 10:20] = 0
+    return {"a": m.copy(), "b": m.copy()}
+
+
+def test_version_follows_map_changes_with_a_merger() -> None:
+    stage = FusionStage(["a", "b"], merger="semantic")
+    maps = _maps()
+    stage.update(maps, step=1)
+    v = stage.fused_version("a")
+    stage.update({k: m.copy() for k, m in maps.items()}, step=2)  # same content, new arrays
+    assert stage.fused_version("a") == v
+    maps["a"][25, 25] = 100
+    stage.update(maps, step=3)
+    assert stage.fused_version("a") != v
+    seen = {stage.fused_version("a"), stage.fused_version("b")}
+    stage.reset()
+    stage.update(_maps(), step=0)
+    assert not {stage.fused_version("a"), stage.fused_version("b")} & seen  # never repeats
+
+
+def test_version_changes_at_every_update_without_a_merger() -> None:
+    stage = FusionStage(["a", "b"], merger=None)
+    stage.update(_maps(), step=0)
+    v = stage.fused_version("a")
+    stage.update(_maps(), step=1)
+    assert stage.fused_version("a") != v

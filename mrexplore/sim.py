@@ -287,6 +287,11 @@ class Simulation:
         est[:, 2] = wrap_angle(est[:, 2] + dth_meas)
         self.est_poses = est
 
+    def own_frame_truth(self) -> NDArray[np.float64]:
+        """The robots' true poses (R, 3) in their own start frames: what ``est_poses`` would be
+        with exact odometry (evaluation only)."""
+        return self._own_frame(self.true_poses)
+
     def _own_frame(self, poses: NDArray[np.float64]) -> NDArray[np.float64]:
         """True world poses (R, 3) -> each robot's own start frame."""
         s = self.start_poses

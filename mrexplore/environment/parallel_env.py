@@ -42,7 +42,9 @@ or the merger), two float keys present on every step:
   only when the fused map changed (:meth:`mrexplore.fusion.FusionStage.fused_version`).
 - ``merged_wrongly_s``: simulated seconds since reset during which this agent held a transform
   to some teammate whose merge error (``translation_cells``, the mean displacement of the
-  teammate's known cells) was >= ``WRONG_MERGE_CELLS`` (5) cells; 0.0 when never.
+  teammate's known cells) was >= ``WRONG_MERGE_CELLS`` (5) cells more than odometry drift
+  explains (``merge_error["drift_cells"]``, 0 with exact odometry; :func:`is_wrong_merge`);
+  0.0 when never.
 
 Policies read what a robot knows through :meth:`MultiRobotExplorationEnv.robot_view`.
 
@@ -53,6 +55,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import gymnasium
@@ -77,6 +80,18 @@ AgentID = str
 #: A merge error (mean displacement of the teammate's known cells) at least this large is a
 #: wrong merge (cells; the merge benchmark's threshold too).
 WRONG_MERGE_CELLS = 5.0
+
+
+def is_wrong_merge(err: Mapping[str, float]) -> bool:
+    """A merge error (``_merge_error``'s dict) that drift cannot explain: the mean displacement
+    of the teammate's cells exceeds ``WRONG_MERGE_CELLS`` plus the odometry-drift allowance.
+
+    >>> is_wrong_merge({"translation_cells": 6.0, "rotation_deg": 2.0, "drift_cells": 3.0})
+    False
+    >>> is_wrong_merge({"translation_cells": 310.0, "rotation_deg": 0.0, "drift_cells": 0.0})
+    True
+    """
+    return err["translation_cells"] >= WRONG_MERGE_CELLS + err.get("drift_cells", 0.0)
 
 
 class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
@@ -488,7 +503,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         """Add this step's ``dt_s`` to each robot holding a transform >= 5 cells off."""
         for i, agent in enumerate(self.possible_agents):
             err = self._merge_error(agent)
-            if err is not None and err["translation_cells"] >= WRONG_MERGE_CELLS:
+            if err is not None and is_wrong_merge(err):
                 self._wrong_s[i] += self.config.dt_s
 
     def _terminated(self) -> bool:
@@ -560,6 +575,20 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
                 worst = err
         return worst
 
+    def _drift_allowance(self, i: int, j: int, pts_j: NDArray[np.float64]) -> float:
+        """How far (cells, mean over j's known cells ``pts_j``) odometry drift alone can move a
+        correct merge from the start-frame truth: both robots' position drift plus their heading
+        drift times the mean distance of j's cells from its start. 0 with exact odometry."""
+        assert self.sim is not None
+        sim = self.sim
+        own = sim.own_frame_truth()
+        res = sim.resolution_m
+        pos = np.hypot(*(sim.est_poses[:, :2] - own[:, :2]).T) / res
+        hdg = np.abs(np.angle(np.exp(1j * (sim.est_poses[:, 2] - own[:, 2]))))
+        origin = np.asarray(sim.maps[j].origin_cell, dtype=np.float64)
+        radius = float(np.linalg.norm(pts_j - origin, axis=1).mean()) if len(pts_j) else 0.0
+        return float(pos[i] + pos[j] + (hdg[i] + hdg[j]) * radius)
+
     def _pair_error(self, i: int, j: int, T: NDArray[np.float64]) -> dict[str, float] | None:
         """Error of the estimated ``T`` (j's cells -> i's) against the truth. Cached: recomputed
         when ``T`` changes or every 10 steps (the known cells grow slowly; this runs each step)."""
@@ -578,7 +607,11 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         T_true = self.sim.true_transform(i, j)
         disp = np.linalg.norm(apply_transform(T, pts) - apply_transform(T_true, pts), axis=1)
         rot = abs(math.degrees(transform_angle(T @ np.linalg.inv(T_true))))
-        err = {"translation_cells": float(disp.mean()), "rotation_deg": float(rot)}
+        err = {
+            "translation_cells": float(disp.mean()),
+            "rotation_deg": float(rot),
+            "drift_cells": self._drift_allowance(i, j, pts),
+        }
         self._error_cache[key] = (int(self.sim.steps), np.array(T, copy=True), err)
         return err
 

@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 import mrexplore
-from mrexplore.environment.parallel_env import WRONG_MERGE_CELLS
+from mrexplore.environment.parallel_env import is_wrong_merge
 
 
 @dataclass
@@ -80,7 +80,7 @@ class _MapQuality:
             if not math.isnan(c) and not c <= self.max_contradiction:
                 self.max_contradiction = c
             err = info.get("merge_error")
-            if err is not None and err["translation_cells"] >= WRONG_MERGE_CELLS:
+            if err is not None and is_wrong_merge(err):
                 self.wrong = True
             self.wrong_s = max(self.wrong_s, float(info.get("merged_wrongly_s", 0.0)))
 

@@ -114,20 +114,44 @@ class OracleMerger:
         )
 
 
-def episode_options(world: str, variant: str, max_time_s: float) -> dict[str, Any]:
+#: The noise options switched off by ``noise=False`` (exact odometry, the env's default 1 cm
+#: range noise): without drift the true transform between start frames is the one right answer,
+#: so "wrong merge" means a wrong place, not a map bent by odometry.
+NOISE_OFF: dict[str, Any] = {
+    "range_noise_m": 0.01,
+    "odom_noise_trans": 0.0,
+    "odom_noise_rot": 0.0,
+    "odom_noise_rot_per_m": 0.0,
+}
+
+
+def study_env_options(noise: bool = True) -> dict[str, Any]:
+    """The env options shared by every episode of the study."""
+    return {**LOOP_ENV_OPTIONS, **({} if noise else NOISE_OFF)}
+
+
+def episode_options(
+    world: str, variant: str, max_time_s: float, noise: bool = True
+) -> dict[str, Any]:
     """Env options of one episode of ``variant`` (the oracle's merger object not included)."""
-    opts: dict[str, Any] = {**LOOP_ENV_OPTIONS, "world": world, "max_time_s": float(max_time_s)}
+    opts: dict[str, Any] = {
+        **study_env_options(noise),
+        "world": world,
+        "max_time_s": float(max_time_s),
+    }
     opts["n_robots"] = 1 if variant == "single" else 2
     opts["merger"] = None if variant in ("none", "single") else "semantic"
     return opts
 
 
-def run_loop_episode(world: str, variant: str, seed: int, max_time_s: float) -> dict[str, Any]:
+def run_loop_episode(
+    world: str, variant: str, seed: int, max_time_s: float, noise: bool = True
+) -> dict[str, Any]:
     """One episode of the study; a JSON-friendly record (simulated seconds, NaN -> None)."""
     from mrexplore.experiments.episode import run_episode
     from mrexplore.experiments.task_time import make_team
 
-    opts = episode_options(world, variant, max_time_s)
+    opts = episode_options(world, variant, max_time_s, noise)
     oracle = None
     if variant == "oracle":
         oracle = OracleMerger()
@@ -151,7 +175,7 @@ def run_loop_episode(world: str, variant: str, seed: int, max_time_s: float) -> 
     }
 
 
-def _run_task(task: tuple[str, str, int, float]) -> dict[str, Any]:
+def _run_task(task: tuple[str, str, int, float, bool]) -> dict[str, Any]:
     import cv2
 
     cv2.setNumThreads(1)  # one core per process: --jobs decides the parallelism
@@ -201,6 +225,7 @@ def run_study(
     max_time_s: float = 600.0,
     jobs: int = 1,
     progress: bool = True,
+    noise: bool = True,
 ) -> dict[str, Any]:
     """Run every (world, variant, seed) episode; returns the JSON document.
 
@@ -209,7 +234,12 @@ def run_study(
     """
     validate(worlds, seeds, first_seed, variants, max_time_s, jobs)
     seed_list = list(range(first_seed, first_seed + seeds))
-    tasks = [(w, v, s, float(max_time_s)) for w in worlds for v in variants for s in seed_list]
+    tasks = [
+        (w, v, s, float(max_time_s), bool(noise))
+        for w in worlds
+        for v in variants
+        for s in seed_list
+    ]
     records: list[dict[str, Any] | None] = [None] * len(tasks)
     from tqdm import tqdm
 
@@ -229,7 +259,7 @@ def run_study(
     episodes = [r for r in records if r is not None]
     return {
         "policy": POLICY,
-        "env_options": {**LOOP_ENV_OPTIONS, "max_time_s": float(max_time_s)},
+        "env_options": {**study_env_options(noise), "max_time_s": float(max_time_s)},
         "worlds": list(worlds),
         "variants": list(variants),
         "seeds": seed_list,
@@ -357,6 +387,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--jobs", type=int, default=1, help="episodes in this many processes")
     p.add_argument("--out", default="results/loop_study", help="writes OUT.json and OUT.md")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
+    p.add_argument(
+        "--noise",
+        choices=("on", "off"),
+        default="on",
+        help="range and odometry noise (default on); off: exact odometry, so a merge error "
+        "against the truth is a wrong place, not drift",
+    )
     args = p.parse_args(list(argv) if argv is not None else None)
     stem = Path(args.out)
     outputs = [Path(f"{stem}.json"), Path(f"{stem}.md")]
@@ -368,7 +405,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         if existing and not args.force:
             raise ConfigError(f"loop study: {existing} exist; pass --force to overwrite")
         doc = run_study(
-            args.worlds, args.seeds, args.first_seed, args.variants, args.max_time_s, args.jobs
+            args.worlds,
+            args.seeds,
+            args.first_seed,
+            args.variants,
+            args.max_time_s,
+            args.jobs,
+            noise=args.noise == "on",
         )
     except ConfigError as exc:
         print(f"mrexplore bench loop: error: {exc}")

@@ -29,7 +29,13 @@ from typing import Any
 import numpy as np
 
 from mrexplore.errors import ConfigError, MrexploreError
-from mrexplore.experiments.merge_cases import MergeCase, real_cases, symmetric_cases
+from mrexplore.experiments.merge_cases import (
+    MergeCase,
+    lidar_cases,
+    noisy_real_cases,
+    real_cases,
+    symmetric_cases,
+)
 from mrexplore.io_safety import check_outputs, write_text
 from mrexplore.merge import MapMergeTracker, merge_maps
 from mrexplore.merge.common import mean_displacement
@@ -108,6 +114,24 @@ def evaluate(
     }
 
 
+#: Case families: generated symmetric worlds, real-map crops, noisy non-Manhattan real-map crops
+#: (overlap >= 0.4), our simulator's own-frame lidar maps with noise.
+FAMILIES: tuple[str, ...] = ("symmetric", "real", "noisy", "lidar")
+
+
+def make_cases(family: str, n: int, seed: int) -> list[MergeCase]:
+    """``n`` cases of ``family`` (one of :data:`FAMILIES`), seeded."""
+    if family == "symmetric":
+        return symmetric_cases(n, seed)
+    if family == "real":
+        return real_cases(n, seed)
+    if family == "noisy":
+        return noisy_real_cases(n, seed)
+    if family == "lidar":
+        return lidar_cases(n, seed)
+    raise ConfigError(f"unknown case family {family!r}; choose from {FAMILIES}")
+
+
 def run_bench(
     n_cases: int,
     methods: Sequence[str] | None = None,
@@ -136,9 +160,9 @@ def run_bench(
         raise ConfigError(
             f"run_bench: unknown detector(s) {bad}; choose from {sorted(known_detectors)}"
         )
-    unknown_families = sorted(set(families) - {"symmetric", "real"})
+    unknown_families = sorted(set(families) - set(FAMILIES))
     if unknown_families:
-        raise ConfigError(f"run_bench: unknown family {unknown_families} (symmetric, real)")
+        raise ConfigError(f"run_bench: unknown family {unknown_families} {FAMILIES}")
     cfgs = (
         list(configs)
         if configs is not None
@@ -151,12 +175,7 @@ def run_bench(
     )
     rows: list[dict[str, Any]] = []
     for fam in families:
-        if fam == "symmetric":
-            cases = symmetric_cases(n_cases, seed)
-        elif fam == "real":
-            cases = real_cases(n_cases, seed)
-        else:
-            raise ConfigError(f"run_bench: unknown family {fam!r} (symmetric, real)")
+        cases = make_cases(fam, n_cases, seed)
         for m, d, o in cfgs:
             row = evaluate(cases, m, d, **o)
             row["family"] = fam

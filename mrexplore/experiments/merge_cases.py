@@ -18,6 +18,7 @@ known cells that land on a's known cells under the truth.
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -461,4 +462,95 @@ def noisy_real_cases(
                 resolution_m=files[k].resolution_m,
             )
         )
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# lidar pairs from our simulator (own-frame maps, random headings, noise on)
+# --------------------------------------------------------------------------------------------
+
+#: Sensor and odometry noise of the lidar family (moderate: a wheeled robot on a good floor).
+LIDAR_NOISE: dict[str, float] = {
+    "range_noise_m": 0.02,
+    "odom_noise_trans": 0.01,
+    "odom_noise_rot": 0.005,
+    "odom_noise_rot_per_m": 0.001,
+}
+
+
+def lidar_cases(
+    n: int,
+    seed: int,
+    worlds: Sequence[str] = ("symmetric_office", "twin_wings", "tb3_office", "depot"),
+    every_s: float = 15.0,
+    max_time_s: float = 180.0,
+    noise: Mapping[str, float] | None = None,
+) -> list[MergeCase]:
+    """``n`` pairs of the two robots' own maps, as the merger sees them in the loop.
+
+    Two robots with random start headings explore a world (coordinated frontiers, no merging,
+    ``noise`` on: :data:`LIDAR_NOISE` by default); every ``every_s`` simulated seconds the two
+    maps, cropped to their known boxes, become a case with the true transform from the
+    simulator. Worlds are cycled and episodes seeded from ``seed``; cases whose maps share no
+    known cell under the truth are skipped.
+    """
+    import mrexplore
+    from mrexplore.merge.common import known_bbox
+    from mrexplore.policies import make_team_policy
+
+    if n < 0:
+        raise ConfigError(f"lidar_cases: n must be >= 0, got {n}")
+    kw: dict[str, Any] = dict(LIDAR_NOISE if noise is None else noise)
+    out: list[MergeCase] = []
+    episode = 0
+    while len(out) < n:
+        world = worlds[episode % len(worlds)]
+        ep_seed = seed * 1000 + episode
+        episode += 1
+        env = mrexplore.parallel_env(
+            world=world,
+            n_robots=2,
+            aligned_headings=False,
+            merger=None,
+            max_time_s=max_time_s,
+            **kw,
+        )
+        env.reset(seed=ep_seed)
+        team = make_team_policy("coordinated-frontier", env.possible_agents)
+        team.reset(np.random.default_rng([ep_seed, 1]))
+        every = max(1, round(every_s / env.config.dt_s))
+        step, done = 0, False
+        while not done and len(out) < n:
+            _, _, terms, truncs, _ = env.step(team.act({a: env.robot_view(a) for a in env.agents}))
+            step += 1
+            done = bool(terms["robot_0"] or truncs["robot_0"])
+            if step % every:
+                continue
+            a, b = env.local_map("robot_0"), env.local_map("robot_1")
+            ba, bb = known_bbox(a), known_bbox(b)
+            if ba is None or bb is None:
+                continue
+            ac = np.ascontiguousarray(a[ba[0] : ba[1], ba[2] : ba[3]])
+            bc = np.ascontiguousarray(b[bb[0] : bb[1], bb[2] : bb[3]])
+            assert env.sim is not None
+            T = (
+                translation(-ba[2], -ba[0])
+                @ env.sim.true_transform(0, 1)
+                @ translation(bb[2], bb[0])
+            )
+            ov = overlap_share(ac, bc, T)
+            if ov <= 0.0:
+                continue
+            out.append(
+                MergeCase(
+                    a=ac,
+                    b=bc,
+                    T_ab=T,
+                    overlap=ov,
+                    family="lidar",
+                    name=f"{world}#{ep_seed}@{step * env.config.dt_s:.0f}s",
+                    meta={"t_s": step * env.config.dt_s},
+                    resolution_m=env.sim.resolution_m,
+                )
+            )
     return out

@@ -3,38 +3,30 @@ checked over the whole overlap, refusal when ambiguous, sub-cell / sub-degree re
 
 Pipeline (all on the maps cropped to their known bounding boxes):
 
-1. **Rotation candidates** from wall orientations: a histogram of wall-normal directions (axial,
-   modulo 90 degrees, 1 degree bins, weighted by gradient magnitude) for each map; their
-   circular cross-correlation peaks at the relative rotation modulo 90 degrees. Indoor maps are
-   mostly Manhattan, so each of the best ``max_rotation_peaks`` peaks gives the 4 candidates
-   theta0 + k 90; ``rotation_step_deg`` adds a uniform sweep for maps that are not.
-2. **Translation candidates**, coarse: per rotation, b is rotated (nearest neighbour) and both
-   maps are pooled to 1/``scale`` (a block is "wall" if it holds a wall, "free" if it is all
-   free); FFT cross-correlations give, for every translation, the wall agreement (b's walls on
-   or next to a's) and the disagreement (walls on free space, both ways); the score
-   ``agree * (agree / (agree + disagree))^2`` favours clean alignments over large but
-   contradicted overlaps; the ``peaks_per_rotation`` best separated peaks become hypotheses.
-   Optionally (``paper_candidates=True``) the seed paper's trusted-point gradient-window
-   correlation adds its best pairs as extra hypotheses.
-3. **Local alignment**: every hypothesis is polished by a few iterations of trimmed
-   point-to-point ICP of b's wall cells onto a's nearest wall cells (distance transform with
-   labels, closed-form 2-D Kabsch), which also moves it below a cell and a degree.
-4. **Global verification**: each polished hypothesis is scored by Birk & Carpin's acceptance
-   index ``agree / (agree + disagree)`` over the whole overlap, counted on the informative
-   cells: every wall cell of either map that lands on a known cell of the other, with a
-   one-cell tolerance (:class:`mrexplore.merge.common.Verifier`). Free-on-free cells are left
-   out: they agree for almost any pose inside a large room and drowned the signal (with them,
-   wrong poses scored 0.99+ on the bench).
-   The best pose is also slid along a's two wall directions (``slide_step``): in repetitive
-   layouts (shelf rows, long corridors) the coarse peak can sit on a ridge of equally
-   consistent poses, which this brings into the verification.
-5. **Decision**: the best hypothesis is the one with the most evidence (agreeing minus 10 x
-   disagreeing wall cells). Accept it only if its index is at least ``min_score``, at least
-   ``min_overlap`` of b's wall cells land on a's known cells, and it beats every *rival* - a
-   hypothesis far from it (b's cells displaced by ``far_cells`` or more on average) with at
-   least ``rival_support`` of its support - by ``min_margin`` in index and
-   ``min_evidence_cells`` in disagreeing cells. Two look-alike rooms give two far-apart
-   hypotheses that agree equally well: refused, to be merged later once more is known.
+1. **Rotation candidates** from two rotation spectra (modulo 90 degrees, half-degree bins): the
+   directions of straight wall segments (probabilistic Hough, length-weighted; unbiased by the
+   staircase of walls drawn at an angle) and of blurred wall gradients. The peaks of each
+   pair's circular cross-correlation give theta0 + k 90; ``rotation_step_deg`` adds a sweep.
+2. **Translation candidates**, coarse: per rotation, FFT cross-correlations of the maps pooled
+   to 1/``scale`` give every translation's wall agreement and disagreement; the
+   ``peaks_per_rotation`` best of ``agree * (agree / (agree + disagree))^2`` become hypotheses
+   (``paper_candidates=True`` adds the seed paper's trusted-point matches).
+3. **Local alignment**: point-to-line ICP of b's wall cells on a's, then a small rotation sweep
+   (+-0.5, +-1 degree) of the two best, re-polished.
+4. **Verification**: Birk & Carpin's acceptance index ``agree / (agree + disagree)`` on the
+   wall cells of both maps with a one-cell tolerance (:class:`~mrexplore.merge.common.Verifier`;
+   lone occupied cells, the speckle of real maps, take no part). The best pose is also slid
+   along a's wall directions (``slide_step``), so ridges of repetitive layouts are examined.
+5. **Decision** (two rules). *Consistent*: under the best pose (most agreeing minus 10 x
+   disagreeing wall cells) the maps contradict each other no more than their noise explains:
+   a wall within ``1 + slack_cells`` cells of the other map's wall (a wall seen from its two
+   sides, eroded by grazing beams) and lone contradictions (groups under ``min_run_cells``)
+   are noise, and what remains must leave an index >= ``min_score``. *Unique*: every far pose
+   (``far_cells`` mean displacement) that explains at least ``rival_support`` as much is beaten
+   by ``min_margin`` in index and ``min_evidence_cells`` disagreeing cells. Two look-alike rooms
+   pass the first and fail the second: refused, to be merged later once more is known.
+   Enough shared knowledge (``min_overlap``, ``min_overlap_cells``, ``min_common_m2``) is asked
+   for too. Measurements behind each default: ``docs/merging.md``.
 """
 
 from __future__ import annotations
@@ -553,52 +545,25 @@ def _common_known_cells(a: Int8Grid, b: Int8Grid, T_ab: NDArray[np.float64]) -> 
 
 
 def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
-    """Verified merge of b into a. Options (all validated; defaults tuned on the merge bench):
+    """Verified merge of b into a (int8 maps, any sizes). Options (validated; why each default
+    is what it is, with the measurements: ``docs/merging.md``):
 
-    - ``min_score`` (0.97): acceptance index the best hypothesis must reach. Measured on 120
-      bench pairs (30 + 30 seed 0, 60 real seed 1): 95 correct merges scored 0.978-1.0, the 7
-      wrong best hypotheses 0.36-0.951.
-    - ``min_margin`` (0.03): by how much it must beat the best hypothesis far from it ...
-    - ``min_evidence_cells`` (20): ... which must also disagree on at least this many more wall
-      cells than the best (a margin from a handful of cells is noise, not evidence).
-    - ``far_cells`` (5.0): mean displacement of b's cells (cells) that makes a hypothesis "far".
-    - ``rival_support`` (0.5): a far hypothesis is a rival only if it has at least this share
-      of the best's agreeing wall cells.
-    - ``slide_step`` (8.0): cells between the shifts of the slide search (0 = off), see
-      :func:`_slide_hypotheses`.
-    - ``min_overlap`` (0.15): share of b's wall cells that must land on a's known cells.
-    - ``min_overlap_cells`` (80): and at least this many wall cells of both maps must take part.
-    - ``min_common_m2`` (10.0): the two maps must share at least this much known space (cells
-      known in both under the best pose, in m^2 at ``resolution_m``). Look-alike rooms are
-      room-sized: two robots that have each seen only one of two identical rooms hold maps that
-      match perfectly and *uniquely*, and nothing in the two maps can tell the rooms apart; only
-      a match that extends beyond the look-alike part can. Measured on the merge bench (30 + 30
-      cases, seed 0): 0 / 10 / 20 / 30 m^2 gave 24, 24, 24, 24 of 25 symmetric and 26, 26, 19, 16
-      of 28 real-map pairs correct (overlap >= 30 %), no wrong merge at any value; the real-map
-      crops are only 6-10 m wide. The every-step :class:`~mrexplore.fusion.FusionStage` (env and
-      wrapper) raises it to 40 m^2, more than the twin rooms of our worlds: in the loop the maps
-      grow and waiting costs nothing, while a one-shot merge has no "later". Measured in the loop
-      (``symmetric_office``, rotated starts, 6 seeds): with 10 m^2 a pair starting in the two
-      twin rooms merged wrongly at t = 2.5 s (310 cells off); with 40 m^2, none of 18 episodes
-      merged wrongly.
-    - ``resolution_m`` (0.05): metres per cell of both maps (only used for ``min_common_m2``).
-    - ``slack_cells`` (0): free cells 2..1+slack cells from a wall neither agree nor disagree
-      (tolerance for drift; measured in ``docs/merging.md``: it also blunts the rival test).
-    - ``scale`` (4): coarse search pooling factor (cells per block).
-    - ``peaks_per_rotation`` (6): coarse translation peaks kept per rotation.
-    - ``max_rotation_peaks`` (3): histogram cross-correlation peaks (each -> 4 rotations).
-    - ``rotation_step_deg`` (0.0): add a uniform rotation sweep with this step (0 = none).
-    - ``n_polish`` (12): hypotheses (best by a wide-tolerance screening) that get a short ICP.
-    - ``n_refine`` (5): of those, the best distinct ones get the full ICP and verification.
+    - decision: ``min_score`` (0.97) on the noise-aware consistency index, with ``slack_cells``
+      (2) and ``min_run_cells`` (5) defining the noise; ``min_margin`` (0.03) and
+      ``min_evidence_cells`` (20) against every rival, a pose ``far_cells`` (5.0) cells away
+      on average with ``rival_support`` (0.5) of the best's agreeing wall cells;
+    - shared knowledge: ``min_overlap`` (0.15) of b's wall cells on a's known cells,
+      ``min_overlap_cells`` (80), ``min_common_m2`` (10.0) m^2 known in both at
+      ``resolution_m`` (0.05) m/cell (the every-step tracker asks for 20 m^2: a room);
+    - search: ``max_rotation_peaks`` (2) per rotation spectrum, ``rotation_step_deg`` (0 = no
+      sweep), ``scale`` (4) cells per coarse block, ``peaks_per_rotation`` (12), ``n_polish``
+      (24) and ``n_refine`` (8) hypotheses polished and refined, ``slide_step`` (8.0) cells
+      (0 = no slide search), ``max_samples`` (20000) wall cells per map in the verifier;
+    - coarse score: ``ratio_power`` (2.0), or the linear score with ``w_free`` (0.2) and
+      ``w_disagree`` (1.0) when it is 0;
     - ``paper_candidates`` (False): add the seed paper's trusted-point matches as hypotheses
-      (``detector`` picks their keypoints, default harris; slow, see :func:`_paper_hypotheses`).
-    - ``max_samples`` (20000): wall cells per map sampled by the verifier.
-    - ``ratio_power`` (2.0): coarse score ``agree * (agree / (agree + disagree))^p``; 0 selects
-      the linear score ``agree + w_free * free_agree - w_disagree * disagree`` instead.
-      Measured: the linear score let 3 wrong merges through on 60 real-map pairs (repetitive
-      warehouse shelves: the true pose, with a small overlap, never became a candidate); the
-      ratio score made none (and merging both candidate sets brought one back).
-    - ``w_free`` (0.2), ``w_disagree`` (1.0): weights of the linear coarse score.
+      (``detector``, default harris, picks their keypoints; 3-4x slower, one more correct merge
+      in 166 bench pairs).
     """
     t0 = time.perf_counter()
     where = "merge_maps(method='semantic')"

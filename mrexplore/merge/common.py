@@ -181,9 +181,9 @@ def to_gray(grid: Int8Grid) -> NDArray[np.uint8]:
 def reliable_walls(grid: Int8Grid) -> NDArray[np.bool_]:
     """Wall cells (H, W) bool that have at least one wall among their 8 neighbours.
 
-    A lone occupied cell in open space is a spurious return far more often than structure (a
-    real SLAM map holds many; our own lidar maps none): it takes no part in verification, so a
-    speckled map is judged by its walls, not its noise.
+    A lone occupied cell is weak evidence: a spurious return in a real SLAM map, or one sparse
+    hit of a distant wall in a lidar map (beams spread wider than a cell at range). It is not a
+    verification point and no wall lands on it with any effect (:func:`cell_codes`).
     """
     wall = (grid >= OCCUPIED_THRESHOLD).view(np.uint8)
     n = cv2.filter2D(wall, -1, np.ones((3, 3), np.float32), borderType=cv2.BORDER_CONSTANT)
@@ -195,19 +195,21 @@ def cell_codes(grid: Int8Grid, tolerance: int = 1, slack: int = 0) -> NDArray[np
     (8-neighbourhood, i.e. a square window) / wall.
 
     Free cells farther than ``tolerance`` but within ``tolerance + slack`` cells of a wall are
-    coded unknown: a wall landing there neither agrees nor contradicts (two maps of one place
-    bent by odometry drift put the same wall a cell or two apart). Lone wall cells
-    (:func:`reliable_walls`) count as free.
+    coded unknown: a wall landing there neither agrees nor contradicts (one wall seen from its
+    two sides, or eroded by grazing beams, sits a cell or two apart in two maps). Lone wall
+    cells (:func:`reliable_walls`) are coded unknown too, but still make their neighbours "near
+    a wall".
     """
+    occupied = grid >= OCCUPIED_THRESHOLD
     wall = reliable_walls(grid)
-    free = (grid >= 0) & (grid <= FREE_THRESHOLD) | ((grid >= OCCUPIED_THRESHOLD) & ~wall)
+    free = (grid >= 0) & (grid <= FREE_THRESHOLD)
     k = 2 * int(tolerance) + 1
-    near = cv2.dilate(wall.view(np.uint8), np.ones((k, k), np.uint8)).astype(bool)
+    near = cv2.dilate(occupied.view(np.uint8), np.ones((k, k), np.uint8)).astype(bool)
     codes = np.zeros(grid.shape, dtype=np.uint8)
     codes[free] = CODE_FREE
     if slack > 0:
         k2 = 2 * (int(tolerance) + int(slack)) + 1
-        mid = cv2.dilate(wall.view(np.uint8), np.ones((k2, k2), np.uint8)).astype(bool)
+        mid = cv2.dilate(occupied.view(np.uint8), np.ones((k2, k2), np.uint8)).astype(bool)
         codes[free & mid] = CODE_UNKNOWN
     codes[free & near] = CODE_FREE_NEAR_WALL
     codes[wall] = CODE_WALL

@@ -518,3 +518,120 @@ def warm_up() -> None:
         np.zeros(1),
         np.zeros(1),
     )
+
+
+@numba.njit(cache=True, nogil=True)
+def wall_icp(
+    T: NDArray[np.float64],
+    pb: NDArray[np.float64],
+    labels: NDArray[np.int32],
+    lut: NDArray[np.float64],
+    w: int,
+    h: int,
+    iters: int,
+    max_dist: float,
+) -> NDArray[np.float64]:
+    """Point-to-line ICP of the points ``pb`` (N, 2) ``(col, row)`` onto the wall cells of a map
+    whose distance-transform labels are ``labels`` (H*W, flat) and label -> cell table ``lut``
+    (L, 2): the same formulas, in the same order, as
+    :meth:`mrexplore.merge.semantic._WallICP.reference` (numpy), which the tests hold it to.
+    Returns the refined 3x3 ``T`` (a new array)."""
+    T = T.copy()
+    n_pts = pb.shape[0]
+    md2 = max_dist * max_dist
+    ux = np.empty(n_pts)
+    uy = np.empty(n_pts)
+    nx = np.empty(n_pts)
+    ny = np.empty(n_pts)
+    dd = np.empty(n_pts)
+    for _ in range(iters):
+        n_keep = 0
+        n_ok = 0
+        for k in range(n_pts):
+            qx = T[0, 0] * pb[k, 0] + T[0, 1] * pb[k, 1] + T[0, 2]
+            qy = T[1, 0] * pb[k, 0] + T[1, 1] * pb[k, 1] + T[1, 2]
+            c = int(np.rint(qx))
+            r = int(np.rint(qy))
+            if c < 0 or c >= w or r < 0 or r >= h:
+                continue
+            lab = labels[r * w + c]
+            ex = qx - lut[lab, 0]
+            ey = qy - lut[lab, 1]
+            d2 = ex * ex + ey * ey
+            if d2 > md2:
+                continue
+            n_keep += 1
+            d = math.sqrt(d2)
+            if d > 1e-6:
+                ux[n_ok] = qx
+                uy[n_ok] = qy
+                nx[n_ok] = ex / d
+                ny[n_ok] = ey / d
+                dd[n_ok] = d
+                n_ok += 1
+        if n_keep < 10 or n_ok < 10:
+            return T
+        cx = 0.0
+        cy = 0.0
+        for k in range(n_ok):
+            cx += ux[k]
+            cy += uy[k]
+        cx /= n_ok
+        cy /= n_ok
+        A = np.zeros((3, 3))
+        bvec = np.zeros(3)
+        for k in range(n_ok):
+            j0 = nx[k]
+            j1 = ny[k]
+            j2 = ny[k] * (ux[k] - cx) - nx[k] * (uy[k] - cy)
+            A[0, 0] += j0 * j0
+            A[0, 1] += j0 * j1
+            A[0, 2] += j0 * j2
+            A[1, 1] += j1 * j1
+            A[1, 2] += j1 * j2
+            A[2, 2] += j2 * j2
+            bvec[0] -= j0 * dd[k]
+            bvec[1] -= j1 * dd[k]
+            bvec[2] -= j2 * dd[k]
+        A[1, 0] = A[0, 1]
+        A[2, 0] = A[0, 2]
+        A[2, 1] = A[1, 2]
+        for i in range(3):
+            A[i, i] += 1e-6
+        # 3x3 solve by Cramer's rule (numba's np.linalg needs scipy; A is symmetric positive
+        # definite thanks to the 1e-6 ridge)
+        det = (
+            A[0, 0] * (A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1])
+            - A[0, 1] * (A[1, 0] * A[2, 2] - A[1, 2] * A[2, 0])
+            + A[0, 2] * (A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0])
+        )
+        dtx = (
+            bvec[0] * (A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1])
+            - A[0, 1] * (bvec[1] * A[2, 2] - A[1, 2] * bvec[2])
+            + A[0, 2] * (bvec[1] * A[2, 1] - A[1, 1] * bvec[2])
+        ) / det
+        dty = (
+            A[0, 0] * (bvec[1] * A[2, 2] - A[1, 2] * bvec[2])
+            - bvec[0] * (A[1, 0] * A[2, 2] - A[1, 2] * A[2, 0])
+            + A[0, 2] * (A[1, 0] * bvec[2] - bvec[1] * A[2, 0])
+        ) / det
+        dth = (
+            A[0, 0] * (A[1, 1] * bvec[2] - bvec[1] * A[2, 1])
+            - A[0, 1] * (A[1, 0] * bvec[2] - bvec[1] * A[2, 0])
+            + bvec[0] * (A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0])
+        ) / det
+        co = math.cos(dth)
+        si = math.sin(dth)
+        # T <- step @ T, step = translation(cx + dtx, cy + dty) @ R(dth) @ translation(-cx, -cy)
+        # (written out: numba's matrix product needs scipy's BLAS)
+        s02 = cx + dtx - (co * cx - si * cy)
+        s12 = cy + dty - (si * cx + co * cy)
+        T_new = np.empty((3, 3))
+        for j in range(3):
+            T_new[0, j] = co * T[0, j] - si * T[1, j] + s02 * T[2, j]
+            T_new[1, j] = si * T[0, j] + co * T[1, j] + s12 * T[2, j]
+            T_new[2, j] = T[2, j]
+        T = T_new
+        if abs(dtx) + abs(dty) < 0.05 and abs(dth) < 5e-4:
+            break
+    return T

@@ -115,3 +115,24 @@ def test_paper_candidates_option_runs(
     res = merge_maps(a, b, paper_candidates=True, detector="shi-tomasi")
     assert res.matched and res.transform is not None
     assert mean_displacement(res.transform, T_true, b) < 1.0
+
+
+@pytest.mark.parametrize(
+    ("dth_deg", "dx", "dy"), [(0.0, 0.0, 0.0), (1.5, 2.0, -1.0), (-3.0, -2.5, 2.0)]
+)
+def test_compiled_icp_equals_the_numpy_reference(
+    office_pair: tuple[np.ndarray, np.ndarray, np.ndarray], dth_deg: float, dx: float, dy: float
+) -> None:
+    from mrexplore.grid import OCCUPIED_THRESHOLD, make_transform
+    from mrexplore.merge.semantic import _WallICP
+
+    a, b, T_ab = office_pair
+    icp = _WallICP(a >= OCCUPIED_THRESHOLD, b >= OCCUPIED_THRESHOLD, max_points=1500)
+    T0 = translation(dx, dy) @ make_transform(np.radians(dth_deg), 0.0, 0.0) @ T_ab
+    for iters, max_dist, n_points in [(4, 6.0, 400), (10, 3.0, 0)]:
+        fast = icp(T0, iters, max_dist, n_points)
+        slow = icp.reference(T0, iters, max_dist, n_points)
+        np.testing.assert_allclose(fast, slow, atol=1e-6)
+    # and it converges to the truth from a few cells and degrees off
+    T = icp(icp(T0, 10, 6.0), 10, 3.0)
+    assert mean_displacement(T, T_ab, b) < 1.0

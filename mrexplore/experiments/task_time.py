@@ -116,6 +116,9 @@ def _load_log(path: Path, settings: Mapping[str, Any], force: bool) -> dict[str,
         head = json.loads(lines[0]) if lines else {}
     except ValueError:
         head = {}
+    if force:
+        path.unlink()  # --force means a fresh run: no episode of an earlier run is reused
+        return {}
     if head.get("settings") != json.loads(json.dumps(settings, default=str)):
         if not force:
             raise OutputExistsError(
@@ -153,8 +156,9 @@ def run_task_time(
 
     Every argument (numbers, tasks, policy, world, env options) is checked before the first
     episode. Finished episodes are appended to ``<out>/episodes.jsonl`` as they complete; a rerun
-    with the same settings skips them (resume after an interruption). Earlier results
-    (``task_time.json/.csv/.png``) are not replaced without ``force``.
+    with the same settings skips them (resume after an interruption); the log is removed once
+    the results are written. Earlier results (``task_time.json/.csv/.png``) are not replaced
+    without ``force``, and ``force`` starts over (no episode of an earlier run is reused).
 
     Raises:
         ConfigError: a bad argument.
@@ -228,6 +232,7 @@ def run_task_time(
             _plot(tmp, runs, doc)
     except ImportError as exc:
         print(f"(no plot: {exc}; install the 'plot' extra: pip install 'mrexplore[plot]')")
+    log_path.unlink()  # complete: the results hold every episode
     print(format_table(doc))
     return doc
 

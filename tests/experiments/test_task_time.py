@@ -82,11 +82,13 @@ def test_task_time_checks_every_argument_before_any_episode(
 
 def test_task_time_resumes_and_keeps_results(tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
     calls: list[int] = []
+    interrupts = [2]  # interrupt once, at the second episode
     real = task_time.run_episode
 
     def interrupted(opts, team, seed):  # type: ignore[no-untyped-def]
         calls.append(seed)
-        if len(calls) == 2:
+        if len(calls) in interrupts:
+            interrupts.clear()
             raise KeyboardInterrupt
         return real(opts, team, seed)
 
@@ -103,20 +105,23 @@ def test_task_time_resumes_and_keeps_results(tmp_path: Path, monkeypatch) -> Non
     with pytest.raises(KeyboardInterrupt):
         run_task_time(**kw)  # type: ignore[arg-type]
     assert not (tmp_path / "task_time.json").exists()
+    log = (tmp_path / "episodes.jsonl").read_bytes()
     calls.clear()
     doc = run_task_time(**kw)  # type: ignore[arg-type]
     assert len(calls) == 1  # the single-robot episode was saved; only the team one ran again
     assert len(doc["tasks"]["explore"]["single"]["task_times_s"]) == 1
+    assert not (tmp_path / "episodes.jsonl").exists()  # complete: the log is gone
     with pytest.raises(OutputExistsError, match="already exists"):
         run_task_time(**kw)  # type: ignore[arg-type]
     other = tmp_path / "other"
     other.mkdir()
-    (other / "episodes.jsonl").write_bytes((tmp_path / "episodes.jsonl").read_bytes())
+    (other / "episodes.jsonl").write_bytes(log)
     with pytest.raises(OutputExistsError, match="other settings"):
         run_task_time(**{**kw, "out": other, "policy": "random"})  # type: ignore[arg-type]
+    (tmp_path / "episodes.jsonl").write_bytes(log)
     calls.clear()
     run_task_time(**{**kw, "force": True})  # type: ignore[arg-type]
-    assert calls == []  # same settings: every episode came from the log
+    assert len(calls) == 2  # --force starts over: no episode of the earlier run is reused
 
 
 def test_task_time_out_naming_a_file(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]

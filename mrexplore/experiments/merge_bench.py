@@ -59,13 +59,18 @@ WRONG_CELLS = 5.0
 
 
 def classify(case: MergeCase, matched: bool, transform: np.ndarray | None) -> tuple[str, float]:
-    """("correct" | "imprecise" | "wrong" | "refused", error in cells (inf when refused))."""
+    """("correct" | "imprecise" | "wrong" | "refused", error in cells (inf when refused)).
+
+    Both thresholds are widened by ``case.meta["drift_cells"]`` (lidar cases with odometry
+    noise: how far drift alone moves a perfect merge off the start-frame truth; 0 otherwise).
+    """
     if not matched or transform is None:
         return "refused", float("inf")
     err = mean_displacement(np.asarray(transform), case.T_ab, case.b)
-    if err < CORRECT_CELLS:
+    drift = float(case.meta.get("drift_cells", 0.0))
+    if err < CORRECT_CELLS + drift:
         return "correct", err
-    if err >= WRONG_CELLS:
+    if err >= WRONG_CELLS + drift:
         return "wrong", err
     return "imprecise", err
 
@@ -100,6 +105,7 @@ def evaluate(
                 "overlap": round(c.overlap, 3),
                 "kind": kind,
                 "error_cells": None if not np.isfinite(err) else round(err, 2),
+                "drift_cells": round(float(c.meta.get("drift_cells", 0.0)), 2),
                 "score": round(res.score, 3),
                 "reason": res.reason,
                 "ms": round(res.time_s * 1e3, 1),

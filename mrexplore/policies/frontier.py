@@ -25,16 +25,23 @@ The machine (per robot, every step):
    end of its path; the target cell stopped being a frontier; or the robot is *stuck* (no progress
    along the path for ``stuck_steps`` steps, or ``bump_steps`` FORWARDs in a row that did not move
    it - a collision).
-2. Plan: frontiers of the map (:func:`~mrexplore.policies.frontiers.find_frontiers`), a coarse
+2. Plan: frontiers of the map (:func:`~mrexplore.policies.frontiers.find_frontiers`), a
    planning grid with a distance field from the robot
-   (:class:`~mrexplore.policies.planning.PlanningGrid`), each frontier's path length to the nearest
+   (:class:`~mrexplore.policies.planning.PlanningGrid`; at the map's resolution by default, since
+   coarser cells close gaps the robot fits through), each frontier's path length to the nearest
    reachable planning cell within ``approach_cells`` planning cells of any of its cells; choose
-   among the reachable, non-blacklisted frontiers; path by descending the field.
+   among the reachable, non-blacklisted frontiers; path by descending the field. Cells the
+   robot's centre has been on are always traversable (it can go back the way it came, even when
+   the map, seen better from inside a gap, now shows the gap narrower than the inflated robot).
+   When no frontier is reachable with the usual clearance (``clearance_cells`` beyond the
+   radius), the round is repeated with ``tight_clearance_cells``: the simulator's own collision
+   rule, so a gap the robot's body fits through is never given up for a safety margin.
 3. Blacklist (never retried): a target the robot got stuck on twice; a frontier that is still
    there when the robot stands at its approach cell (it cannot be seen from where one can stand).
-   Frontiers unreachable on the coarse grid are simply never chosen while unreachable, so nothing is
-   retried in a loop; when no reachable frontier is left, the policy reports ``done`` and returns
-   STAY (and looks again every ``replan_every`` steps, since a merge can reveal new frontiers).
+   Frontiers unreachable on the planning grid are simply never chosen while unreachable, so
+   nothing is retried in a loop; when no reachable frontier is left, the policy reports ``done``
+   and returns STAY (and looks again every ``replan_every`` steps, since a merge can reveal new
+   frontiers).
 4. Follow the path with :func:`~mrexplore.policies.base.follow_path`.
 """
 
@@ -104,7 +111,10 @@ class FrontierExplorer(Policy):
 
     Args:
         min_frontier_cells: smallest frontier kept, cells (8 = 0.4 m at 0.05 m/cell).
-        plan_factor: fine cells per planning cell (2: 0.1 m planning cells at 0.05 m/cell).
+        plan_factor: fine cells per planning cell (1: plan on the map's own cells). A planning
+            cell is traversable only when all its fine cells are, so 2 (0.1 m cells, 4x fewer)
+            loses up to a fine cell of every gap to the cell grid's alignment: enough to close
+            the 0.35-0.4 m passages of a real office to a 0.3 m robot for good.
         approach_cells: a frontier cell is reachable when a traversable planning cell lies within
             this many planning cells of it (frontier cells border unknown space, which the
             planner treats as an obstacle, so the robot can only get *near* them).
@@ -117,6 +127,11 @@ class FrontierExplorer(Policy):
         bump_steps: FORWARD actions in a row that did not move the robot (collisions) before a
             re-plan from the nearest free planning cell.
         blacklist_radius_m: frontier cells this close to a blacklisted point are never targets.
+        clearance_cells: inflation of the walls beyond the robot's radius, fine cells (0.5 covers
+            the wall cell's own extent; :func:`~mrexplore.policies.planning.inflate_obstacles`).
+        tight_clearance_cells: the clearance of the second round when no frontier is reachable
+            with ``clearance_cells`` (0: exactly the simulator's collision rule); None: no second
+            round.
         lookahead_m: path-follower look-ahead, metres.
         arrive_m: the path end counts as reached within this distance, metres.
         turn_step_rad: heading change of one turn action (the robot's default).
@@ -131,13 +146,15 @@ class FrontierExplorer(Policy):
     def __init__(
         self,
         min_frontier_cells: int = 8,
-        plan_factor: int = 2,
-        approach_cells: int = 2,
+        plan_factor: int = 1,
+        approach_cells: int = 4,
         replan_every: int = 10,
         min_replan_steps: int = 2,
         stuck_steps: int = 12,
         bump_steps: int = 3,
         blacklist_radius_m: float = 0.5,
+        clearance_cells: float = 0.5,
+        tight_clearance_cells: float | None = 0.0,
         lookahead_m: float = 0.3,
         arrive_m: float = 0.15,
         turn_step_rad: float = DEFAULT_TURN_STEP_RAD,
@@ -152,6 +169,8 @@ class FrontierExplorer(Policy):
             "stuck_steps": stuck_steps >= 1,
             "bump_steps": bump_steps >= 1,
             "blacklist_radius_m": blacklist_radius_m >= 0,
+            "clearance_cells": clearance_cells >= 0,
+            "tight_clearance_cells": tight_clearance_cells is None or tight_clearance_cells >= 0,
             "lookahead_m": lookahead_m > 0,
             "arrive_m": arrive_m > 0,
             "turn_step_rad": 0 < turn_step_rad < math.pi,
@@ -168,6 +187,10 @@ class FrontierExplorer(Policy):
         self.stuck_steps = int(stuck_steps)
         self.bump_steps = int(bump_steps)
         self.blacklist_radius_m = float(blacklist_radius_m)
+        self.clearance_cells = float(clearance_cells)
+        self.tight_clearance_cells = (
+            None if tight_clearance_cells is None else float(tight_clearance_cells)
+        )
         self.lookahead_m = float(lookahead_m)
         self.arrive_m = float(arrive_m)
         self.turn_step_rad = float(turn_step_rad)
@@ -193,6 +216,8 @@ class FrontierExplorer(Policy):
         self._last_action = int(Action.STAY)
         self._arrived = False
         self.blacklist: list[tuple[float, float]] = []
+        # Own-map cells the robot's centre has been on (its estimated trail), for the planner.
+        self._trail: list[tuple[float, float]] = []
         self._strikes: list[tuple[float, float]] = []
         self.n_plans = 0
         self.n_acts = 0
@@ -227,6 +252,11 @@ class FrontierExplorer(Policy):
             )
         pose = (float(view.pose_cell[0]), float(view.pose_cell[1]), float(view.pose_cell[2]))
         res = float(view.resolution_m)
+        if (
+            not self._trail
+            or math.hypot(pose[0] - self._trail[-1][0], pose[1] - self._trail[-1][1]) >= 0.5
+        ):
+            self._trail.append((pose[0], pose[1]))
         stuck, bumped = self._update_progress(pose, res)
         if stuck and self.target is not None:
             self._strike(self.target, res)
@@ -359,7 +389,9 @@ class FrontierExplorer(Policy):
         """Reachable, allowed frontiers with their path lengths (None: nothing to plan on).
 
         Per frontier, the *aim* is its cell with the shortest path to a planning cell within
-        ``approach_cells``; cells near blacklisted points are left out first.
+        ``approach_cells``; cells near blacklisted points are left out first. Planned with
+        ``clearance_cells`` first; if that leaves no frontier, again with
+        ``tight_clearance_cells``.
         """
         m = view.map
         res = float(view.resolution_m)
@@ -371,22 +403,45 @@ class FrontierExplorer(Policy):
         fronts = find_frontiers(crop, self.min_frontier_cells)
         if not fronts:
             return None
-        grid = PlanningGrid.build(
-            crop,
-            res,
-            float(view.robot_radius_m),
-            (pose[0] - c0, pose[1] - r0),
-            factor=self.plan_factor,
-            margin_m=0.0,
-        )
-        # From crop cells to map cells: shifting the grid's offset is all it takes.
-        grid.col0 += c0
-        grid.row0 += r0
-        if grid.start is None:
-            return None
         off = np.array([c0, r0], dtype=np.int64)
         cells = np.concatenate([f.cells for f in fronts]) + off
         counts = np.array([f.size for f in fronts])
+        # The trail ends where the robot stands now.
+        trail = np.array([*self._trail, pose[:2]], dtype=np.float64) - off
+        clearances = [self.clearance_cells]
+        if self.tight_clearance_cells is not None:
+            clearances.append(self.tight_clearance_cells)
+        out: _Round | None = None
+        for clearance in clearances:
+            grid = PlanningGrid.build(
+                crop,
+                res,
+                float(view.robot_radius_m),
+                (pose[0] - c0, pose[1] - r0),
+                factor=self.plan_factor,
+                margin_m=0.0,
+                clearance_cells=clearance,
+                passable_path=trail,
+            )
+            # From crop cells to map cells: shifting the grid's offset is all it takes.
+            grid.col0 += c0
+            grid.row0 += r0
+            if grid.start is None:
+                continue
+            out = self._round(grid, cells, counts, res)
+            if len(out):
+                break
+        return out
+
+    def _round(
+        self,
+        grid: PlanningGrid,
+        cells: NDArray[np.int64],
+        counts: NDArray[np.int64],
+        res: float,
+    ) -> _Round:
+        """The reachable, allowed frontiers on one planning grid (``cells`` (N, 2) all frontier
+        cells in map cells, grouped by frontier; ``counts`` (F,) cells per frontier)."""
         starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
         dist, pcell = grid.approach(cells, self.approach_cells)
         if self.blacklist:
@@ -398,9 +453,9 @@ class FrontierExplorer(Policy):
             dist[near] = np.inf
         # Per frontier: the best of its cells (reduceat on the concatenated cells).
         best = np.minimum.reduceat(dist, starts)
-        owner = np.repeat(np.arange(len(fronts)), counts)
+        owner = np.repeat(np.arange(len(counts)), counts)
         hit = np.flatnonzero(dist == best[owner])
-        first = np.full(len(fronts), -1, dtype=np.int64)
+        first = np.full(len(counts), -1, dtype=np.int64)
         first[owner[hit[::-1]]] = hit[::-1]  # reversed assignment keeps each frontier's first hit
         ok = np.isfinite(best)
         # A frontier cell reachable at (almost) zero distance is one we stand at and still cannot

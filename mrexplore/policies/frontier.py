@@ -30,11 +30,10 @@ The machine (per robot, every step):
    (:class:`~mrexplore.policies.planning.PlanningGrid`; at the map's resolution by default, since
    coarser cells close gaps the robot fits through), each frontier's path length to the nearest
    reachable planning cell within ``approach_cells`` planning cells of any of its cells; choose
-   among the reachable, non-blacklisted frontiers; path by descending the field. Cells the
-   robot's centre has been on are always traversable (it can go back the way it came, even when
-   the map, seen better from inside a gap, now shows the gap narrower than the inflated robot).
-   When no frontier is reachable with the usual clearance (``clearance_cells`` beyond the
-   radius), the round is repeated with ``tight_clearance_cells``: the simulator's own collision
+   among the reachable, non-blacklisted frontiers; path by descending the field. With
+   ``backtrack_trail`` the cells the robot's centre has been on are always traversable. When no
+   frontier is reachable with the usual clearance (``clearance_cells`` beyond the radius), the
+   round is repeated with ``tight_clearance_cells``: the simulator's own collision
    rule, so a gap the robot's body fits through is never given up for a safety margin.
 3. Blacklist (never retried): a target the robot got stuck on twice; a frontier that is still
    there when the robot stands at its approach cell (it cannot be seen from where one can stand).
@@ -132,6 +131,11 @@ class FrontierExplorer(Policy):
         tight_clearance_cells: the clearance of the second round when no frontier is reachable
             with ``clearance_cells`` (0: exactly the simulator's collision rule); None: no second
             round.
+        backtrack_trail: the robot's own trail is always traversable (it can go back the way it
+            came even when its map, seen better from inside a gap, shows the gap narrower than
+            the inflated robot). Off by default: the tight-clearance round already frees such
+            robots on tb3_office, and on depot (seed 1008, random headings) the trail led a
+            robot to plan along a shelf corner it stayed wedged against.
         lookahead_m: path-follower look-ahead, metres.
         arrive_m: the path end counts as reached within this distance, metres.
         turn_step_rad: heading change of one turn action (the robot's default).
@@ -155,6 +159,7 @@ class FrontierExplorer(Policy):
         blacklist_radius_m: float = 0.5,
         clearance_cells: float = 0.5,
         tight_clearance_cells: float | None = 0.0,
+        backtrack_trail: bool = False,
         lookahead_m: float = 0.3,
         arrive_m: float = 0.15,
         turn_step_rad: float = DEFAULT_TURN_STEP_RAD,
@@ -188,6 +193,7 @@ class FrontierExplorer(Policy):
         self.bump_steps = int(bump_steps)
         self.blacklist_radius_m = float(blacklist_radius_m)
         self.clearance_cells = float(clearance_cells)
+        self.backtrack_trail = bool(backtrack_trail)
         self.tight_clearance_cells = (
             None if tight_clearance_cells is None else float(tight_clearance_cells)
         )
@@ -252,7 +258,7 @@ class FrontierExplorer(Policy):
             )
         pose = (float(view.pose_cell[0]), float(view.pose_cell[1]), float(view.pose_cell[2]))
         res = float(view.resolution_m)
-        if (
+        if self.backtrack_trail and (
             not self._trail
             or math.hypot(pose[0] - self._trail[-1][0], pose[1] - self._trail[-1][1]) >= 0.5
         ):
@@ -407,7 +413,11 @@ class FrontierExplorer(Policy):
         cells = np.concatenate([f.cells for f in fronts]) + off
         counts = np.array([f.size for f in fronts])
         # The trail ends where the robot stands now.
-        trail = np.array([*self._trail, pose[:2]], dtype=np.float64) - off
+        trail = (
+            np.array([*self._trail, pose[:2]], dtype=np.float64) - off
+            if self.backtrack_trail
+            else None
+        )
         clearances = [self.clearance_cells]
         if self.tight_clearance_cells is not None:
             clearances.append(self.tight_clearance_cells)

@@ -303,7 +303,8 @@ def test_robot_in_a_gap_its_map_shows_too_narrow_backs_out_along_its_trail() -> 
     """The robot drove into a 6-cell gap (its map now shows the gap narrower than the inflated
     robot). Without its trail, the planner would start from the nearest traversable cell, in a
     dead-end pocket on the far side, and stall "done" (tb3_office, random headings, seeds
-    1001/1006); the trail it came along stays traversable, so it plans back to the frontier."""
+    1001/1006); with ``backtrack_trail`` the trail it came along stays traversable, so it plans
+    back to the frontier."""
     m = np.full((40, 120), UNKNOWN, dtype=np.int8)
     m[0:40, 0:100] = OCCUPIED
     m[1:39, 1:100] = FREE  # room A, its right side (col 100) unknown: the frontier
@@ -311,7 +312,7 @@ def test_robot_in_a_gap_its_map_shows_too_narrow_backs_out_along_its_trail() -> 
     m[1:39, 30] = OCCUPIED  # a wall with a 6-cell gap at rows 17-22 ...
     m[17:23, 30] = FREE
     m[1:39, 20] = OCCUPIED  # ... into pocket B (cols 21-29), closed on the left
-    pol = NearestFrontierPolicy()
+    pol = NearestFrontierPolicy(backtrack_trail=True)
     pol.reset(np.random.default_rng(0))
     # The trail: from room A (col 60) along row 20 into the gap, where the robot stands.
     for c in np.arange(60.0, 30.0, -2.5):

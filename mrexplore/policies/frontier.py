@@ -27,14 +27,14 @@ The machine (per robot, every step):
    it - a collision).
 2. Plan: frontiers of the map (:func:`~mrexplore.policies.frontiers.find_frontiers`), a
    planning grid with a distance field from the robot
-   (:class:`~mrexplore.policies.planning.PlanningGrid`; at the map's resolution by default, since
-   coarser cells close gaps the robot fits through), each frontier's path length to the nearest
-   reachable planning cell within ``approach_cells`` planning cells of any of its cells; choose
-   among the reachable, non-blacklisted frontiers; path by descending the field. With
-   ``backtrack_trail`` the cells the robot's centre has been on are always traversable. When no
-   frontier is reachable with the usual clearance (``clearance_cells`` beyond the radius), the
-   round is repeated with ``tight_clearance_cells``: the simulator's own collision
-   rule, so a gap the robot's body fits through is never given up for a safety margin.
+   (:class:`~mrexplore.policies.planning.PlanningGrid`; 2x2 map cells by default), each
+   frontier's path length to the nearest reachable planning cell within ``approach_cells``
+   planning cells of any of its cells; choose among the reachable, non-blacklisted frontiers;
+   path by descending the field. With ``backtrack_trail`` the cells the robot's centre has been
+   on are always traversable. When no frontier is reachable, the round is repeated on the map's
+   own cells (``fine_fallback``: coarse cells close gaps the robot fits through), and then with
+   ``tight_clearance_cells`` instead of ``clearance_cells``: the simulator's own collision rule,
+   so a gap the robot's body fits through is never given up for a safety margin.
 3. Blacklist (never retried): a target the robot got stuck on twice; a frontier that is still
    there when the robot stands at its approach cell (it cannot be seen from where one can stand).
    Frontiers unreachable on the planning grid are simply never chosen while unreachable, so
@@ -110,13 +110,18 @@ class FrontierExplorer(Policy):
 
     Args:
         min_frontier_cells: smallest frontier kept, cells (8 = 0.4 m at 0.05 m/cell).
-        plan_factor: fine cells per planning cell (1: plan on the map's own cells). A planning
-            cell is traversable only when all its fine cells are, so 2 (0.1 m cells, 4x fewer)
-            loses up to a fine cell of every gap to the cell grid's alignment: enough to close
-            the 0.35-0.4 m passages of a real office to a 0.3 m robot for good.
+        plan_factor: fine cells per planning cell of the first round. A planning cell is
+            traversable only when all its fine cells are, so 2 (0.1 m cells, 4x fewer) keeps
+            paths a little farther from the walls than the inflation alone - margin a robot
+            with 22.5 degree headings needs on a map rotated against the world's grid (random
+            start headings), where planning on the map's own cells runs it into wall corners
+            (symmetric_office seed 1004: wedged for 80 s) - but loses up to a fine cell of
+            every gap to the grid's alignment, enough to close the 0.35-0.4 m passages of a
+            real office to a 0.3 m robot: see ``fine_fallback``.
         approach_cells: a frontier cell is reachable when a traversable planning cell lies within
             this many planning cells of it (frontier cells border unknown space, which the
-            planner treats as an obstacle, so the robot can only get *near* them).
+            planner treats as an obstacle, so the robot can only get *near* them); the fine
+            rounds use the same distance in fine cells.
         replan_every: steps between re-plans at the latest.
         min_replan_steps: a target that stopped being a frontier triggers a re-plan only once the
             plan is this many steps old (the frontier recedes while the robot approaches it; a
@@ -128,9 +133,12 @@ class FrontierExplorer(Policy):
         blacklist_radius_m: frontier cells this close to a blacklisted point are never targets.
         clearance_cells: inflation of the walls beyond the robot's radius, fine cells (0.5 covers
             the wall cell's own extent; :func:`~mrexplore.policies.planning.inflate_obstacles`).
-        tight_clearance_cells: the clearance of the second round when no frontier is reachable
-            with ``clearance_cells`` (0: exactly the simulator's collision rule); None: no second
+        tight_clearance_cells: the clearance of the last round, when no frontier is reachable
+            with ``clearance_cells`` (0: exactly the simulator's collision rule); None: no such
             round.
+        fine_fallback: when no frontier is reachable on ``plan_factor`` cells, plan again on
+            the map's own cells (with ``clearance_cells``, then ``tight_clearance_cells``), so
+            narrow passages are planned through only when nothing else is left.
         backtrack_trail: the robot's own trail is always traversable (it can go back the way it
             came even when its map, seen better from inside a gap, shows the gap narrower than
             the inflated robot). Off by default: the tight-clearance round already frees such
@@ -150,8 +158,8 @@ class FrontierExplorer(Policy):
     def __init__(
         self,
         min_frontier_cells: int = 8,
-        plan_factor: int = 1,
-        approach_cells: int = 4,
+        plan_factor: int = 2,
+        approach_cells: int = 2,
         replan_every: int = 10,
         min_replan_steps: int = 2,
         stuck_steps: int = 12,
@@ -159,6 +167,7 @@ class FrontierExplorer(Policy):
         blacklist_radius_m: float = 0.5,
         clearance_cells: float = 0.5,
         tight_clearance_cells: float | None = 0.0,
+        fine_fallback: bool = True,
         backtrack_trail: bool = False,
         lookahead_m: float = 0.3,
         arrive_m: float = 0.15,
@@ -197,6 +206,18 @@ class FrontierExplorer(Policy):
         self.tight_clearance_cells = (
             None if tight_clearance_cells is None else float(tight_clearance_cells)
         )
+        self.fine_fallback = bool(fine_fallback)
+        #: The planning rounds ``(factor, approach_cells, clearance_cells)``, tried in turn
+        #: until one has a reachable frontier.
+        self.rounds: list[tuple[int, int, float]] = [
+            (self.plan_factor, self.approach_cells, self.clearance_cells)
+        ]
+        fine = 1 if self.fine_fallback else self.plan_factor
+        fine_approach = self.approach_cells * self.plan_factor // fine
+        if fine != self.plan_factor:
+            self.rounds.append((fine, fine_approach, self.clearance_cells))
+        if self.tight_clearance_cells is not None:
+            self.rounds.append((fine, fine_approach, self.tight_clearance_cells))
         self.lookahead_m = float(lookahead_m)
         self.arrive_m = float(arrive_m)
         self.turn_step_rad = float(turn_step_rad)
@@ -395,9 +416,8 @@ class FrontierExplorer(Policy):
         """Reachable, allowed frontiers with their path lengths (None: nothing to plan on).
 
         Per frontier, the *aim* is its cell with the shortest path to a planning cell within
-        ``approach_cells``; cells near blacklisted points are left out first. Planned with
-        ``clearance_cells`` first; if that leaves no frontier, again with
-        ``tight_clearance_cells``.
+        ``approach_cells``; cells near blacklisted points are left out first. Planned in
+        :attr:`rounds` until one leaves a frontier.
         """
         m = view.map
         res = float(view.resolution_m)
@@ -418,17 +438,14 @@ class FrontierExplorer(Policy):
             if self.backtrack_trail
             else None
         )
-        clearances = [self.clearance_cells]
-        if self.tight_clearance_cells is not None:
-            clearances.append(self.tight_clearance_cells)
         out: _Round | None = None
-        for clearance in clearances:
+        for factor, approach, clearance in self.rounds:
             grid = PlanningGrid.build(
                 crop,
                 res,
                 float(view.robot_radius_m),
                 (pose[0] - c0, pose[1] - r0),
-                factor=self.plan_factor,
+                factor=factor,
                 margin_m=0.0,
                 clearance_cells=clearance,
                 passable_path=trail,
@@ -438,7 +455,7 @@ class FrontierExplorer(Policy):
             grid.row0 += r0
             if grid.start is None:
                 continue
-            out = self._round(grid, cells, counts, res)
+            out = self._round(grid, cells, counts, res, approach)
             if len(out):
                 break
         return out
@@ -449,11 +466,12 @@ class FrontierExplorer(Policy):
         cells: NDArray[np.int64],
         counts: NDArray[np.int64],
         res: float,
+        approach: int,
     ) -> _Round:
         """The reachable, allowed frontiers on one planning grid (``cells`` (N, 2) all frontier
         cells in map cells, grouped by frontier; ``counts`` (F,) cells per frontier)."""
         starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-        dist, pcell = grid.approach(cells, self.approach_cells)
+        dist, pcell = grid.approach(cells, approach)
         if self.blacklist:
             bl = np.asarray(self.blacklist, dtype=np.float64)
             near = np.zeros(cells.shape[0], dtype=bool)

@@ -41,7 +41,9 @@ The machine (per robot, every step):
    nothing is retried in a loop; when no reachable frontier is left, the policy reports ``done``
    and returns STAY (and looks again every ``replan_every`` steps, since a merge can reveal new
    frontiers).
-4. Follow the path with :func:`~mrexplore.policies.base.follow_path`.
+4. Follow the path with :func:`~mrexplore.policies.base.follow_path`; after a FORWARD that
+   did not move the robot, turn towards the waypoint's side rather than push again
+   (``slide_on_bump``).
 """
 
 from __future__ import annotations
@@ -144,6 +146,10 @@ class FrontierExplorer(Policy):
             the inflated robot). Off by default: the tight-clearance round already frees such
             robots on tb3_office, and on depot (seed 1008, random headings) the trail led a
             robot to plan along a shelf corner it stayed wedged against.
+        slide_on_bump: after a FORWARD that did not move the robot, turn one step towards the
+            side of the path's waypoint instead of repeating it (the re-plan after a collision
+            gives the same path, so the follower would push into the same wall corner for
+            ever); the next FORWARD then slides along the obstacle.
         lookahead_m: path-follower look-ahead, metres.
         arrive_m: the path end counts as reached within this distance, metres.
         turn_step_rad: heading change of one turn action (the robot's default).
@@ -169,6 +175,7 @@ class FrontierExplorer(Policy):
         tight_clearance_cells: float | None = 0.0,
         fine_fallback: bool = True,
         backtrack_trail: bool = False,
+        slide_on_bump: bool = True,
         lookahead_m: float = 0.3,
         arrive_m: float = 0.15,
         turn_step_rad: float = DEFAULT_TURN_STEP_RAD,
@@ -207,6 +214,7 @@ class FrontierExplorer(Policy):
             None if tight_clearance_cells is None else float(tight_clearance_cells)
         )
         self.fine_fallback = bool(fine_fallback)
+        self.slide_on_bump = bool(slide_on_bump)
         #: The planning rounds ``(factor, approach_cells, clearance_cells)``, tried in turn
         #: until one has a reachable frontier.
         self.rounds: list[tuple[int, int, float]] = [
@@ -314,13 +322,17 @@ class FrontierExplorer(Policy):
             lookahead_cells=self.lookahead_m / res,
             arrive_cells=self.arrive_m / res,
             clear=self._grid.clear if self._grid is not None else None,
+            blocked_ahead=self.slide_on_bump and self._hit,
         )
 
     def _update_progress(self, pose: tuple[float, float, float], res: float) -> tuple[bool, bool]:
         """Track progress along the path and collisions: ``(stuck, bumped)``."""
         if self._last_pose is not None and self._last_action == Action.FORWARD:
             moved = math.hypot(pose[0] - self._last_pose[0], pose[1] - self._last_pose[1])
-            self._bumps = self._bumps + 1 if moved < 0.3 * self.forward_step_m / res else 0
+            self._hit = moved < 0.3 * self.forward_step_m / res
+            self._bumps = self._bumps + 1 if self._hit else 0
+        else:
+            self._hit = False
         bumped = self._bumps >= self.bump_steps
         if self.path is None or self._remaining is None:
             return False, bumped

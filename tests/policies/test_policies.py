@@ -306,6 +306,24 @@ def test_map_cells_only_when_the_coarse_cells_reach_no_frontier() -> None:
     ]
 
 
+def test_forward_that_did_not_move_is_not_repeated() -> None:
+    """A FORWARD that left the robot where it was (a collision) is followed by a turn towards
+    the waypoint's side, not by the same FORWARD: the re-plan after a collision gives the same
+    path, and the robot pushed into the same corner for 80 s (symmetric_office seed 1004 with
+    map-cell planning). With ``slide_on_bump=False`` it pushes again."""
+    m = _corridor(10, 90)
+    pose = (50.0, 20.0, 0.0)
+    for slide, second in ((True, {Action.TURN_LEFT, Action.TURN_RIGHT}), (False, {Action.FORWARD})):
+        pol = NearestFrontierPolicy(slide_on_bump=slide)
+        pol.reset(np.random.default_rng(0))
+        assert pol.act(_view(m, pose)) == Action.FORWARD
+        assert pol.act(_view(m, pose)) in second  # did not move
+    moved = NearestFrontierPolicy()
+    moved.reset(np.random.default_rng(0))
+    moved.act(_view(m, pose))
+    assert moved.act(_view(m, (52.5, 20.0, 0.0))) == Action.FORWARD
+
+
 def test_tight_clearance_round_when_nothing_is_reachable_with_the_margin() -> None:
     """The margin beyond the radius never closes the last way out: when no frontier is
     reachable with ``clearance_cells``, the round is repeated with ``tight_clearance_cells``."""

@@ -161,6 +161,7 @@ def follow_path(
     lookahead_cells: float = 6.0,
     arrive_cells: float = 2.0,
     clear: ClearFn | None = None,
+    blocked_ahead: bool = False,
 ) -> int:
     """Pure pursuit on a discrete action set: the action that brings the robot along ``path``.
 
@@ -181,6 +182,10 @@ def follow_path(
         lookahead_cells: look-ahead distance in cells.
         arrive_cells: within this distance (cells) of the last point the path is done: STAY.
         clear: optional traversability test for the line-of-sight check (see :data:`ClearFn`).
+        blocked_ahead: FORWARD is known not to move the robot at its heading (it just
+            collided): where FORWARD would be the answer, turn towards the waypoint's side
+            instead, so that the next FORWARD, at most a turn step off the waypoint, slides
+            along the obstacle rather than pushing into it again.
 
     Returns:
         An :class:`~mrexplore.robot.Action` value.
@@ -201,7 +206,9 @@ def follow_path(
     wp = p[j]
     err = _wrap(math.atan2(wp[1] - y, wp[0] - x) - theta)
     if abs(err) <= 0.5 * turn_step_rad * 1.05:
-        return int(Action.FORWARD)
+        if not blocked_ahead:
+            return int(Action.FORWARD)
+        return int(Action.TURN_LEFT if err >= 0 else Action.TURN_RIGHT)
     return int(Action.TURN_LEFT if err > 0 else Action.TURN_RIGHT)
 
 

@@ -25,17 +25,25 @@ The machine (per robot, every step):
    end of its path; the target cell stopped being a frontier; or the robot is *stuck* (no progress
    along the path for ``stuck_steps`` steps, or ``bump_steps`` FORWARDs in a row that did not move
    it - a collision).
-2. Plan: frontiers of the map (:func:`~mrexplore.policies.frontiers.find_frontiers`), a coarse
+2. Plan: frontiers of the map (:func:`~mrexplore.policies.frontiers.find_frontiers`), a
    planning grid with a distance field from the robot
-   (:class:`~mrexplore.policies.planning.PlanningGrid`), each frontier's path length to the nearest
-   reachable planning cell within ``approach_cells`` planning cells of any of its cells; choose
-   among the reachable, non-blacklisted frontiers; path by descending the field.
+   (:class:`~mrexplore.policies.planning.PlanningGrid`; 2x2 map cells by default), each
+   frontier's path length to the nearest reachable planning cell within ``approach_cells``
+   planning cells of any of its cells; choose among the reachable, non-blacklisted frontiers;
+   path by descending the field. With ``backtrack_trail`` the cells the robot's centre has been
+   on are always traversable. When no frontier is reachable, the round is repeated on the map's
+   own cells (``fine_fallback``: coarse cells close gaps the robot fits through), and then with
+   ``tight_clearance_cells`` instead of ``clearance_cells``: the simulator's own collision rule,
+   so a gap the robot's body fits through is never given up for a safety margin.
 3. Blacklist (never retried): a target the robot got stuck on twice; a frontier that is still
    there when the robot stands at its approach cell (it cannot be seen from where one can stand).
-   Frontiers unreachable on the coarse grid are simply never chosen while unreachable, so nothing is
-   retried in a loop; when no reachable frontier is left, the policy reports ``done`` and returns
-   STAY (and looks again every ``replan_every`` steps, since a merge can reveal new frontiers).
-4. Follow the path with :func:`~mrexplore.policies.base.follow_path`.
+   Frontiers unreachable on the planning grid are simply never chosen while unreachable, so
+   nothing is retried in a loop; when no reachable frontier is left, the policy reports ``done``
+   and returns STAY (and looks again every ``replan_every`` steps, since a merge can reveal new
+   frontiers).
+4. Follow the path with :func:`~mrexplore.policies.base.follow_path`; after a FORWARD that
+   did not move the robot, turn towards the waypoint's side rather than push again
+   (``slide_on_bump``).
 """
 
 from __future__ import annotations
@@ -104,10 +112,18 @@ class FrontierExplorer(Policy):
 
     Args:
         min_frontier_cells: smallest frontier kept, cells (8 = 0.4 m at 0.05 m/cell).
-        plan_factor: fine cells per planning cell (2: 0.1 m planning cells at 0.05 m/cell).
+        plan_factor: fine cells per planning cell of the first round. A planning cell is
+            traversable only when all its fine cells are, so 2 (0.1 m cells, 4x fewer) keeps
+            paths a little farther from the walls than the inflation alone - margin a robot
+            with 22.5 degree headings needs on a map rotated against the world's grid (random
+            start headings), where planning on the map's own cells runs it into wall corners
+            (symmetric_office seed 1004: wedged for 80 s) - but loses up to a fine cell of
+            every gap to the grid's alignment, enough to close the 0.35-0.4 m passages of a
+            real office to a 0.3 m robot: see ``fine_fallback``.
         approach_cells: a frontier cell is reachable when a traversable planning cell lies within
             this many planning cells of it (frontier cells border unknown space, which the
-            planner treats as an obstacle, so the robot can only get *near* them).
+            planner treats as an obstacle, so the robot can only get *near* them); the fine
+            rounds use the same distance in fine cells.
         replan_every: steps between re-plans at the latest.
         min_replan_steps: a target that stopped being a frontier triggers a re-plan only once the
             plan is this many steps old (the frontier recedes while the robot approaches it; a
@@ -117,6 +133,23 @@ class FrontierExplorer(Policy):
         bump_steps: FORWARD actions in a row that did not move the robot (collisions) before a
             re-plan from the nearest free planning cell.
         blacklist_radius_m: frontier cells this close to a blacklisted point are never targets.
+        clearance_cells: inflation of the walls beyond the robot's radius, fine cells (0.5 covers
+            the wall cell's own extent; :func:`~mrexplore.policies.planning.inflate_obstacles`).
+        tight_clearance_cells: the clearance of the last round, when no frontier is reachable
+            with ``clearance_cells`` (0: exactly the simulator's collision rule); None: no such
+            round.
+        fine_fallback: when no frontier is reachable on ``plan_factor`` cells, plan again on
+            the map's own cells (with ``clearance_cells``, then ``tight_clearance_cells``), so
+            narrow passages are planned through only when nothing else is left.
+        backtrack_trail: the robot's own trail is always traversable (it can go back the way it
+            came even when its map, seen better from inside a gap, shows the gap narrower than
+            the inflated robot). Off by default: the tight-clearance round already frees such
+            robots on tb3_office, and on depot (seed 1008, random headings) the trail led a
+            robot to plan along a shelf corner it stayed wedged against.
+        slide_on_bump: after a FORWARD that did not move the robot, turn one step towards the
+            side of the path's waypoint instead of repeating it (the re-plan after a collision
+            gives the same path, so the follower would push into the same wall corner for
+            ever); the next FORWARD then slides along the obstacle.
         lookahead_m: path-follower look-ahead, metres.
         arrive_m: the path end counts as reached within this distance, metres.
         turn_step_rad: heading change of one turn action (the robot's default).
@@ -138,6 +171,11 @@ class FrontierExplorer(Policy):
         stuck_steps: int = 12,
         bump_steps: int = 3,
         blacklist_radius_m: float = 0.5,
+        clearance_cells: float = 0.5,
+        tight_clearance_cells: float | None = 0.0,
+        fine_fallback: bool = True,
+        backtrack_trail: bool = False,
+        slide_on_bump: bool = True,
         lookahead_m: float = 0.3,
         arrive_m: float = 0.15,
         turn_step_rad: float = DEFAULT_TURN_STEP_RAD,
@@ -152,6 +190,8 @@ class FrontierExplorer(Policy):
             "stuck_steps": stuck_steps >= 1,
             "bump_steps": bump_steps >= 1,
             "blacklist_radius_m": blacklist_radius_m >= 0,
+            "clearance_cells": clearance_cells >= 0,
+            "tight_clearance_cells": tight_clearance_cells is None or tight_clearance_cells >= 0,
             "lookahead_m": lookahead_m > 0,
             "arrive_m": arrive_m > 0,
             "turn_step_rad": 0 < turn_step_rad < math.pi,
@@ -168,6 +208,24 @@ class FrontierExplorer(Policy):
         self.stuck_steps = int(stuck_steps)
         self.bump_steps = int(bump_steps)
         self.blacklist_radius_m = float(blacklist_radius_m)
+        self.clearance_cells = float(clearance_cells)
+        self.backtrack_trail = bool(backtrack_trail)
+        self.tight_clearance_cells = (
+            None if tight_clearance_cells is None else float(tight_clearance_cells)
+        )
+        self.fine_fallback = bool(fine_fallback)
+        self.slide_on_bump = bool(slide_on_bump)
+        #: The planning rounds ``(factor, approach_cells, clearance_cells)``, tried in turn
+        #: until one has a reachable frontier.
+        self.rounds: list[tuple[int, int, float]] = [
+            (self.plan_factor, self.approach_cells, self.clearance_cells)
+        ]
+        fine = 1 if self.fine_fallback else self.plan_factor
+        fine_approach = self.approach_cells * self.plan_factor // fine
+        if fine != self.plan_factor:
+            self.rounds.append((fine, fine_approach, self.clearance_cells))
+        if self.tight_clearance_cells is not None:
+            self.rounds.append((fine, fine_approach, self.tight_clearance_cells))
         self.lookahead_m = float(lookahead_m)
         self.arrive_m = float(arrive_m)
         self.turn_step_rad = float(turn_step_rad)
@@ -193,6 +251,8 @@ class FrontierExplorer(Policy):
         self._last_action = int(Action.STAY)
         self._arrived = False
         self.blacklist: list[tuple[float, float]] = []
+        # Own-map cells the robot's centre has been on (its estimated trail), for the planner.
+        self._trail: list[tuple[float, float]] = []
         self._strikes: list[tuple[float, float]] = []
         self.n_plans = 0
         self.n_acts = 0
@@ -227,6 +287,11 @@ class FrontierExplorer(Policy):
             )
         pose = (float(view.pose_cell[0]), float(view.pose_cell[1]), float(view.pose_cell[2]))
         res = float(view.resolution_m)
+        if self.backtrack_trail and (
+            not self._trail
+            or math.hypot(pose[0] - self._trail[-1][0], pose[1] - self._trail[-1][1]) >= 0.5
+        ):
+            self._trail.append((pose[0], pose[1]))
         stuck, bumped = self._update_progress(pose, res)
         if stuck and self.target is not None:
             self._strike(self.target, res)
@@ -257,13 +322,17 @@ class FrontierExplorer(Policy):
             lookahead_cells=self.lookahead_m / res,
             arrive_cells=self.arrive_m / res,
             clear=self._grid.clear if self._grid is not None else None,
+            blocked_ahead=self.slide_on_bump and self._hit,
         )
 
     def _update_progress(self, pose: tuple[float, float, float], res: float) -> tuple[bool, bool]:
         """Track progress along the path and collisions: ``(stuck, bumped)``."""
         if self._last_pose is not None and self._last_action == Action.FORWARD:
             moved = math.hypot(pose[0] - self._last_pose[0], pose[1] - self._last_pose[1])
-            self._bumps = self._bumps + 1 if moved < 0.3 * self.forward_step_m / res else 0
+            self._hit = moved < 0.3 * self.forward_step_m / res
+            self._bumps = self._bumps + 1 if self._hit else 0
+        else:
+            self._hit = False
         bumped = self._bumps >= self.bump_steps
         if self.path is None or self._remaining is None:
             return False, bumped
@@ -359,7 +428,8 @@ class FrontierExplorer(Policy):
         """Reachable, allowed frontiers with their path lengths (None: nothing to plan on).
 
         Per frontier, the *aim* is its cell with the shortest path to a planning cell within
-        ``approach_cells``; cells near blacklisted points are left out first.
+        ``approach_cells``; cells near blacklisted points are left out first. Planned in
+        :attr:`rounds` until one leaves a frontier.
         """
         m = view.map
         res = float(view.resolution_m)
@@ -371,24 +441,49 @@ class FrontierExplorer(Policy):
         fronts = find_frontiers(crop, self.min_frontier_cells)
         if not fronts:
             return None
-        grid = PlanningGrid.build(
-            crop,
-            res,
-            float(view.robot_radius_m),
-            (pose[0] - c0, pose[1] - r0),
-            factor=self.plan_factor,
-            margin_m=0.0,
-        )
-        # From crop cells to map cells: shifting the grid's offset is all it takes.
-        grid.col0 += c0
-        grid.row0 += r0
-        if grid.start is None:
-            return None
         off = np.array([c0, r0], dtype=np.int64)
         cells = np.concatenate([f.cells for f in fronts]) + off
         counts = np.array([f.size for f in fronts])
+        # The trail ends where the robot stands now.
+        trail = (
+            np.array([*self._trail, pose[:2]], dtype=np.float64) - off
+            if self.backtrack_trail
+            else None
+        )
+        out: _Round | None = None
+        for factor, approach, clearance in self.rounds:
+            grid = PlanningGrid.build(
+                crop,
+                res,
+                float(view.robot_radius_m),
+                (pose[0] - c0, pose[1] - r0),
+                factor=factor,
+                margin_m=0.0,
+                clearance_cells=clearance,
+                passable_path=trail,
+            )
+            # From crop cells to map cells: shifting the grid's offset is all it takes.
+            grid.col0 += c0
+            grid.row0 += r0
+            if grid.start is None:
+                continue
+            out = self._round(grid, cells, counts, res, approach)
+            if len(out):
+                break
+        return out
+
+    def _round(
+        self,
+        grid: PlanningGrid,
+        cells: NDArray[np.int64],
+        counts: NDArray[np.int64],
+        res: float,
+        approach: int,
+    ) -> _Round:
+        """The reachable, allowed frontiers on one planning grid (``cells`` (N, 2) all frontier
+        cells in map cells, grouped by frontier; ``counts`` (F,) cells per frontier)."""
         starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-        dist, pcell = grid.approach(cells, self.approach_cells)
+        dist, pcell = grid.approach(cells, approach)
         if self.blacklist:
             bl = np.asarray(self.blacklist, dtype=np.float64)
             near = np.zeros(cells.shape[0], dtype=bool)
@@ -398,9 +493,9 @@ class FrontierExplorer(Policy):
             dist[near] = np.inf
         # Per frontier: the best of its cells (reduceat on the concatenated cells).
         best = np.minimum.reduceat(dist, starts)
-        owner = np.repeat(np.arange(len(fronts)), counts)
+        owner = np.repeat(np.arange(len(counts)), counts)
         hit = np.flatnonzero(dist == best[owner])
-        first = np.full(len(fronts), -1, dtype=np.int64)
+        first = np.full(len(counts), -1, dtype=np.int64)
         first[owner[hit[::-1]]] = hit[::-1]  # reversed assignment keeps each frontier's first hit
         ok = np.isfinite(best)
         # A frontier cell reachable at (almost) zero distance is one we stand at and still cannot

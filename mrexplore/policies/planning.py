@@ -56,25 +56,31 @@ _NEIGHBOURS: tuple[tuple[int, int, float], ...] = (
 
 
 def inflate_obstacles(
-    map_int8: Int8Grid, robot_radius_m: float, resolution_m: float
+    map_int8: Int8Grid,
+    robot_radius_m: float,
+    resolution_m: float,
+    clearance_cells: float = 0.5,
 ) -> NDArray[np.bool_]:
     """bool (H, W): cells where a robot centre would touch an occupied cell.
 
     Occupied cells (``mrexplore.grid.occupied_mask``) dilated by a disc of radius
-    ``robot_radius_m / resolution_m + 0.5`` cells (the half cell covers the wall cell's own extent).
+    ``robot_radius_m / resolution_m + clearance_cells`` cells. The default half cell covers the
+    wall cell's own extent; ``clearance_cells=0`` blocks exactly the cells whose centre lies
+    within the radius of a wall cell's centre, the simulator's own collision rule
+    (:func:`mrexplore.robot.configuration_space`).
     """
-    if robot_radius_m < 0 or resolution_m <= 0:
+    if robot_radius_m < 0 or resolution_m <= 0 or not clearance_cells >= 0:
         raise ConfigError(
-            "robot_radius_m must be >= 0 and resolution_m > 0, "
-            f"got {robot_radius_m}, {resolution_m}"
+            "robot_radius_m must be >= 0, resolution_m > 0 and clearance_cells >= 0, "
+            f"got {robot_radius_m}, {resolution_m}, {clearance_cells}"
         )
     occ = occupied_mask(map_int8).view(np.uint8)
-    r = robot_radius_m / resolution_m + 0.5
+    r = robot_radius_m / resolution_m + clearance_cells
     k = math.floor(r)
     if k < 1:
         return occ.view(np.bool_).copy()
     yy, xx = np.mgrid[-k : k + 1, -k : k + 1]
-    disc = ((xx * xx + yy * yy) <= r * r).astype(np.uint8)
+    disc = ((xx * xx + yy * yy) <= r * r + 1e-9).astype(np.uint8)
     return cv2.dilate(occ, disc).view(np.bool_)
 
 
@@ -377,6 +383,27 @@ def distance_field_scan(
     return out
 
 
+def _nearest_free_cell(
+    free: NDArray[np.bool_],
+    col0: int,
+    row0: int,
+    factor: int,
+    cell: tuple[float, float] | NDArray[np.floating],
+) -> tuple[int, int] | None:
+    """Planning cell of fine ``cell`` on ``free`` (offset ``col0, row0``), or the closest
+    traversable one (None when nothing is traversable)."""
+    c = np.rint(np.asarray(cell, dtype=np.float64)[:2])
+    p = np.floor((c - np.array([col0, row0])) / factor).astype(np.int64)
+    h, w = free.shape
+    if 0 <= p[0] < w and 0 <= p[1] < h and free[p[1], p[0]]:
+        return (int(p[0]), int(p[1]))
+    rows, cols = np.nonzero(free)
+    if rows.size == 0:
+        return None
+    k = int(np.argmin((cols - p[0]) ** 2 + (rows - p[1]) ** 2))
+    return (int(cols[k]), int(rows[k]))
+
+
 # --------------------------------------------------------------------------------------------
 # Planning grid.
 # --------------------------------------------------------------------------------------------
@@ -418,6 +445,8 @@ class PlanningGrid:
         unknown_is_free: bool = False,
         extra_cells: NDArray[np.floating] | None = None,
         margin_m: float = 1.0,
+        clearance_cells: float = 0.5,
+        passable_path: NDArray[np.floating] | None = None,
     ) -> PlanningGrid:
         """Crop, inflate, coarsen ``map_int8`` and compute the distance field from ``start_cell``.
 
@@ -431,6 +460,14 @@ class PlanningGrid:
             extra_cells: (K, 2) ``(col, row)`` points the crop must contain (e.g. a goal).
             margin_m: margin around the known area (and extra points), metres; with
                 ``unknown_is_free`` this is the room a path may take through unknown space.
+            clearance_cells: inflation beyond the robot radius, fine cells
+                (:func:`inflate_obstacles`).
+            passable_path: (K, 2) fine ``(col, row)`` polyline known to be traversable whatever
+                the map says (where the robot's centre has been, ending where it stands): the
+                planning cells on it (4-connected) are traversable, and the field starts from
+                the robot's own cell as well as from the nearest traversable cell the map alone
+                gives. A robot that got into a gap which the map, seen better from inside, now
+                shows narrower than the inflated robot can always plan its way back out.
         """
         if not isinstance(map_int8, np.ndarray) or map_int8.ndim != 2 or map_int8.dtype != np.int8:
             raise GridError(
@@ -465,7 +502,7 @@ class PlanningGrid:
         h = -(-(r1 - r0) // factor)
         w = -(-(c1 - c0) // factor)
         crop = map_int8[r0:r1, c0:c1]
-        blocked = inflate_obstacles(crop, robot_radius_m, resolution_m)
+        blocked = inflate_obstacles(crop, robot_radius_m, resolution_m, clearance_cells)
         ok_fine = ~blocked
         known_free = free_mask(crop)
         if unknown_is_free:
@@ -484,6 +521,24 @@ class PlanningGrid:
                 n_ok += ok_pad[a::factor, b::factor]
                 n_free += kf_pad[a::factor, b::factor]
         free = (n_ok == factor * factor) & (2 * n_free >= factor * factor)
+        sources = []
+        if passable_path is not None and len(passable_path):
+            near = _nearest_free_cell(free, c0, r0, factor, start_cell)
+            if near is not None:
+                sources.append(near)
+            pp = np.floor(
+                (
+                    np.rint(np.asarray(passable_path, dtype=np.float64).reshape(-1, 2))
+                    - np.array([c0, r0])
+                )
+                / factor
+            ).astype(np.int32)
+            line = np.zeros((h, w), dtype=np.uint8)
+            # 4-connected, so the octile field (no corner cutting) can follow it.
+            cv2.polylines(line, [pp.reshape(-1, 1, 2)], False, 1, lineType=4)
+            if len(pp) == 1:
+                line[np.clip(pp[0, 1], 0, h - 1), np.clip(pp[0, 0], 0, w - 1)] = 1
+            free |= line.view(np.bool_)
         grid = cls(
             free=free,
             col0=c0,
@@ -495,7 +550,7 @@ class PlanningGrid:
         )
         grid.start = grid.nearest_free(start_cell)
         if grid.start is not None:
-            grid.field = distance_field(free, np.array([grid.start]))
+            grid.field = distance_field(free, np.array([grid.start, *sources]))
         return grid
 
     # -- coordinates -------------------------------------------------------------------------
@@ -527,15 +582,7 @@ class PlanningGrid:
         self, cell: tuple[float, float] | NDArray[np.floating]
     ) -> tuple[int, int] | None:
         """Planning cell of fine ``cell``; if blocked, the closest traversable one (or None)."""
-        p = self.to_plan(np.asarray(cell, dtype=np.float64)[:2])[0]
-        h, w = self.shape
-        if 0 <= p[0] < w and 0 <= p[1] < h and self.free[p[1], p[0]]:
-            return (int(p[0]), int(p[1]))
-        rows, cols = np.nonzero(self.free)
-        if rows.size == 0:
-            return None
-        k = int(np.argmin((cols - p[0]) ** 2 + (rows - p[1]) ** 2))
-        return (int(cols[k]), int(rows[k]))
+        return _nearest_free_cell(self.free, self.col0, self.row0, self.factor, cell)
 
     def clear(self, cells: NDArray[np.floating]) -> NDArray[np.bool_]:
         """bool (N,): fine ``(col, row)`` points (N, 2) that fall in traversable planning cells."""

@@ -53,6 +53,20 @@ def test_follow_path(path: np.ndarray, pose: tuple[float, float, float], expecte
     assert follow_path(path, pose, turn_step_rad=STEP) == expected
 
 
+def test_follow_path_blocked_ahead_turns_towards_the_waypoint_side() -> None:
+    """Where FORWARD was just cut to nothing, turn one step towards the waypoint's side: the
+    next heading is at most a turn step off the waypoint, on the other side of it."""
+    # Beside the path at (5, -3), heading 30 deg: the waypoint is at 26.6 deg, to the right.
+    pose = (5.0, -3.0, math.radians(30.0))
+    assert follow_path(EAST, pose, turn_step_rad=STEP) == Action.FORWARD
+    assert follow_path(EAST, pose, turn_step_rad=STEP, blocked_ahead=True) == Action.TURN_RIGHT
+    pose = (5.0, -3.0, math.radians(20.0))  # waypoint to the left
+    assert follow_path(EAST, pose, turn_step_rad=STEP, blocked_ahead=True) == Action.TURN_LEFT
+    # Turns and arrival are unchanged.
+    assert follow_path(EAST, (5.0, -3.0, 0.0), blocked_ahead=True) == Action.TURN_LEFT
+    assert follow_path(EAST, (19.0, 0.0, 0.0), blocked_ahead=True) == Action.STAY
+
+
 def test_follow_path_converges_on_simulated_kinematics() -> None:
     """Driving the follower with ideal discrete kinematics reaches the end of an L-shaped path."""
     path = np.array([[0.0, 0.0], [30.0, 0.0], [30.0, 30.0]])

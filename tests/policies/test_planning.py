@@ -198,3 +198,31 @@ def test_bad_map() -> None:
         PlanningGrid.build(np.zeros((5, 5)), RES, RADIUS, (1.0, 1.0))  # type: ignore[arg-type]
     with pytest.raises(ConfigError):
         inflate_obstacles(_two_rooms(16), -0.1, RES)
+
+
+def test_zero_clearance_inflation_is_the_simulators_collision_rule() -> None:
+    """``clearance_cells=0`` blocks exactly the cells the simulator forbids to a robot centre."""
+    from mrexplore.robot import configuration_space
+
+    rng = np.random.default_rng(3)
+    g = np.where(rng.random((40, 50)) < 0.03, OCCUPIED, FREE).astype(np.int8)
+    blocked = inflate_obstacles(g, RADIUS, RES, clearance_cells=0.0)
+    truth = configuration_space(g == OCCUPIED, RADIUS / RES)
+    inner = (slice(4, -4), slice(4, -4))  # the simulator also walls the canvas border
+    assert np.array_equal(blocked[inner], truth[inner])
+    with pytest.raises(ConfigError):
+        inflate_obstacles(g, RADIUS, RES, clearance_cells=-1.0)
+
+
+def test_passable_path_joins_the_robot_to_where_it_came_from() -> None:
+    """A robot standing in a gap its map shows too narrow: only its trail links it back."""
+    g = _two_rooms(gap_cells=5)  # too narrow for the inflated robot
+    trail = np.array([[10.0, 20.0], [20.0, 20.0], [30.0, 20.0]])
+    without = PlanningGrid.build(g, RES, RADIUS, (30.0, 20.0), factor=1)
+    with_trail = PlanningGrid.build(g, RES, RADIUS, (30.0, 20.0), factor=1, passable_path=trail)
+    goal = with_trail.nearest_free((10.0, 20.0))
+    assert goal is not None
+    assert np.isfinite(with_trail.field[goal[1], goal[0]])
+    path = with_trail.path_to(goal)
+    assert path is not None
+    assert without.start is not None and without.start != (30, 20)

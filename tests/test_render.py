@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 
 import mrexplore
 from mrexplore import render
+from mrexplore.experiments.episode import EpisodeResult
 from mrexplore.grid import apply_transform, invert_transform
 
 SMALL = {"world": "small_office", "max_time_s": 60.0}
@@ -110,3 +112,30 @@ def test_world_panel_shows_the_coverage_infos_report() -> None:
     cov = infos["robot_0"]["coverage"]
     assert penv.coverage == cov
     assert render.format_coverage(cov) in render.world_title(penv)
+
+
+def test_demo_figure_title_matches_console(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from mrexplore.experiments import demo
+
+    frame = np.full((50, 1440, 3), 255, np.uint8)
+
+    def fake_episode(*args: object, **kwargs: object) -> EpisodeResult:
+        return EpisodeResult(
+            task_time_s=12.0,
+            success=False,
+            coverage=0.83456,
+            times_s=[0.0],
+            coverages=[0.83456],
+            first_merge_time_s=None,
+            merge_error=None,
+            collisions=0,
+            frames=[frame, frame],
+        )
+
+    monkeypatch.setattr(demo, "run_episode", fake_episode)
+    summary = demo.run_demo(out=tmp_path / "d", world="small_office")
+    console = capsys.readouterr().out
+    assert "coverage 83.5%" in console
+    assert "coverage 83.5%" in summary["figure_title"]

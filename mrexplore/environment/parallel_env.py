@@ -344,6 +344,12 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
             time_s=float(sim.time_s),
         )
 
+    @property
+    def coverage(self) -> float:
+        """The team coverage that ``infos[agent]["coverage"]`` reports (``coverage_mode``), as of
+        the last ``reset``/``step``; the rendered frame shows this same value."""
+        return float(self._last_coverage)
+
     # ------------------------------------------------------------------ map protocol
     @property
     def map_resolution_m(self) -> float:
@@ -620,7 +626,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         i = self.possible_agents.index(agent)
         first = self.fusion.first_merge_step(agent)
         info: dict[str, Any] = {
-            "coverage": float(self._last_coverage),
+            "coverage": self.coverage,
             "task_time_s": self._task_time(),
             "step": int(self.sim.steps),
             "merged": self.fusion.merged(agent),

@@ -1,7 +1,8 @@
 """``mrexplore demo``: one two-robot episode on the default symmetric world, as pictures.
 
 Writes ``<out>/episode.gif`` (the episode), ``<out>/final.png`` (last frame: world, both own
-maps, the fused map; below it the frame at the moment of the merge) and prints a summary.
+maps, the fused map, one scale and a legend; above it a headline with the coverage the console
+prints, below it the frame at the moment of the merge) and prints a summary.
 """
 
 from __future__ import annotations
@@ -17,7 +18,14 @@ from mrexplore.errors import ConfigError
 from mrexplore.experiments.episode import run_episode
 from mrexplore.experiments.task_time import make_team
 from mrexplore.io_safety import atomic_path, check_out_dir, check_outputs, write_bytes
-from mrexplore.render import write_video
+from mrexplore.render import format_coverage, write_video
+
+
+def _banner(text: str, width: int, scale: float, height: int) -> np.ndarray:
+    bar = np.full((height, width, 3), 255, np.uint8)
+    y = height // 2 + 6
+    cv2.putText(bar, text, (6, y), cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), 1, cv2.LINE_AA)
+    return bar
 
 
 def run_demo(
@@ -55,18 +63,18 @@ def run_demo(
         write_video(res.frames, tmp, fps=8)
     final = res.frames[-1]
     if res.merge_frame is not None:
-        label = np.full((26, final.shape[1], 3), 255, np.uint8)
-        cv2.putText(
-            label,
-            f"the moment of the merge: t = {res.first_merge_time_s:.1f} s",
-            (6, 18),
-            cv2.FONT_HERSHEY_SIMPLEX,
+        label = _banner(
+            f"below: the moment of the merge, t = {res.first_merge_time_s:.1f} s",
+            final.shape[1],
             0.55,
-            (0, 0, 0),
-            1,
-            cv2.LINE_AA,
+            26,
         )
         final = np.vstack([final, label, res.merge_frame])
+    headline = (
+        f"{n_robots} robots on '{world}' (seed {seed}, policy {policy}): "
+        f"task time {res.task_time_s:.1f} s, coverage {format_coverage(res.coverage)}"
+    )
+    final = np.vstack([_banner(headline, final.shape[1], 0.6, 30), final])
     ok, png = cv2.imencode(".png", cv2.cvtColor(final, cv2.COLOR_RGB2BGR))
     if ok:
         write_bytes(out / "final.png", png.tobytes())
@@ -81,6 +89,7 @@ def run_demo(
         "merge_error": res.merge_error,
         "wall_time_s": wall_s,
         "files": [str(gif), str(out / "final.png")],
+        "figure_title": headline,
     }
     merge_txt = (
         f"merged at t = {res.first_merge_time_s:.1f} s"
@@ -97,7 +106,7 @@ def run_demo(
         f"demo: {n_robots} robots on '{world}' (seed {seed}, policy {policy})\n"
         f"  task time {res.task_time_s:.1f} s simulated "
         f"({'target reached' if res.success else 'truncated'}), "
-        f"coverage {res.coverage:.1%}\n"
+        f"coverage {format_coverage(res.coverage)}\n"
         f"  {merge_txt}{err_txt}\n"
         f"  wrote {gif} and {out / 'final.png'} in {wall_s:.1f} s wall time"
     )

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Regenerate the result files behind the README's tables, in docs/results/:
 #   1. merge_table.{json,md}: the merge table (method x detector over four case families; the
-#      paper's Table 1/2 and more)
+#      paper's Table 1/2 and more); merge_ablation.{json,md}: what each part of the default buys
 #   2. loop_study.{json,md}: merging in the exploration loop against an oracle merger
 #   3. task_time.{json,csv,png}: single- vs multi-robot task time (the paper's 105 s -> 65 s and
 #      125 s -> 85 s)
@@ -16,5 +16,9 @@ if [[ "${1:-}" != "--force" ]]; then
 fi
 out=docs/results
 mrexplore bench merge --n 30 --families symmetric,real,noisy,lidar --out "$out/merge_table" --force
+mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
+  --semantic-variant slack_cells=0,min_run_cells=1 \
+  --semantic-variant max_rotation_peaks=3,peaks_per_rotation=6,n_polish=12,n_refine=5 \
+  --semantic-variant paper_candidates=true --out "$out/merge_ablation" --force
 mrexplore bench loop --seeds 20 --jobs 2 --out "$out/loop_study" --force
 mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --out "$out" --force

@@ -364,7 +364,8 @@ def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
         lines.append("")
     lines.append(
         "merged: episodes whose maps were merged; wrong: episodes in which a robot held a "
-        "transform >= 5 cells off the truth at some step; wrong s: seconds merged wrongly, summed "
+        "transform >= 5 cells off the truth, beyond what odometry drift explains, at some step; "
+        "wrong s: seconds merged wrongly, summed "
         "over episodes; max contr: largest share of a robot's own-or-fused map contradicting the "
         "truth; vs oracle: mean task time relative to the oracle's."
     )

@@ -168,3 +168,17 @@ def test_starts_option_and_errors() -> None:
         SimConfig(odom_noise_trans=-0.1)
     with pytest.raises(ConfigError):
         Simulation(world, 0)
+
+
+def test_drift_allowance_is_zero_with_exact_odometry_and_grows_with_drift() -> None:
+    import mrexplore
+
+    for noisy, check in ((False, lambda d: d == 0.0), (True, lambda d: d > 0.0)):
+        opts = {"odom_noise_trans": 0.05, "odom_noise_rot": 0.05} if noisy else {}
+        env = mrexplore.parallel_env(world="small_office", n_robots=2, merger=None, **opts)
+        env.reset(seed=3)
+        for k in range(40):
+            env.step({a: (0 if k % 5 else 1) for a in env.agents})
+        assert env.sim is not None
+        cells = np.array([[10.0, 10.0], [60.0, 40.0]])
+        assert check(env.sim.drift_allowance(0, 1, cells))

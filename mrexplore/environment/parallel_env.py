@@ -581,20 +581,6 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
                 worst = err
         return worst
 
-    def _drift_allowance(self, i: int, j: int, pts_j: NDArray[np.float64]) -> float:
-        """How far (cells, mean over j's known cells ``pts_j``) odometry drift alone can move a
-        correct merge from the start-frame truth: both robots' position drift plus their heading
-        drift times the mean distance of j's cells from its start. 0 with exact odometry."""
-        assert self.sim is not None
-        sim = self.sim
-        own = sim.own_frame_truth()
-        res = sim.resolution_m
-        pos = np.hypot(*(sim.est_poses[:, :2] - own[:, :2]).T) / res
-        hdg = np.abs(np.angle(np.exp(1j * (sim.est_poses[:, 2] - own[:, 2]))))
-        origin = np.asarray(sim.maps[j].origin_cell, dtype=np.float64)
-        radius = float(np.linalg.norm(pts_j - origin, axis=1).mean()) if len(pts_j) else 0.0
-        return float(pos[i] + pos[j] + (hdg[i] + hdg[j]) * radius)
-
     def _pair_error(self, i: int, j: int, T: NDArray[np.float64]) -> dict[str, float] | None:
         """Error of the estimated ``T`` (j's cells -> i's) against the truth. Cached: recomputed
         when ``T`` changes or every 10 steps (the known cells grow slowly; this runs each step)."""
@@ -616,7 +602,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         err = {
             "translation_cells": float(disp.mean()),
             "rotation_deg": float(rot),
-            "drift_cells": self._drift_allowance(i, j, pts),
+            "drift_cells": self.sim.drift_allowance(i, j, pts),
         }
         self._error_cache[key] = (int(self.sim.steps), np.array(T, copy=True), err)
         return err

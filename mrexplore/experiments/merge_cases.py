@@ -549,13 +549,8 @@ def _lidar_snapshot(env: Any, name: str) -> MergeCase | None:
     ov = overlap_share(ac, bc, T)
     if ov <= 0.0:
         return None
-    own = sim.own_frame_truth()
-    pos = np.hypot(*(sim.est_poses[:, :2] - own[:, :2]).T) / sim.resolution_m
-    hdg = np.abs(np.angle(np.exp(1j * (sim.est_poses[:, 2] - own[:, 2]))))
     rows, cols = np.nonzero(bc != UNKNOWN)
-    origin = np.asarray(sim.maps[1].origin_cell, dtype=np.float64) - (bb[2], bb[0])
-    radius = float(np.hypot(cols - origin[0], rows - origin[1]).mean())
-    drift = float(pos.sum() + hdg.sum() * radius)
+    drift = sim.drift_allowance(0, 1, np.stack([cols + bb[2], rows + bb[0]], axis=1))
     return MergeCase(
         a=ac,
         b=bc,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -145,14 +146,13 @@ def test_rotation_candidates_contain_the_truth_off_the_grid_axes(
     """The whole real map is turned first, so neither map has walls along the grid axes, and
     both are degraded like SLAM maps (ragged walls, speckle, a bend): the truth must still be
     within 1.5 degrees of a candidate."""
-    from conftest import ENVS  # type: ignore[import-not-found]
-
     from mrexplore.experiments.merge_cases import add_map_noise
     from mrexplore.grid import OCCUPIED_THRESHOLD
     from mrexplore.world.map_io import read_map_yaml
 
     rng = np.random.default_rng(int(abs(turn_deg) * 10))
-    full, _ = rotate_map(read_map_yaml(ENVS / "tb3_office.yaml").grid, np.radians(turn_deg))
+    envs = Path(__file__).resolve().parents[2] / "envs"
+    full, _ = rotate_map(read_map_yaml(envs / "tb3_office.yaml").grid, np.radians(turn_deg))
     h, w = full.shape
     a = add_map_noise(full[h // 4 : 3 * h // 4, w // 4 : 3 * w // 4].copy(), rng)
     b, _ = rotate_map(

@@ -18,7 +18,9 @@ from numpy.typing import NDArray
 
 from mrexplore.grid import check_int8_map
 
-#: Known space (m^2) two maps must share before the every-step merger accepts a match.
+#: Known space (m^2) two maps must share before the every-step merger accepts a match: about a
+#: room, so a match confined to one room (which an identical room elsewhere would explain as
+#: well) waits for more; measurements in docs/merging.md.
 IN_LOOP_MIN_COMMON_M2 = 20.0
 
 
@@ -62,9 +64,8 @@ class FusionStage:
 
             options = dict(merge_options or {})
             if merger == "semantic":
-                # Every step the maps grow and waiting costs nothing: demand shared knowledge
-                # larger than a room, so two look-alike rooms alone can never be fused (see
-                # ``min_common_m2`` in mrexplore.merge.semantic for the measurements).
+                # In the loop the maps grow, so asking for a room's worth of shared knowledge
+                # costs seconds, while a one-shot merge has no "later".
                 options.setdefault("min_common_m2", IN_LOOP_MIN_COMMON_M2)
                 if resolution_m is not None:
                     options.setdefault("resolution_m", float(resolution_m))

@@ -59,6 +59,9 @@ class EnvConfig:
             ``"paper"``, ``"orb"``), an object with ``merge(a, b)``, or ``None`` (never merge).
         merge_every: steps between merge attempts before the first success.
         recheck_every: steps between re-checks of an accepted transform.
+        merge_latency_steps: a merge attempt started at step t takes effect at step t + this,
+            computed meanwhile in a worker thread, so no step waits for the merger (default 0:
+            in the step that starts it; a fixed delay keeps runs identical on any machine).
         comm_range_m: maps are exchanged only while robots are within this distance (None = always).
     Episode and reward:
         target_coverage: exploration ends when the coverage (``coverage_mode``) reaches this
@@ -110,6 +113,7 @@ class EnvConfig:
     merger: Any = "semantic"
     merge_every: int = 10
     recheck_every: int = 100
+    merge_latency_steps: int = 0
     comm_range_m: float | None = None
     target_coverage: float = 0.95
     coverage_mode: CoverageMode = "observed"
@@ -198,6 +202,11 @@ class EnvConfig:
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or v < 1:
                 raise ConfigError(f"option {name} must be an integer >= 1, got {v!r}")
+        v = self.merge_latency_steps
+        if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v <= 10_000:
+            raise ConfigError(
+                f"option merge_latency_steps must be an integer in [0, 10000], got {v!r}"
+            )
         if self.obs_size_px < 36:
             # SB3's NatureCNN (CnnPolicy) needs at least 36x36 inputs.
             raise ConfigError(

@@ -160,6 +160,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
             merger=cfg.merger,
             merge_every=cfg.merge_every,
             recheck_every=cfg.recheck_every,
+            merge_latency_steps=cfg.merge_latency_steps,
             merge_options=cfg.merge_options,
             resolution_m=self._resolution_m,
         )
@@ -444,7 +445,9 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         maps = {a: self.local_map(a) for a in self.possible_agents}
         links = self._links()
         self._current_links = links
-        self.fusion.update(maps, int(self.sim.steps), links)
+        # No attempt at reset: single-scan maps cannot be merged, and each attempt costs ~50 ms.
+        steps = int(self.sim.steps)
+        self.fusion.update(maps, steps, links, attempt=steps > 0)
         # Each agent's estimated transforms, once per step (views, heard positions, infos).
         self._transforms = {a: self.fusion.transforms(a) for a in self.possible_agents}
         self._update_heard(links)

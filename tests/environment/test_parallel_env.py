@@ -279,3 +279,10 @@ def test_plain_pickle_with_a_named_merger(merger: str) -> None:
     penv.reset(seed=0)
     clone = pickle.loads(pickle.dumps(penv))
     assert clone.agents == penv.agents
+
+
+def test_reset_makes_no_merge_attempt() -> None:
+    # Single-scan maps cannot be merged; an attempt per pair at every reset only costs time.
+    penv = mrexplore.parallel_env(world="symmetric_office")
+    penv.reset(seed=0)
+    assert penv.fusion.tracker.last_result(0, 1) is None

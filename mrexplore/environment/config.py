@@ -60,8 +60,10 @@ class EnvConfig:
         merge_every: steps between merge attempts before the first success.
         recheck_every: steps between re-checks of an accepted transform.
         merge_latency_steps: a merge attempt started at step t takes effect at step t + this,
-            computed meanwhile in a worker thread, so no step waits for the merger (default 0:
-            in the step that starts it; a fixed delay keeps runs identical on any machine).
+            computed meanwhile in a worker thread, so no step waits for the merger (default 8
+            steps, 2 s at the default ``dt_s``: a radio exchange of maps and a merge take about
+            that on real robots; 0 = in the step that starts it, no thread). A fixed delay, not
+            "when ready": the same seed gives the same run on any machine.
         comm_range_m: maps are exchanged only while robots are within this distance (None = always).
     Episode and reward:
         target_coverage: exploration ends when the coverage (``coverage_mode``) reaches this
@@ -113,7 +115,7 @@ class EnvConfig:
     merger: Any = "semantic"
     merge_every: int = 10
     recheck_every: int = 100
-    merge_latency_steps: int = 0
+    merge_latency_steps: int = 8
     comm_range_m: float | None = None
     target_coverage: float = 0.95
     coverage_mode: CoverageMode = "observed"

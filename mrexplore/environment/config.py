@@ -19,6 +19,7 @@ from mrexplore.errors import ConfigError
 RewardMode = Literal["time", "coverage"]
 Task = Literal["explore", "navigate"]
 CoverageMode = Literal["observed", "held"]
+NavGoal = Literal["far", "teammate"]
 
 
 #: Options that take only ``True``/``False`` (or numpy bools).
@@ -81,6 +82,13 @@ class EnvConfig:
         reward_mode: ``"time"`` (``-dt_s`` per step: return = -task time) or ``"coverage"``
             (``coverage_reward_per_m2`` per newly observed m^2 minus ``time_penalty_per_s * dt_s``).
         goal_min_distance_m, goal_radius_m: navigation goal placement and arrival radius.
+        nav_goal: where ``robot_0``'s goal is drawn: ``"far"`` (default): any reachable cell at
+            least ``goal_min_distance_m`` from its start; ``"teammate"``: such a cell within
+            ``nav_teammate_radius_m`` of ``robot_1``'s start, a place the teammate maps during
+            the warm-up (the seed paper's protocol: a robot goes where its teammate has mapped).
+            The goal is the same for every team size (a 1-robot run draws where ``robot_1``
+            would have started from the same seed).
+        nav_teammate_radius_m: the ``"teammate"`` goal's distance from ``robot_1``'s start.
         nav_warmup_s: navigation: the team explores this long before ``robot_0`` is given its
             goal (0 = at once); the task time counts from the goal. With a warm-up, the
             single-robot and the team runs both start navigating with a partial map, the team's
@@ -126,6 +134,8 @@ class EnvConfig:
     time_penalty_per_s: float = 0.04
     goal_min_distance_m: float = 10.0
     goal_radius_m: float = 0.4
+    nav_goal: NavGoal = "far"
+    nav_teammate_radius_m: float = 3.0
     nav_warmup_s: float = 0.0
     nav_return_to_start: bool = True
     global_view_m: float = 25.6
@@ -169,6 +179,8 @@ class EnvConfig:
             raise ConfigError(
                 f"option reward_mode must be 'time' or 'coverage', got {self.reward_mode!r}"
             )
+        if self.nav_goal not in ("far", "teammate"):
+            raise ConfigError(f"option nav_goal must be 'far' or 'teammate', got {self.nav_goal!r}")
         if self.coverage_mode not in ("observed", "held"):
             raise ConfigError(
                 f"option coverage_mode must be 'observed' or 'held', got {self.coverage_mode!r}"
@@ -182,6 +194,7 @@ class EnvConfig:
             "max_range_m",
             "max_time_s",
             "goal_radius_m",
+            "nav_teammate_radius_m",
             "global_view_m",
             "local_view_m",
         ):

@@ -18,12 +18,10 @@ from numpy.typing import NDArray
 
 from mrexplore.grid import check_int8_map
 
-#: Known space (m^2) two maps must share under a match before the every-step merger proposes
-#: it; such a match is accepted once a second attempt on grown maps agrees.
-IN_LOOP_MIN_COMMON_M2 = 5.0
-#: Known space (m^2) shared under a match that is accepted at its first attempt: about a room,
-#: more than a look-alike room explains; measurements in docs/merging.md.
-IN_LOOP_ACCEPT_M2 = 20.0
+#: Known space (m^2) two maps must share before the every-step merger accepts a match: about a
+#: room, so a match confined to one room (which an identical room elsewhere would explain as
+#: well) waits for more; measurements in docs/merging.md.
+IN_LOOP_MIN_COMMON_M2 = 20.0
 
 
 class FusionStage:
@@ -72,7 +70,6 @@ class FusionStage:
                 # In the loop the maps grow, so asking for a room's worth of shared knowledge
                 # costs seconds, while a one-shot merge has no "later".
                 options.setdefault("min_common_m2", IN_LOOP_MIN_COMMON_M2)
-                options.setdefault("accept_m2", IN_LOOP_ACCEPT_M2)
                 if resolution_m is not None:
                     options.setdefault("resolution_m", float(resolution_m))
             self.tracker = MapMergeTracker(

@@ -765,19 +765,17 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     assert best.agreement is not None
 
     # A rival is a pose far from the best that explains a comparable part of the maps: at least
-    # ``rival_support`` of the best's support (agreeing wall cells plus the shared-space credit).
-    # A pose that matches only a corner or a wall seen from outside (b mostly hanging over a's
-    # unknown) agrees perfectly with little, which any corridor end or room corner does by
-    # coincidence; it does not make the best ambiguous.
-    def support(h: _Hypothesis) -> float:
-        return (h.agreement.agree if h.agreement is not None else 0) + h.shared_bonus
-
+    # ``rival_support`` of the best's agreeing wall cells. A pose that matches only a corner (b
+    # mostly hanging over a's unknown) agrees perfectly with little, which any corridor end or
+    # room corner does by coincidence; it does not make the best ambiguous. (Walls only, not the
+    # shared-space credit of the ranking: with the credit, a pose laid on one of a warehouse's
+    # repeated rack rows lost its rivals and merged wrongly in the loop; docs/merging.md.)
     rivals = [
         h
         for h in chosen[1:]
         if _mean_shift(h.T, best.T, pts) >= far_cells
         and h.agreement is not None
-        and support(h) >= rival_support * support(best)
+        and h.agreement.agree >= rival_support * best.agreement.agree
     ]
     runner = rivals[0].score if rivals else None
     info["best_agreement"] = best.agreement

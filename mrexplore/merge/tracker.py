@@ -5,13 +5,11 @@ Each step the caller hands over the robots' own-frame maps. The tracker
 - every ``merge_every`` steps tries to merge each pair of robots that are in communication range
   and not yet connected (directly or through a chain of merged pairs), calling the merger on the
   maps cropped to their known bounding boxes;
-- accepts a pair's transform at once when the match already rests on ``accept_m2`` of known
-  space shared by both maps (a room's worth: more than a look-alike room explains); a smaller
-  match only once ``confirmations`` consecutive attempts found the same transform (within
-  ``confirm_tol_cells``), each resting on ``confirm_growth`` more shared wall cells than the
-  one before: evidence accumulated over time. A look-alike match stays confined to the
-  look-alike part (its shared evidence cannot grow without a contradiction, which refuses and
-  breaks the run), the true one spreads as the maps grow;
+- accepts a pair's transform only once ``confirmations`` consecutive attempts found the same
+  transform (within ``confirm_tol_cells``), each resting on ``confirm_growth`` more shared wall
+  cells than the one before: evidence accumulated over time. A look-alike match stays confined
+  to the look-alike part (its shared evidence cannot grow without a contradiction, which
+  refuses and breaks the run), the true one spreads as the maps grow;
 - keeps an accepted transform; every ``recheck_every`` steps re-runs the merger on merged pairs
   and replaces the transform only when the new one scores clearly better (by
   ``replace_margin``) than the kept one does *on the same current maps*: no flip-flopping;
@@ -185,10 +183,6 @@ class MapMergeTracker:
             waits for the merger (default 0: computed and applied in the step that starts it).
             A fixed delay, not "when ready": the same seed gives the same run on any machine.
             With a delay, at most one attempt or re-check starts per step.
-        accept_m2: a match whose result reports at least this much known space shared by both
-            maps (``info["common_known_m2"]``, m^2; the ``semantic`` method reports it) is
-            accepted without waiting for confirmations (default None: never; mergers that do
-            not report it always go through the confirmations).
         **merge_options: options for the named merger (validated at construction).
 
     >>> import numpy as np
@@ -211,7 +205,6 @@ class MapMergeTracker:
         drop_below: float = 0.85,
         retry_growth: float = 0.02,
         confirm_growth: float = 0.0,
-        accept_m2: float | None = None,
         merge_latency_steps: int = 0,
         **merge_options: Any,
     ) -> None:
@@ -274,16 +267,6 @@ class MapMergeTracker:
                 f"MapMergeTracker: confirm_growth must be in [0, 10], got {confirm_growth!r}"
             )
         self.confirm_growth = float(confirm_growth)
-        if accept_m2 is not None and not (
-            isinstance(accept_m2, (int, float, np.number))
-            and not isinstance(accept_m2, bool)
-            and math.isfinite(float(accept_m2))
-            and float(accept_m2) >= 0.0
-        ):
-            raise ConfigError(
-                f"MapMergeTracker: accept_m2 must be None or a number >= 0, got {accept_m2!r}"
-            )
-        self.accept_m2 = None if accept_m2 is None else float(accept_m2)
         if (
             isinstance(merge_latency_steps, bool)
             or not isinstance(merge_latency_steps, (int, np.integer))
@@ -538,9 +521,7 @@ class MapMergeTracker:
             if not grown:
                 return
             count = pending[1] + 1
-        common = out.result.info.get("common_known_m2") if out.result.info else None
-        strong = self.accept_m2 is not None and common is not None and common >= self.accept_m2
-        if count >= self.confirmations or strong:
+        if count >= self.confirmations:
             self._pending.pop((i, j), None)
             self._edges[(i, j)] = T
             self._edge_score[(i, j)] = out.result.score

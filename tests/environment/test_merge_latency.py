@@ -28,7 +28,7 @@ class _Semantic:
         self.threads.add(threading.current_thread().name)
         if self.slow:
             time.sleep(float(self.rng.uniform(0.0, 0.03)))
-        return merge_maps(a, b, method="semantic", min_common_m2=5.0)
+        return merge_maps(a, b, method="semantic", min_common_m2=20.0)
 
 
 def _run(slow: bool, steps: int, latency: int) -> tuple[str, int | None, set[str]]:
@@ -38,7 +38,6 @@ def _run(slow: bool, steps: int, latency: int) -> tuple[str, int | None, set[str
         aligned_headings=False,
         merger=merger,
         merge_latency_steps=latency,
-        merge_options={"accept_m2": 20.0},
         max_time_s=steps * 0.25 + 1.0,
     )
     penv.reset(seed=7)

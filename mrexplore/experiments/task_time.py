@@ -102,6 +102,12 @@ def _episode_from_json(d: Mapping[str, Any]) -> EpisodeResult:
         first_merge_time_s=d["first_merge_time_s"],
         merge_error=d["merge_error"],
         collisions=int(d["collisions"]),
+        # the map-accuracy fields too, so a resumed (or Ray) run writes what a serial one does
+        max_fused_contradiction=(
+            math.nan if d.get("max_fused_contradiction") is None else d["max_fused_contradiction"]
+        ),
+        merged_wrongly_s=float(d.get("merged_wrongly_s", 0.0)),
+        wrong_merge=bool(d.get("wrong_merge", False)),
     )
 
 

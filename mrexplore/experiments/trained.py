@@ -19,7 +19,14 @@ from mrexplore.errors import ConfigError
 
 ALGOS = ("ppo", "a2c", "dqn")
 #: Env options that shape the observation: a trained policy must run with the ones it saw.
-OBSERVATION_OPTIONS = ("obs_heading_up", "global_view_m", "local_view_m", "obs_size_px")
+OBSERVATION_OPTIONS = (
+    "obs_heading_up",
+    "global_view_m",
+    "local_view_m",
+    "obs_size_px",
+    "obs_layout",
+    "obs_dtype",
+)
 
 
 def read_config(folder: str | Path) -> dict[str, Any]:

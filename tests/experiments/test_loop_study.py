@@ -60,7 +60,7 @@ def test_oracle_merges_through_the_tracker_with_confirmations() -> None:
             {a: int(rng.choice(4, p=[0.7, 0.15, 0.15, 0.0])) for a in penv.agents}
         )
     assert infos["robot_0"]["first_merge_time_s"] == pytest.approx(2.5)  # second attempt
-    assert infos["robot_0"]["merge_error"]["translation_cells"] < 1e-6
+    assert infos["robot_0"]["merge_error_cells"] < 1e-6
     T = penv.fusion.transforms("robot_0")["robot_1"]
     np.testing.assert_allclose(T, penv.sim.true_transform(0, 1), atol=1e-9)
 

@@ -27,6 +27,7 @@ def _first_conv(module: torch.nn.Module) -> torch.nn.Conv2d:
     return next(m for m in module.modules() if isinstance(m, torch.nn.Conv2d))
 
 
+@pytest.mark.expensive
 @_needs("supersuit")
 def test_supersuit_sb3_recipe_trains_on_channels_first_with_distinct_copies(
     recipe: Recipe,
@@ -61,11 +62,12 @@ def test_supersuit_tutorial_order_makes_identical_copies() -> None:
     venv.close()
 
 
+@pytest.mark.expensive
 def test_gymnasium_vector_recipe_trains_and_stacks_numeric_infos(recipe: Recipe) -> None:
     ns = recipe("gymnasium")
     net, infos = ns["net"], ns["infos"]
     assert _first_conv(net).in_channels == 8 == ns["envs"].single_observation_space.shape[0]
-    assert ns["update"] == 7 and torch.isfinite(ns["loss"])
+    assert ns["update"] == 3 and torch.isfinite(ns["loss"])
     for key, value in infos.items():
         assert value.dtype != object, key  # one number per copy: no None, no nested dicts
         assert value.shape == (2,)
@@ -100,3 +102,17 @@ def test_rllib_recipe_trains_a_shared_policy_on_channels_last(recipe: Recipe) ->
     per_agent = runners["agent_episode_returns_mean"]["robot_0"]
     assert per_agent == pytest.approx(-0.25 * 100)  # max_cycles=100 steps of -dt_s
     assert runners["episode_return_mean"] == pytest.approx(2 * per_agent)
+
+
+@pytest.mark.expensive  # importing RLlib alone takes ~10 s
+@_needs("ray")
+def test_rllib_wrapper_renders_our_frames() -> None:
+    # RLlib's ParallelPettingZooEnv.render() passes its own render_mode (None) positionally.
+    from ray.rllib.env.wrappers.pettingzoo_env import ParallelPettingZooEnv
+
+    env = ParallelPettingZooEnv(
+        mrexplore.parallel_env(world="small_office", render_mode="rgb_array", max_cycles=5)
+    )
+    env.reset(seed=0)
+    frame = env.render()
+    assert frame.ndim == 3 and frame.shape[2] == 3 and frame.dtype == np.uint8

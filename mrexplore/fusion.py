@@ -18,10 +18,12 @@ from numpy.typing import NDArray
 
 from mrexplore.grid import check_int8_map
 
-#: Known space (m^2) two maps must share before the every-step merger accepts a match: about a
-#: room, so a match confined to one room (which an identical room elsewhere would explain as
-#: well) waits for more; measurements in docs/merging.md.
-IN_LOOP_MIN_COMMON_M2 = 20.0
+#: Known space (m^2) two maps must share under a match before the every-step merger proposes
+#: it; such a match is accepted once a second attempt on grown maps agrees.
+IN_LOOP_MIN_COMMON_M2 = 5.0
+#: Known space (m^2) shared under a match that is accepted at its first attempt: about a room,
+#: more than a look-alike room explains; measurements in docs/merging.md.
+IN_LOOP_ACCEPT_M2 = 20.0
 
 
 class FusionStage:
@@ -33,6 +35,8 @@ class FusionStage:
             ``merge(a, b)``, or ``None`` to never merge (each agent keeps its own map).
         merge_every: steps between merge attempts of a pair before its first success.
         recheck_every: steps between re-checks of an accepted transform.
+        merge_latency_steps: steps between the start of a merge attempt and its effect (0: the
+            same step; > 0: computed in a worker thread meanwhile).
         merge_options: extra keyword options for the merge method.
         resolution_m: metres per cell of the maps; passed to the ``"semantic"`` merger (its
             minimum common area is in m^2) unless ``merge_options`` sets it.
@@ -44,6 +48,7 @@ class FusionStage:
         merger: Any = "semantic",
         merge_every: int = 10,
         recheck_every: int = 100,
+        merge_latency_steps: int = 0,
         merge_options: Mapping[str, Any] | None = None,
         resolution_m: float | None = None,
     ) -> None:
@@ -67,6 +72,7 @@ class FusionStage:
                 # In the loop the maps grow, so asking for a room's worth of shared knowledge
                 # costs seconds, while a one-shot merge has no "later".
                 options.setdefault("min_common_m2", IN_LOOP_MIN_COMMON_M2)
+                options.setdefault("accept_m2", IN_LOOP_ACCEPT_M2)
                 if resolution_m is not None:
                     options.setdefault("resolution_m", float(resolution_m))
             self.tracker = MapMergeTracker(
@@ -74,6 +80,7 @@ class FusionStage:
                 merger=merger,
                 merge_every=merge_every,
                 recheck_every=recheck_every,
+                merge_latency_steps=merge_latency_steps,
                 **options,
             )
 
@@ -90,10 +97,12 @@ class FusionStage:
         local_maps: Mapping[str, NDArray[np.int8]],
         step: int,
         links: NDArray[np.bool_] | None = None,
+        attempt: bool = True,
     ) -> None:
         """Feed this step's own-frame maps (one per agent, int8 -1/0/100).
 
-        ``links[i, j]`` False means agents i and j cannot exchange maps this step.
+        ``links[i, j]`` False means agents i and j cannot exchange maps this step; ``attempt``
+        False records the maps without a merge attempt (at ``reset``: single-scan maps).
         """
         missing = [a for a in self.agents if a not in local_maps]
         if missing:
@@ -103,7 +112,7 @@ class FusionStage:
         self._update_version = self._counter
         if self.tracker is None:
             return
-        self.tracker.update(self._maps, step, links)
+        self.tracker.update(self._maps, step, links, attempt=attempt)
         for a in self.agents:
             if self._first_merge_step[a] is None and self.tracker.merged(self.index[a]):
                 self._first_merge_step[a] = step

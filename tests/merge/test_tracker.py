@@ -216,16 +216,18 @@ def test_incremental_fusion_equals_fusion_from_scratch() -> None:
 class _Seq:
     """A merger answering with a scripted sequence of transforms (None = refuse)."""
 
-    def __init__(self, answers: list[np.ndarray | None]) -> None:
+    def __init__(self, answers: list[np.ndarray | None], common_m2: float | None = None) -> None:
         self.answers = answers
         self.calls = 0
+        self.common_m2 = common_m2  # reported as info["common_known_m2"] when not None
 
     def merge(self, a: np.ndarray, b: np.ndarray) -> MergeResult:
         T = self.answers[min(self.calls, len(self.answers) - 1)]
         self.calls += 1
         if T is None:
             return MergeResult(matched=False, transform=None, score=0.5, reason="scripted refusal")
-        return MergeResult(matched=True, transform=T, score=0.99)
+        info = {} if self.common_m2 is None else {"common_known_m2": self.common_m2}
+        return MergeResult(matched=True, transform=T, score=0.99, info=info)
 
 
 def _growing_maps(k: int) -> list[np.ndarray]:
@@ -264,6 +266,31 @@ def test_a_transform_needs_agreeing_attempts_on_growing_maps(
             assert k == merged_at
             break
     assert tr.merged(0)
+
+
+@pytest.mark.parametrize(
+    ("common_m2", "merged_at_once"), [(25.0, True), (19.0, False), (None, False)]
+)
+def test_a_match_on_a_rooms_worth_of_shared_space_needs_no_confirmation(
+    common_m2: float | None, merged_at_once: bool
+) -> None:
+    seq = _Seq([translation(3.0, 0.0)], common_m2=common_m2)
+    tr = MapMergeTracker(
+        2, merger=seq, merge_every=1, recheck_every=0, confirmations=2, accept_m2=20.0
+    )
+    tr.update(_growing_maps(0), step=1)
+    assert seq.calls == 1 and tr.merged(0) == merged_at_once
+    tr.update(_growing_maps(1), step=2)
+    assert tr.merged(0)  # the second agreeing attempt confirms in every case
+
+
+def test_no_attempt_when_told_not_to() -> None:
+    seq = _Seq([translation(3.0, 0.0)], common_m2=100.0)
+    tr = MapMergeTracker(2, merger=seq, merge_every=1, accept_m2=20.0)
+    tr.update(_growing_maps(0), step=0, attempt=False)
+    assert seq.calls == 0 and not tr.merged(0)
+    with pytest.raises(ConfigError, match="accept_m2"):
+        MapMergeTracker(2, accept_m2=-1.0)
 
 
 def test_recheck_drops_a_transform_the_grown_maps_contradict(

@@ -82,6 +82,10 @@ def test_rllib_backend_trains_with_an_env_runner_and_saves_the_shared_policy(
     assert main([*args, "--timesteps", "300", "--env-runners", "1"]) == 0
     doc = json.loads((out / "train.json").read_text())
     assert doc["history"][-1]["env_steps"] >= 300
+    last = doc["history"][-1]
+    # 20 s episodes of coverage reward: one robot's return is the team's; RLlib's sums both
+    assert last["team_return_mean"] is not None
+    assert last["rllib_episode_return_mean"] == pytest.approx(2 * last["team_return_mean"])
     assert yaml.safe_load((out / "config.yaml").read_text())["env_runners"] == 1
     module = RLModule.from_checkpoint(
         out / "checkpoint" / "learner_group" / "learner" / "rl_module" / "shared"

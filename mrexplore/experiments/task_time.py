@@ -62,9 +62,9 @@ def make_team(policy: str, agents: Sequence[str], task: str) -> Any:
     from mrexplore.policies import GoalPolicy, make_team_policy
 
     if Path(policy).is_dir():
-        from mrexplore.experiments.trained import TrainedTeamPolicy
+        from mrexplore.experiments.trained import load_team_policy
 
-        team: Any = TrainedTeamPolicy.load(policy, agents)
+        team: Any = load_team_policy(policy, agents)
     else:
         team = make_team_policy(policy, list(agents))
     if task == "navigate":

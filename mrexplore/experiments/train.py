@@ -359,6 +359,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             env_runners=args.env_runners,
             address=args.address,
             hyperparams_file=args.hyperparams,
+            final_eval_seeds=args.final_eval_seeds,
             force=args.force,
         )
         return 0

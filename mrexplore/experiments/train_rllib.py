@@ -109,10 +109,15 @@ def train_rllib(
     env_runners: int = 2,
     address: str | None = None,
     hyperparams_file: str | Path | None = None,
+    final_eval_seeds: int | None = None,
     progress: bool = True,
     force: bool = False,
 ) -> dict[str, Any]:
     """Train the shared policy for at least ``timesteps`` env steps; returns the config.
+
+    Then evaluates it against the frontier baselines on held-out seeds, as ``train`` does for
+    SB3 (``eval.json``, ``eval.png``; ``final_eval_seeds=None`` scales the count to the run,
+    0 skips it); ``mrexplore evaluate`` and ``task-time --policy`` take the folder too.
 
     Every argument is checked and ``out`` refused when it is a file or a non-empty folder
     (without ``force``) before Ray starts.
@@ -122,9 +127,14 @@ def train_rllib(
         OutputExistsError: ``out`` is refused.
     """
     from mrexplore.environment.config import EnvConfig
-    from mrexplore.experiments.train import training_world
+    from mrexplore.experiments.train import final_eval_seed_count, training_world
 
     timesteps = _check_int("timesteps", timesteps, 1)
+    final_seeds = (
+        final_eval_seed_count(timesteps)
+        if final_eval_seeds is None
+        else _check_int("final_eval_seeds", final_eval_seeds, 0)
+    )
     seed = _check_int("seed", seed, 0)
     env_runners = _check_int("env_runners", env_runners, 0)
     if address is not None and (not isinstance(address, str) or not address.strip()):
@@ -209,6 +219,10 @@ def train_rllib(
             ray.shutdown()
     doc = {"config": config, "history": history, "checkpoint": str(checkpoint)}
     write_text(out / "train.json", json.dumps(doc, indent=2, default=str))
+    if final_seeds > 0:
+        from mrexplore.experiments.evaluate import evaluate_folder, write_evaluation
+
+        write_evaluation(evaluate_folder(out, n_seeds=final_seeds, progress=progress), out)
     if progress:
         print(f"trained {steps} env steps with RLlib; wrote {out}")
     return config

@@ -9,6 +9,7 @@ import pytest
 import yaml
 
 from mrexplore.errors import ConfigError, OutputExistsError
+from mrexplore.experiments.task_time import run_task_time
 from mrexplore.experiments.train import main
 
 SMALL = {
@@ -79,7 +80,7 @@ def test_rllib_backend_trains_with_an_env_runner_and_saves_the_shared_policy(
     out = tmp_path / "run"
     hp = _small(tmp_path)
     args = ["--backend", "rllib", "--hyperparams", str(hp), "--out", str(out)]
-    assert main([*args, "--timesteps", "300", "--env-runners", "1"]) == 0
+    assert main([*args, "--timesteps", "300", "--env-runners", "1", "--final-eval-seeds", "1"]) == 0
     doc = json.loads((out / "train.json").read_text())
     assert doc["history"][-1]["env_steps"] >= 300
     last = doc["history"][-1]
@@ -92,3 +93,16 @@ def test_rllib_backend_trains_with_an_env_runner_and_saves_the_shared_policy(
     )
     conv = next(m for m in module.modules() if isinstance(m, torch.nn.Conv2d))
     assert conv.in_channels == 8
+    # the folder works where an SB3 one does: the final evaluation and task-time
+    assert "trained (ppo rllib)" in json.loads((out / "eval.json").read_text())["results"]
+    doc = run_task_time(
+        world="small_office",
+        seeds=1,
+        policy=str(out),
+        out=tmp_path / "tt",
+        tasks=("explore",),
+        env_options={"max_time_s": 10.0},
+        progress=False,
+    )
+    assert doc["options"]["obs_layout"] == "hwc"  # the format the policy was trained on
+    assert len(doc["tasks"]["explore"]["multi"]["task_times_s"]) == 1

@@ -6,7 +6,7 @@
 #   3. task_time.{json,csv,png}: single- vs multi-robot task time (the paper's 105 s -> 65 s and
 #      125 s -> 85 s); nav_teammate/: navigation to a place near robot_1's start (the paper's
 #      protocol: a robot goes where its teammate mapped)
-# It replaces the committed files, so it asks for --force. About 1.5 hours on 2 cores.
+# It replaces the committed files, so it asks for --force. About 35 minutes on 2 cores.
 # Every figure but the timings (ms, steps/s) comes out the same on any machine with the pinned
 # versions (requirements/constraints.txt); timings depend on the machine and its load.
 set -euo pipefail

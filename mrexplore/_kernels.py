@@ -236,6 +236,7 @@ def map_update(
     thresholds: NDArray[np.float32],
     pct_clip: NDArray[np.int64],
     bbox: NDArray[np.int64],
+    changed: NDArray[np.int64],
 ) -> None:
     """Integrate one scan into a log-odds map (flat arrays of an (h, w) canvas).
 
@@ -259,6 +260,9 @@ def map_update(
         pct_clip: int64 (4,) ``FREE, OCCUPIED, lowest, highest`` percent of an undecided cell.
         bbox: int64 (4,) ``row0, row1, col0, col1`` inclusive of the known cells (updated;
             ``row1 < 0`` when none yet).
+        changed: int64 (4,) out: ``row0, row1, col0, col1`` inclusive of the cells whose int8
+            value this scan changed (``row1 < 0``: none). Consumers of the int8 map (the merge
+            tracker) then need not compare whole canvases to find what changed.
     """
     n_b = dx.shape[0]
     l_free, l_occ, l_min, l_max = deltas[0], deltas[1], deltas[2], deltas[3]
@@ -296,6 +300,7 @@ def map_update(
     r0, r1, c0, c1 = bbox[0], bbox[1], bbox[2], bbox[3]
     if r1 < 0:
         r0, r1, c0, c1 = h, -1, w, -1
+    q0, q1, p0, p1 = h, -1, w, -1  # box of the int8 changes
     # 1) occupied end cells: applied first, stamped so that no free mark touches them.
     for b in range(n_b):
         if not hits[b]:
@@ -307,7 +312,8 @@ def map_update(
         r0, r1, c0, c1 = min(r0, er), max(r1, er), min(c0, ec), max(c1, ec)
         if stamp[f] != s_occ:
             stamp[f] = s_occ
-            _apply(logodds, int8_map, f, l_occ, l_min, l_max, thresholds, pct_clip)
+            if _apply(logodds, int8_map, f, l_occ, l_min, l_max, thresholds, pct_clip):
+                q0, q1, p0, p1 = min(q0, er), max(q1, er), min(p0, ec), max(p1, ec)
     # 2) free cells: the robot's own cell, then every crossing before the end of each beam.
     orow = int(oy)
     ocol = int(ox)
@@ -315,7 +321,8 @@ def map_update(
     r0, r1, c0, c1 = min(r0, orow), max(r1, orow), min(c0, ocol), max(c1, ocol)
     if stamp[f] != s_occ and stamp[f] != s_free:
         stamp[f] = s_free
-        _apply(logodds, int8_map, f, l_free, l_min, l_max, thresholds, pct_clip)
+        if _apply(logodds, int8_map, f, l_free, l_min, l_max, thresholds, pct_clip):
+            q0, q1, p0, p1 = min(q0, orow), max(q1, orow), min(p0, ocol), max(p1, ocol)
     for b in range(n_b):
         group_max = max_short if t_end[b] < short_cells else max_long
         n_slots = math.ceil(group_max) + 1
@@ -345,7 +352,8 @@ def map_update(
             base = (foo - off) * st_other + (fo + sg) * st_across
             step = sg * st_across
             for k in range(n):
-                f = base + k * step + math.floor(k * s + a) * st_other
+                cell = math.floor(k * s + a)
+                f = base + k * step + cell * st_other
                 # Branch-free apply (a select, not a jump): whether a cell is new in this scan
                 # is unpredictable near the robot, where the beams overlap, and mispredicted
                 # branches dominated this loop.
@@ -357,13 +365,20 @@ def map_update(
                 lo = lo if fresh else old
                 logodds[f] = lo
                 if lo >= thresholds[1]:
-                    int8_map[f] = pct_clip[1]
+                    v = pct_clip[1]
                 elif lo > thresholds[0]:
                     pct = np.rint(100.0 / (1.0 + math.exp(-float(lo))))
-                    int8_map[f] = min(max(int(pct), pct_clip[2]), pct_clip[3])
+                    v = min(max(int(pct), pct_clip[2]), pct_clip[3])
                 else:
-                    int8_map[f] = pct_clip[0]
+                    v = pct_clip[0]
+                if int8_map[f] != v:
+                    int8_map[f] = v
+                    other = foo - off + cell
+                    across = fo + (k + 1) * sg
+                    row, col = (other, across) if fam == 0 else (across, other)
+                    q0, q1, p0, p1 = min(q0, row), max(q1, row), min(p0, col), max(p1, col)
     bbox[0], bbox[1], bbox[2], bbox[3] = r0, r1, c0, c1
+    changed[0], changed[1], changed[2], changed[3] = q0, q1, p0, p1
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -376,9 +391,10 @@ def _apply(
     l_max: np.float32,
     thresholds: NDArray[np.float32],
     pct_clip: NDArray[np.int64],
-) -> None:
+) -> bool:
     """Add ``delta`` to cell ``f`` (float32, clamped) and refresh its int8 value, as
-    ``mrexplore.mapping._logodds_to_int8`` (thresholds compared in float32)."""
+    ``mrexplore.mapping._logodds_to_int8`` (thresholds compared in float32). Returns whether
+    the int8 value changed."""
     lo = logodds[f] + delta
     if lo < l_min:
         lo = l_min
@@ -386,13 +402,16 @@ def _apply(
         lo = l_max
     logodds[f] = lo
     if lo >= thresholds[1]:
-        int8_map[f] = pct_clip[1]
+        v = pct_clip[1]
     elif lo > thresholds[0]:
         pct = np.rint(100.0 / (1.0 + math.exp(-float(lo))))
         v = min(max(int(pct), pct_clip[2]), pct_clip[3])
-        int8_map[f] = v
     else:
-        int8_map[f] = pct_clip[0]
+        v = pct_clip[0]
+    if int8_map[f] == v:
+        return False
+    int8_map[f] = v
+    return True
 
 
 @numba.njit(cache=True, nogil=True)
@@ -502,6 +521,7 @@ def warm_up() -> None:
         np.array([-1.0, 1.0, -5.0, 5.0], dtype=np.float32),
         np.array([-1.0, 0.6], dtype=np.float32),
         np.array([0, 100, 26, 64], dtype=np.int64),
+        np.array([0, -1, 0, -1], dtype=np.int64),
         np.array([0, -1, 0, -1], dtype=np.int64),
     )
     motion_forward(

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from mrexplore.grid import check_int8_map
+from mrexplore.grid import MapChange, check_int8_map
 
 #: Known space (m^2) two maps must share before the every-step merger accepts a match: about a
 #: room, so a match confined to one room (which an identical room elsewhere would explain as
@@ -90,10 +90,14 @@ class FusionStage:
         local_maps: Mapping[str, NDArray[np.int8]],
         step: int,
         links: NDArray[np.bool_] | None = None,
+        changes: Mapping[str, MapChange] | None = None,
     ) -> None:
         """Feed this step's own-frame maps (one per agent, int8 -1/0/100).
 
         ``links[i, j]`` False means agents i and j cannot exchange maps this step.
+        ``changes``: optionally, per agent, what the map's owner knows of its changes (known
+        and changed boxes, :class:`mrexplore.grid.MapChange`), which spares the tracker a scan
+        of every canvas.
         """
         missing = [a for a in self.agents if a not in local_maps]
         if missing:
@@ -103,7 +107,8 @@ class FusionStage:
         self._update_version = self._counter
         if self.tracker is None:
             return
-        self.tracker.update(self._maps, step, links)
+        hints = None if changes is None else [changes.get(a) for a in self.agents]
+        self.tracker.update(self._maps, step, links, changes=hints)
         for a in self.agents:
             if self._first_merge_step[a] is None and self.tracker.merged(self.index[a]):
                 self._first_merge_step[a] = step

@@ -442,9 +442,11 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
     def _merge(self) -> None:
         assert self.sim is not None
         maps = {a: self.local_map(a) for a in self.possible_agents}
+        # The maps track their known and changed boxes: the tracker need not scan canvases.
+        changes = {a: m.change() for a, m in zip(self.possible_agents, self.sim.maps, strict=True)}
         links = self._links()
         self._current_links = links
-        self.fusion.update(maps, int(self.sim.steps), links)
+        self.fusion.update(maps, int(self.sim.steps), links, changes)
         # Each agent's estimated transforms, once per step (views, heard positions, infos).
         self._transforms = {a: self.fusion.transforms(a) for a in self.possible_agents}
         self._update_heard(links)

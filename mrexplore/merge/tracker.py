@@ -39,7 +39,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError, GridError
-from mrexplore.grid import UNKNOWN, Int8Grid, Transform, check_int8_map, invert_transform
+from mrexplore.grid import (
+    UNKNOWN,
+    Int8Grid,
+    MapChange,
+    Transform,
+    check_int8_map,
+    invert_transform,
+)
 from mrexplore.merge.api import METHODS, merge_maps
 from mrexplore.merge.common import MergeResult, Verifier, known_bbox, translation, warp_into
 
@@ -265,6 +272,8 @@ class MapMergeTracker:
         self._fbuf_ver: list[tuple[int, dict[int, int]] | None] = [None] * self.n
         self._paths: dict[tuple[int, int], Transform | None] | None = None
         self._links: NDArray[np.bool_] | None = None
+        # per robot: the MapChange.version last observed (None: observed without one)
+        self._seen_version: list[int | None] = [None] * self.n
 
     # ------------------------------------------------------------------ step
     def update(
@@ -272,6 +281,7 @@ class MapMergeTracker:
         maps: Sequence[Int8Grid],
         step: int,
         links: NDArray[np.bool_] | None = None,
+        changes: Sequence[MapChange | None] | None = None,
     ) -> None:
         """Take the robots' current maps (own frames) at time step ``step``.
 
@@ -280,6 +290,11 @@ class MapMergeTracker:
             step: the environment's step counter (merge attempts at multiples of merge_every).
             links: (N, N) bool, ``links[i, j]`` False when robots i and j cannot communicate
                 (no merge attempt, no map exchange); None = all linked.
+            changes: optionally, per map, what its owner knows of its changes
+                (:class:`mrexplore.grid.MapChange`, e.g.
+                :meth:`mrexplore.mapping.OccupancyMap.change`): then the tracker takes the known
+                and changed boxes from it instead of scanning the canvas. It must describe the
+                array passed in ``maps``.
         """
         if len(maps) != self.n:
             raise GridError(f"MapMergeTracker.update: expected {self.n} maps, got {len(maps)}")
@@ -291,14 +306,41 @@ class MapMergeTracker:
                     f"got shape {links.shape}"
                 )
         self._links = links
+        if changes is not None and len(changes) != self.n:
+            raise GridError(
+                f"MapMergeTracker.update: expected {self.n} changes, got {len(changes)}"
+            )
         for i, m in enumerate(maps):
             # Cheap checks only: a full value-range scan of a 1500 x 1500 canvas every step
             # would cost more than everything else here; merge_maps validates fully.
-            self._observe(i, check_int8_map(m, f"MapMergeTracker.update: map {i}"))
+            m = check_int8_map(m, f"MapMergeTracker.update: map {i}")
+            change = None if changes is None else changes[i]
+            if change is None:
+                self._observe(i, m)
+            else:
+                self._observe_change(i, m, change)
         if step % self.merge_every == 0:
             self._attempt_merges()
         if self.recheck_every and step % self.recheck_every == 0 and step > 0:
             self._recheck()
+
+    def _observe_change(self, i: int, m: Int8Grid, change: MapChange) -> None:
+        """:meth:`_observe` from the owner's :class:`MapChange`: no canvas scan, no snapshot.
+
+        Consecutive owner versions give the changed box; anything else (the first map, a skipped
+        version, a new canvas) is taken as "everything changed", as :meth:`_observe` does.
+        """
+        prev, seen = self._maps[i], self._seen_version[i]
+        self._maps[i] = m
+        same_canvas = prev is not None and prev.shape == m.shape and seen is not None
+        if same_canvas and change.version == seen:
+            return  # nothing changed
+        consecutive = same_canvas and seen is not None and change.version == seen + 1
+        self._seen_version[i] = change.version
+        self._bbox[i] = change.known_box
+        self._snap[i] = None  # only the scanning path needs it
+        self._delta[i] = change.changed_box if consecutive else None
+        self._version[i] += 1
 
     def _observe(self, i: int, m: Int8Grid) -> None:
         """Record robot i's map; bump its version and note the changed box when it changed.
@@ -306,6 +348,7 @@ class MapMergeTracker:
         Cost: the known box (two SIMD max-reductions) and one comparison of the known box with
         the previous snapshot, which also yields the (usually small) box of changed cells.
         """
+        self._seen_version[i] = None
         bb = known_bbox(m)
         prev, old_bb, snap = self._maps[i], self._bbox[i], self._snap[i]
         self._maps[i] = m

@@ -476,6 +476,72 @@ def motion_forward(
     return out
 
 
+@numba.njit(cache=True, nogil=True)
+def view_shares(
+    grid: NDArray[np.int8],
+    r0: int,
+    c0: int,
+    stride: int,
+    factor: int,
+    lut: NDArray[np.uint8],
+    free_lo: int,
+    free_hi: int,
+    occ_lo: int,
+    out_free: NDArray[np.uint8],
+    out_occ: NDArray[np.uint8],
+) -> None:
+    """Free and occupied shares of a square window of an int8 map, in one pass.
+
+    Pixel ``(y, x)`` of the ``(S, S)`` outputs covers the ``factor x factor`` block of window
+    cells ``(r0 + stride * (factor * y + a), c0 + stride * (factor * x + b))``; cells outside
+    the grid are unknown. A cell is free when ``free_lo <= v <= free_hi`` and occupied when
+    ``v >= occ_lo``; a pixel's value is ``lut[count]`` of its block's cells of that class
+    (``lut`` reproduces OpenCV's INTER_AREA of 0/255 masks, whose output depends only on the
+    count: checked when the lut is built).
+    """
+    h, w = grid.shape
+    size = out_free.shape[0]
+    for y in range(size):
+        for x in range(size):
+            nf = 0
+            no = 0
+            for a in range(factor):
+                r = r0 + stride * (factor * y + a)
+                if r < 0 or r >= h:
+                    continue
+                for b in range(factor):
+                    c = c0 + stride * (factor * x + b)
+                    if c < 0 or c >= w:
+                        continue
+                    v = grid[r, c]
+                    if v >= free_lo and v <= free_hi:
+                        nf += 1
+                    elif v >= occ_lo:
+                        no += 1
+            out_free[y, x] = lut[nf]
+            out_occ[y, x] = lut[no]
+
+
+@numba.njit(cache=True, nogil=True)
+def trail_dots(
+    channel: NDArray[np.uint8],
+    cells: NDArray[np.float64],
+    cx: float,
+    cy: float,
+    scale: float,
+) -> None:
+    """Set pixel ``floor((cell - centre) * scale + S / 2)`` of every trail cell (N, 2)
+    ``(col, row)`` inside the ``(S, S)`` channel to 255 (the same float64 operations, in the same
+    order, as the numpy drawing of an axis-aligned view)."""
+    s = channel.shape[0]
+    half = s / 2
+    for k in range(cells.shape[0]):
+        px = math.floor((cells[k, 0] - cx) * scale + half)
+        py = math.floor((cells[k, 1] - cy) * scale + half)
+        if px >= 0 and px < s and py >= 0 and py < s:
+            channel[py, px] = 255
+
+
 def warm_up() -> None:
     """Compile (or load from the cache) every kernel on tiny inputs."""
     table = np.zeros(3 * 4 * 4, dtype=np.bool_)
@@ -524,6 +590,20 @@ def warm_up() -> None:
         np.array([0, -1, 0, -1], dtype=np.int64),
         np.array([0, -1, 0, -1], dtype=np.int64),
     )
+    view_shares(
+        np.zeros((4, 4), dtype=np.int8),
+        0,
+        0,
+        1,
+        2,
+        np.arange(5, dtype=np.uint8),
+        0,
+        25,
+        65,
+        np.zeros((2, 2), dtype=np.uint8),
+        np.zeros((2, 2), dtype=np.uint8),
+    )
+    trail_dots(np.zeros((2, 2), dtype=np.uint8), np.zeros((1, 2)), 0.0, 0.0, 1.0)
     motion_forward(
         np.zeros((3, 3), dtype=np.bool_),
         zero,

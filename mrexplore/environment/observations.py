@@ -84,6 +84,20 @@ def _shares(window: NDArray[np.int8], size: int) -> tuple[NDArray[np.uint8], NDA
     return free_px.astype(np.uint8, copy=False), occ_px.astype(np.uint8, copy=False)
 
 
+def _class_code() -> NDArray[np.int32]:
+    """Per int8 value ``v`` (at index ``v + 128``): 1 when free, ``1 << SHARE_BITS`` when
+    occupied, else 0 (the classes of :func:`_shares`)."""
+    v = np.arange(-128, 128)
+    free = (v >= FREE) & (v <= FREE_THRESHOLD)
+    occ = v >= OCCUPIED_THRESHOLD
+    bits = _kernels.SHARE_BITS if _kernels is not None else 5
+    return (free.astype(np.int32) + (occ.astype(np.int32) << bits)).astype(np.int32)
+
+
+_CLASS_CODE = _class_code()
+_CLASS_BOUNDS = np.array([FREE, FREE_THRESHOLD, OCCUPIED_THRESHOLD], dtype=np.int8)
+
+
 def _area_lut(factor: int, size: int) -> NDArray[np.uint8] | None:
     """What OpenCV's INTER_AREA resize of a 0/255 mask by an integer ``factor`` (to ``size`` x
     ``size`` pixels, the size it is used at) gives a pixel whose block holds k set cells, for
@@ -139,6 +153,7 @@ class ObservationBuilder:
         # heading-up scratch: the shares of the wider window, before they are turned
         big = 3 * self.size // 2
         self._big = (np.zeros((big, big), np.uint8), np.zeros((big, big), np.uint8))
+        self._acc = np.zeros(big, dtype=np.int32)
 
     def build(self, view: RobotView, trail_cells: NDArray[np.float64]) -> NDArray[np.uint8]:
         """Observation of one robot. ``trail_cells`` (T, 2): the robot's past (col, row) cells."""
@@ -220,7 +235,12 @@ class ObservationBuilder:
         cells = -(-side // stride)
         factor = cells // size
         lut = None
-        if _kernels is not None and factor >= 1 and factor * size == cells:
+        if (
+            _kernels is not None
+            and factor >= 1
+            and factor * factor < 1 << _kernels.SHARE_BITS
+            and factor * size == cells
+        ):
             key = (factor, size)
             if key not in self._luts:
                 self._luts[key] = _area_lut(factor, size)
@@ -236,9 +256,9 @@ class ObservationBuilder:
             stride,
             factor,
             lut,
-            FREE,
-            FREE_THRESHOLD,
-            OCCUPIED_THRESHOLD,
+            _CLASS_CODE,
+            _CLASS_BOUNDS,
+            self._acc,
             out_free,
             out_occ,
         )

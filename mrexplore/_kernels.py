@@ -549,6 +549,41 @@ def view_shares(
 
 
 @numba.njit(cache=True, nogil=True)
+def claim_counts(
+    in_world: NDArray[np.int8],
+    walls: NDArray[np.bool_],
+    near_wall: NDArray[np.bool_],
+    reachable: NDArray[np.bool_],
+    free_hi: int,
+    occ_lo: int,
+    want_held: bool,
+) -> tuple[int, int, int]:
+    """One pass of :class:`mrexplore.truth.MapScorer` over a map warped into the world (all
+    (H, W)): ``(claims, contradicting claims, held free cells)``. A claim is a free cell
+    (``0 <= v <= free_hi``) or an occupied one (``v >= occ_lo``); it contradicts the truth when
+    free on a wall or occupied with no wall within one cell (``near_wall``); held free cells are
+    free claims on ``reachable`` cells (counted only when ``want_held``)."""
+    h, w = in_world.shape
+    n = 0
+    bad = 0
+    held = 0
+    for r in range(h):
+        for c in range(w):
+            v = in_world[r, c]
+            if v >= 0 and v <= free_hi:
+                n += 1
+                if walls[r, c]:
+                    bad += 1
+                if want_held and reachable[r, c]:
+                    held += 1
+            elif v >= occ_lo:
+                n += 1
+                if not near_wall[r, c]:
+                    bad += 1
+    return n, bad, held
+
+
+@numba.njit(cache=True, nogil=True)
 def trail_dots(
     channel: NDArray[np.uint8],
     cells: NDArray[np.float64],
@@ -630,6 +665,8 @@ def warm_up() -> None:
         np.zeros((2, 2), dtype=np.uint8),
     )
     trail_dots(np.zeros((2, 2), dtype=np.uint8), np.zeros((1, 2)), 0.0, 0.0, 1.0)
+    no = np.zeros((1, 1), dtype=np.bool_)
+    claim_counts(np.zeros((1, 1), dtype=np.int8), no, no, no, 25, 65, True)
     motion_forward(
         np.zeros((3, 3), dtype=np.bool_),
         zero,

@@ -223,6 +223,24 @@ class MapScorer:
         )
         return bad / n
 
+    def scores(self, in_world: Int8Grid, held: bool = False) -> tuple[float, int | None]:
+        """``(contradiction(in_world), held_free(in_world) if held else None)`` in one compiled
+        pass over the world's cells (the env scores every robot's map every step it changed);
+        the same integers, hence the same figures, as the two methods."""
+        from mrexplore import _kernels
+
+        if held and self.reachable is None:
+            raise GridError("MapScorer.held_free needs the reachable cells (reachable=...)")
+        m = np.ascontiguousarray(in_world)
+        if m.shape != self.shape or m.dtype != np.int8:
+            raise GridError(f"in_world must be int8 {self.shape}, got {m.dtype} {m.shape}")
+        reach = self.reachable if self.reachable is not None else self._near_wall
+        n, bad, n_held = _kernels.claim_counts(
+            m, self.walls, self._near_wall, reach, FREE_THRESHOLD, OCCUPIED_THRESHOLD, held
+        )
+        share = float("nan") if n == 0 else bad / n
+        return share, (int(n_held) if held else None)
+
     def held_free(self, in_world: Int8Grid) -> int:
         """Reachable free cells that a warped map (int8 (H, W)) marks free at their true place."""
         if self.reachable is None:

@@ -502,8 +502,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         if cached is not None and cached[0] == version:
             return cached[1], cached[2]
         warped = self._scorer.warp(self.fusion.fused(agent), self.sim.world_from_map(i))
-        share = self._scorer.contradiction(warped)
-        held = self._scorer.held_free(warped) if self.config.coverage_mode == "held" else None
+        share, held = self._scorer.scores(warped, held=self.config.coverage_mode == "held")
         self._accuracy[i] = (version, share, held)
         return share, held
 

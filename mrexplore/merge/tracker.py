@@ -550,8 +550,8 @@ class MapMergeTracker:
 
         Composed incrementally: only the boxes that changed since the last call (in i's map or
         in a teammate's warped patch) are recomputed in an internal buffer; the result is a
-        fresh read-only copy of that buffer, cached (the same array is returned) until a map or
-        transform changes. Copy it before writing.
+        read-only view of that buffer, the same object until a map or transform changes. Like
+        an own map's ``to_int8()`` it reflects the next composition: copy it to keep it.
         """
         own = self._maps[i]
         if own is None:
@@ -604,17 +604,9 @@ class MapMergeTracker:
                     np.maximum(win, p.data[a0:a1, b0:b1], out=win)
         self._fbuf[i] = buf
         self._fbuf_ver[i] = (self._version[i], {j: p.version for j, p in patches.items()})
-        # A fresh array: unknown everywhere (a memset) except the box that can hold knowledge,
-        # copied from the buffer: cheaper than copying the whole canvas.
-        out = np.full(buf.shape, UNKNOWN, dtype=np.int8)
-        boxes = [self._bbox[i]] + [
-            (p.r0, p.r0 + p.data.shape[0], p.c0, p.c0 + p.data.shape[1]) for p in patches.values()
-        ]
-        live = [bx for bx in boxes if bx is not None]
-        if live:
-            r0, r1 = min(bx[0] for bx in live), max(bx[1] for bx in live)
-            c0, c1 = min(bx[2] for bx in live), max(bx[3] for bx in live)
-            out[r0:r1, c0:c1] = buf[r0:r1, c0:c1]
+        # A read-only view of the buffer, a new view object whenever the content changed (as
+        # the own maps' ``to_int8``): a fresh copy cost a memset of the canvas per changed step.
+        out = buf.view()
         out.flags.writeable = False
         self._fused[i], self._fused_key[i] = out, key
         return out

@@ -319,3 +319,21 @@ def test_tracker_fed_map_changes_equals_the_scanning_tracker() -> None:
             assert scan._version[i] == told._version[i]
             assert scan._delta[i] == told._delta[i]
             np.testing.assert_array_equal(scan.fused(i), told.fused(i))
+
+
+def test_patch_warp_equals_warp_into() -> None:
+    """The tracker's patch warp (int8 viewed as uint8) gives warp_into's cells exactly."""
+    from mrexplore.grid import make_transform
+    from mrexplore.merge.common import warp_into
+    from mrexplore.merge.tracker import _warp_nn
+
+    rng = np.random.default_rng(6)
+    src = rng.choice(np.array([UNKNOWN, 0, 30, 64, OCC], dtype=np.int8), (90, 70))
+    for k in range(30):
+        T = make_transform(rng.uniform(-3.2, 3.2), rng.uniform(-40, 120), rng.uniform(-40, 120))
+        if k % 3 == 0:
+            T = make_transform(k * np.pi / 6, 30.0, 20.0)
+        origin = (int(rng.integers(-20, 20)), int(rng.integers(-20, 20)))
+        np.testing.assert_array_equal(
+            _warp_nn(src, T, (80, 100), origin), warp_into(src, T, (80, 100), dst_origin=origin)
+        )

@@ -481,6 +481,34 @@ def motion_forward(
 SHARE_BITS: int = 5
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _share_code(v: int, free_lo: int, free_hi: int, occ_lo: int) -> int:
+    """1 for a free value, ``1 << SHARE_BITS`` for an occupied one, else 0 (branch-free)."""
+    return ((v >= free_lo) & (v <= free_hi)) + ((v >= occ_lo) << SHARE_BITS)  # type: ignore[no-any-return]
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _add_blocks(
+    row: NDArray[np.int8],
+    acc: NDArray[np.int32],
+    c0: int,
+    size: int,
+    stride: int,
+    factor: int,
+    free_lo: int,
+    free_hi: int,
+    occ_lo: int,
+) -> None:
+    """``acc[x] +=`` the packed class codes of ``row[c0 + stride * (factor * x + k)]``,
+    k < factor (called with literal ``stride`` and ``factor``)."""
+    for x in range(size):
+        b = c0 + factor * stride * x
+        t = 0
+        for k in range(factor):
+            t += _share_code(row[b + k * stride], free_lo, free_hi, occ_lo)
+        acc[x] += t
+
+
 @numba.njit(cache=True, nogil=True)
 def view_shares(
     grid: NDArray[np.int8],
@@ -513,22 +541,31 @@ def view_shares(
     span = stride * (factor * size - 1)
     free_lo, free_hi, occ_lo = bounds[0], bounds[1], bounds[2]
     if r0 >= 0 and r0 + span < h and c0 >= 0 and c0 + span < w:
-        # The window lies inside the grid (the usual case): no bounds tests in the loops
-        # (measured: a test in the row loop made this pass ~8x slower).
+        # The window lies inside the grid (the usual case): no bounds tests, and the block
+        # sums of the usual (stride, factor) pairs with literal steps (measured: several times
+        # faster than the generic loop with runtime steps, which LLVM does not vectorise).
         for y in range(size):
             for x in range(size):
                 acc[x] = 0
             for a in range(factor):
-                r = r0 + stride * (factor * y + a)
-                c = c0
-                for x in range(size):
-                    t = 0
-                    for _ in range(factor):
-                        v = grid[r, c]
-                        # the class by comparisons, not a table: branch-free and vectorisable
-                        t += ((v >= free_lo) & (v <= free_hi)) + ((v >= occ_lo) << SHARE_BITS)
-                        c += stride
-                    acc[x] += t
+                row = grid[r0 + stride * (factor * y + a)]
+                # literal strides and factors, so that LLVM unrolls and vectorises each case
+                if stride == 2 and factor == 4:
+                    _add_blocks(row, acc, c0, size, 2, 4, free_lo, free_hi, occ_lo)
+                elif stride == 1 and factor == 2:
+                    _add_blocks(row, acc, c0, size, 1, 2, free_lo, free_hi, occ_lo)
+                elif stride == 2 and factor == 2:
+                    _add_blocks(row, acc, c0, size, 2, 2, free_lo, free_hi, occ_lo)
+                elif stride == 1 and factor == 1:
+                    _add_blocks(row, acc, c0, size, 1, 1, free_lo, free_hi, occ_lo)
+                else:
+                    c = c0
+                    for x in range(size):
+                        t = 0
+                        for _ in range(factor):
+                            t += code[row[c] + 128]
+                            c += stride
+                        acc[x] += t
             for x in range(size):
                 out_free[y, x] = lut[acc[x] & mask]
                 out_occ[y, x] = lut[acc[x] >> SHARE_BITS]

@@ -484,7 +484,7 @@ SHARE_BITS: int = 5
 @numba.njit(cache=True, nogil=True, inline="always")
 def _share_code(v: int, free_lo: int, free_hi: int, occ_lo: int) -> int:
     """1 for a free value, ``1 << SHARE_BITS`` for an occupied one, else 0 (branch-free)."""
-    return ((v >= free_lo) & (v <= free_hi)) + ((v >= occ_lo) << SHARE_BITS)  # type: ignore[no-any-return]
+    return ((v >= free_lo) & (v <= free_hi)) + ((v >= occ_lo) << SHARE_BITS)
 
 
 @numba.njit(cache=True, nogil=True, inline="always")

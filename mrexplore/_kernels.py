@@ -621,6 +621,59 @@ def claim_counts(
 
 
 @numba.njit(cache=True, nogil=True)
+def score_region(
+    src: NDArray[np.int8],
+    sample: NDArray[np.int32],
+    cls: NDArray[np.uint8],
+    walls: NDArray[np.bool_],
+    near_wall: NDArray[np.bool_],
+    reachable: NDArray[np.bool_],
+    r0: int,
+    r1: int,
+    c0: int,
+    c1: int,
+    free_hi: int,
+    occ_lo: int,
+    counts: NDArray[np.int64],
+) -> None:
+    """Re-score the world cells ``[r0, r1) x [c0, c1)`` of a map sampled into the world.
+
+    ``sample[r, c]``: the flat index into ``src`` (the map, flat int8) that world cell (r, c)
+    takes (nearest neighbour), -1 outside the map. ``cls`` (H, W) uint8 holds each world cell's
+    class as last scored (0 no claim, 1 free, 2 occupied); ``counts`` int64 (3,) the running
+    ``claims, contradicting claims, reachable free claims`` over the world (as
+    :func:`claim_counts`): both are updated for the cells whose class changed.
+    """
+    for r in range(r0, r1):
+        for c in range(c0, c1):
+            k = sample[r, c]
+            v = -1 if k < 0 else src[k]
+            new = 0
+            if v >= 0 and v <= free_hi:
+                new = 1
+            elif v >= occ_lo:
+                new = 2
+            old = cls[r, c]
+            if new == old:
+                continue
+            if old == 1:
+                counts[0] -= 1
+                counts[1] -= walls[r, c]
+                counts[2] -= reachable[r, c]
+            elif old == 2:
+                counts[0] -= 1
+                counts[1] -= not near_wall[r, c]
+            if new == 1:
+                counts[0] += 1
+                counts[1] += walls[r, c]
+                counts[2] += reachable[r, c]
+            elif new == 2:
+                counts[0] += 1
+                counts[1] += not near_wall[r, c]
+            cls[r, c] = new
+
+
+@numba.njit(cache=True, nogil=True)
 def trail_dots(
     channel: NDArray[np.uint8],
     cells: NDArray[np.float64],
@@ -704,6 +757,21 @@ def warm_up() -> None:
     trail_dots(np.zeros((2, 2), dtype=np.uint8), np.zeros((1, 2)), 0.0, 0.0, 1.0)
     no = np.zeros((1, 1), dtype=np.bool_)
     claim_counts(np.zeros((1, 1), dtype=np.int8), no, no, no, 25, 65, True)
+    score_region(
+        np.zeros(1, dtype=np.int8),
+        np.zeros((1, 1), dtype=np.int32),
+        np.zeros((1, 1), dtype=np.uint8),
+        no,
+        no,
+        no,
+        0,
+        1,
+        0,
+        1,
+        25,
+        65,
+        np.zeros(3, dtype=np.int64),
+    )
     motion_forward(
         np.zeros((3, 3), dtype=np.bool_),
         zero,

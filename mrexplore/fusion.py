@@ -154,6 +154,15 @@ class FusionStage:
         self._seen[agent] = (key, self._counter)
         return self._counter
 
+    def fused_change(self, agent: str) -> tuple[int, tuple[int, int, int, int] | None] | None:
+        """For a merged ``agent``: ``(composition count, changed box)`` of its fused map (see
+        :meth:`mrexplore.merge.MapMergeTracker.fused_change`; call :meth:`fused` first); None
+        when it is not merged (its fused map is then its own map, which says what changed)."""
+        if self.tracker is None or not self.tracker.merged(self.index[agent]):
+            return None
+        count, box = self.tracker.fused_change(self.index[agent])
+        return int(count), box
+
     def transforms(self, agent: str) -> dict[str, NDArray[np.float64]]:
         """Estimated transforms from each merged teammate's cells into ``agent``'s cells."""
         if self.tracker is None:

@@ -79,6 +79,10 @@ def _clip(box: Box, shape: tuple[int, int]) -> Box | None:
     return (r0, r1, c0, c1) if r1 > r0 and c1 > c0 else None
 
 
+def _union(a: Box, b: Box) -> Box:
+    return (min(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), max(a[3], b[3]))
+
+
 def _map_box(T: Transform, box: Box) -> Box:
     """Cells (r0, r1, c0, c1) covering the image of ``box`` under T, one cell of slack.
 
@@ -294,6 +298,10 @@ class MapMergeTracker:
         # per robot: the fusion buffer and the versions it reflects (own, {j: patch version})
         self._fbuf: list[Int8Grid | None] = [None] * self.n
         self._fbuf_ver: list[tuple[int, dict[int, int]] | None] = [None] * self.n
+        # per robot: compositions of the fused map so far, and the box the last one rewrote
+        # (None: all of it), for readers that follow the fused map incrementally
+        self._fcount = [0] * self.n
+        self._fchanged: list[Box | None] = [None] * self.n
         self._paths: dict[tuple[int, int], Transform | None] | None = None
         self._links: NDArray[np.bool_] | None = None
         # per robot: the MapChange.version last observed (None: observed without one)
@@ -604,6 +612,7 @@ class MapMergeTracker:
                     regions = None
                 else:
                     regions.append(p.changed)
+        changed: Box | None = None
         if regions is None:  # rebuild the buffer
             buf = own.copy()
             for p in patches.values():
@@ -617,6 +626,7 @@ class MapMergeTracker:
                 if cl is None:
                     continue
                 r0, r1, c0, c1 = cl
+                changed = cl if changed is None else _union(changed, cl)
                 buf[r0:r1, c0:c1] = own[r0:r1, c0:c1]
                 for p in patches.values():
                     h, w = p.data.shape
@@ -628,12 +638,21 @@ class MapMergeTracker:
                     np.maximum(win, p.data[a0:a1, b0:b1], out=win)
         self._fbuf[i] = buf
         self._fbuf_ver[i] = (self._version[i], {j: p.version for j, p in patches.items()})
+        self._fcount[i] += 1
+        self._fchanged[i] = None if regions is None else (changed or (0, 0, 0, 0))
         # A read-only view of the buffer, a new view object whenever the content changed (as
         # the own maps' ``to_int8``): a fresh copy cost a memset of the canvas per changed step.
         out = buf.view()
         out.flags.writeable = False
         self._fused[i], self._fused_key[i] = out, key
         return out
+
+    def fused_change(self, i: int) -> tuple[int, Box | None]:
+        """``(composition count, box)`` of robot i's fused map: the count grows by one with
+        every :meth:`fused` that recomposed it, and ``box`` (half-open, i's cells; empty when
+        nothing changed, None when rebuilt whole) bounds what that composition rewrote. A reader
+        that saw count k - 1 need only look at the box to follow count k."""
+        return self._fcount[i], self._fchanged[i]
 
     def _patch(self, i: int, j: int) -> _Patch | None:
         """j's map warped into i's canvas (cached); stale copy when the link is down.

@@ -3,10 +3,12 @@
     python scripts/bench_env_vs.py --base /path/to/older/checkout [--rounds 3] [--steps 1500]
 
 Each round runs the same harness (:func:`mrexplore.experiments.env_bench.measure` of *this*
-checkout, which uses only the public env API) once on the other tree and once on this one, in
-fresh processes whose ``import mrexplore`` resolves to that tree, alternating so that a change
-of the machine's load hits both sides alike. Figures are CPU time of the stepping thread; the
-printed ratio is this tree over the base, per setting, as the median over rounds.
+checkout, which uses only the public env API) on every setting, once on the other tree and once
+on this one, in fresh processes whose ``import mrexplore`` resolves to that tree, alternating
+setting by setting so that a change of the machine's load hits both sides alike. Run each tree
+once before (numba compiles its kernels into the tree's ``__pycache__`` on first use). Figures
+are CPU time of the stepping thread; the printed ratio is this tree over the base, per setting,
+as the median over rounds.
 
 Create the base tree with ``git worktree add --detach ../base <commit>``.
 """
@@ -67,8 +69,13 @@ def main() -> int:
     base, this = Path(args.base).resolve(), HERE
     runs: dict[str, list[dict[str, Any]]] = {"base": [], "this": []}
     for k in range(args.rounds):
-        for name, tree in (("base", base), ("this", this)):
-            runs[name].append(run(tree, table, args.steps))
+        # setting by setting, base then this: a drift of the machine's load hits both alike
+        got: dict[str, dict[str, Any]] = {"base": {}, "this": {}}
+        for setting in table:
+            for name, tree in (("base", base), ("this", this)):
+                got[name].update(run(tree, [setting], args.steps))
+        for name in runs:
+            runs[name].append(got[name])
         print(f"round {k + 1}/{args.rounds} done", file=sys.stderr, flush=True)
     print(
         f"{args.steps} random-action steps per setting, {args.rounds} alternating rounds, "

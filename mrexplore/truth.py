@@ -308,6 +308,8 @@ class IncrementalScore:
     ) -> None:
         self.scorer = scorer
         self.T = np.asarray(T_world_from_map, dtype=np.float64)
+        # its entries as Python floats: the box of every step is mapped in plain Python
+        self._t = tuple(float(v) for v in self.T[:2].reshape(-1))
         self.sample = sample
         self.cls = np.zeros(scorer.shape, dtype=np.uint8)
         self.counts = np.zeros(3, dtype=np.int64)
@@ -353,11 +355,10 @@ class IncrementalScore:
         """World cells that may sample from map ``box``: the image of its cell centres with two
         cells of slack (nearest sampling moves a cell by at most ~0.71), clipped."""
         r0, r1, c0, c1 = box
-        T = self.T
-        xs, ys = [], []
-        for x, y in ((c0, r0), (c1 - 1, r0), (c0, r1 - 1), (c1 - 1, r1 - 1)):
-            xs.append(T[0, 0] * x + T[0, 1] * y + T[0, 2])
-            ys.append(T[1, 0] * x + T[1, 1] * y + T[1, 2])
+        a, b, tx, c, d, ty = self._t
+        corners = ((c0, r0), (c1 - 1, r0), (c0, r1 - 1), (c1 - 1, r1 - 1))
+        xs = [a * x + b * y + tx for x, y in corners]
+        ys = [c * x + d * y + ty for x, y in corners]
         H, W = self.scorer.shape
         wr0, wr1 = max(0, math.floor(min(ys)) - 2), min(H, math.ceil(max(ys)) + 3)
         wc0, wc1 = max(0, math.floor(min(xs)) - 2), min(W, math.ceil(max(xs)) + 3)

@@ -420,7 +420,9 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
                 continue
             if isinstance(a, (bool, np.bool_)):
                 raise ValueError(f"action {a!r} of {agent} is a bool, not an action index")
-            if not self._act_space.contains(a):
+            # plain ints in range skip gymnasium's contains (~30 us a step for two robots)
+            fast = type(a) is int and 0 <= a < self._act_space.n
+            if not fast and not self._act_space.contains(a):
                 raise ValueError(
                     f"action {a!r} of {agent} is outside the action space {self._act_space}"
                 )

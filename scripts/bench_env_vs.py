@@ -52,6 +52,17 @@ def run(tree: Path, settings: list[tuple[str, dict[str, Any]]], steps: int) -> d
     return dict(json.loads(res.stdout.strip().splitlines()[-1]))
 
 
+def _proc_ratio(runs: dict[str, list[dict[str, Any]]], label: str) -> float | None:
+    """Median ratio of steps per second of process CPU time (all threads), if measured."""
+    try:
+        return statistics.median(
+            t[label]["steps_per_process_cpu_s"] / b[label]["steps_per_process_cpu_s"]
+            for b, t in zip(runs["base"], runs["this"], strict=True)
+        )
+    except KeyError:
+        return None
+
+
 def main() -> int:
     """Measure both trees in turn and print steps/s, p50/p99 and the ratio per setting."""
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
@@ -100,6 +111,11 @@ def main() -> int:
             f"{statistics.median(ratios):>5.2f}x {med('this', 'robot_steps_per_s'):>15.0f} "
             f"{med('base', 'p50_ms'):>6.2f}/{med('this', 'p50_ms'):<6.2f}"
             f"{med('base', 'p99_ms'):>6.1f}/{med('this', 'p99_ms'):<6.1f}"
+            + (
+                f" process CPU: {proc:.2f}x"
+                if (proc := _proc_ratio(runs, label)) is not None
+                else ""
+            )
         )
     return 0
 

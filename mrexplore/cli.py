@@ -33,7 +33,7 @@ def _task_time(args: argparse.Namespace) -> int:
         out=args.out,
         first_seed=args.first_seed,
         tasks=args.tasks,
-        env_options={"max_time_s": args.max_time_s},
+        env_options={"max_time_s": args.max_time_s, "nav_goal": args.nav_goal},
         nav_warmup_s=args.nav_warmup_s,
         force=args.force,
     )
@@ -144,6 +144,13 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         default=120.0,
         help="navigation: seconds of exploring before robot_0 gets its goal (default 120)",
+    )
+    t.add_argument(
+        "--nav-goal",
+        choices=["far", "teammate"],
+        default="far",
+        help="navigation: robot_0's goal is any cell >= 10 m away (far, default) or one near "
+        "robot_1's start, a place the teammate maps (teammate: the seed paper's protocol)",
     )
     t.add_argument(
         "--force",

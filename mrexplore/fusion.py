@@ -33,6 +33,8 @@ class FusionStage:
             ``merge(a, b)``, or ``None`` to never merge (each agent keeps its own map).
         merge_every: steps between merge attempts of a pair before its first success.
         recheck_every: steps between re-checks of an accepted transform.
+        merge_latency_steps: steps between the start of a merge attempt and its effect (0: the
+            same step; > 0: computed in a worker thread meanwhile).
         merge_options: extra keyword options for the merge method.
         resolution_m: metres per cell of the maps; passed to the ``"semantic"`` merger (its
             minimum common area is in m^2) unless ``merge_options`` sets it.
@@ -44,6 +46,7 @@ class FusionStage:
         merger: Any = "semantic",
         merge_every: int = 10,
         recheck_every: int = 100,
+        merge_latency_steps: int = 0,
         merge_options: Mapping[str, Any] | None = None,
         resolution_m: float | None = None,
     ) -> None:
@@ -74,6 +77,7 @@ class FusionStage:
                 merger=merger,
                 merge_every=merge_every,
                 recheck_every=recheck_every,
+                merge_latency_steps=merge_latency_steps,
                 **options,
             )
 
@@ -90,11 +94,13 @@ class FusionStage:
         local_maps: Mapping[str, NDArray[np.int8]],
         step: int,
         links: NDArray[np.bool_] | None = None,
+        attempt: bool = True,
         changes: Mapping[str, MapChange] | None = None,
     ) -> None:
         """Feed this step's own-frame maps (one per agent, int8 -1/0/100).
 
-        ``links[i, j]`` False means agents i and j cannot exchange maps this step.
+        ``links[i, j]`` False means agents i and j cannot exchange maps this step; ``attempt``
+        False records the maps without a merge attempt (at ``reset``: single-scan maps).
         ``changes``: optionally, per agent, what the map's owner knows of its changes (known
         and changed boxes, :class:`mrexplore.grid.MapChange`), which spares the tracker a scan
         of every canvas.
@@ -108,7 +114,7 @@ class FusionStage:
         if self.tracker is None:
             return
         hints = None if changes is None else [changes.get(a) for a in self.agents]
-        self.tracker.update(self._maps, step, links, changes=hints)
+        self.tracker.update(self._maps, step, links, attempt=attempt, changes=hints)
         for a in self.agents:
             if self._first_merge_step[a] is None and self.tracker.merged(self.index[a]):
                 self._first_merge_step[a] = step

@@ -207,15 +207,7 @@ class Simulation:
         first), create their maps and take a first scan."""
         world = self.world
         if starts is None:
-            poses = sample_start_poses(
-                world,
-                self.n_robots,
-                rng,
-                self.config.robot.radius_m,
-                aligned=self.config.aligned_headings,
-                min_separation_m=self.config.min_start_separation_m,
-                reachable=self._free_cspace_main,
-            )
+            poses = self.sample_starts(rng, self.n_robots)
         else:
             poses = np.array(starts, dtype=np.float64).reshape(-1, 3)
             if poses.shape[0] != self.n_robots or not np.isfinite(poses).all():
@@ -249,6 +241,19 @@ class Simulation:
         self.steps = 0
         self._trails = [_Trail() for _ in range(self.n_robots)]
         self._sense(rng)
+
+    def sample_starts(self, rng: np.random.Generator, n: int) -> NDArray[np.float64]:
+        """Start poses (n, 3) world metres as :meth:`reset` draws them; robot k's start does not
+        depend on n (robots are drawn in order)."""
+        return sample_start_poses(
+            self.world,
+            n,
+            rng,
+            self.config.robot.radius_m,
+            aligned=self.config.aligned_headings,
+            min_separation_m=self.config.min_start_separation_m,
+            reachable=self._free_cspace_main,
+        )
 
     def step(self, actions: NDArray[np.integer], rng: np.random.Generator) -> StepInfo:
         """Advance one step of ``dt_s``: move, odometry, sense, map (see the module doc)."""

@@ -19,6 +19,7 @@ from mrexplore.errors import ConfigError
 RewardMode = Literal["time", "coverage"]
 Task = Literal["explore", "navigate"]
 CoverageMode = Literal["observed", "held"]
+NavGoal = Literal["far", "teammate"]
 
 
 #: Options that take only ``True``/``False`` (or numpy bools).
@@ -59,6 +60,11 @@ class EnvConfig:
             ``"paper"``, ``"orb"``), an object with ``merge(a, b)``, or ``None`` (never merge).
         merge_every: steps between merge attempts before the first success.
         recheck_every: steps between re-checks of an accepted transform.
+        merge_latency_steps: a merge attempt started at step t takes effect at step t + this,
+            computed meanwhile in a worker thread, so no step waits for the merger (default 8
+            steps, 2 s at the default ``dt_s``: a radio exchange of maps and a merge take about
+            that on real robots; 0 = in the step that starts it, no thread). A fixed delay, not
+            "when ready": the same seed gives the same run on any machine.
         comm_range_m: maps are exchanged only while robots are within this distance (None = always).
     Episode and reward:
         target_coverage: exploration ends when the coverage (``coverage_mode``) reaches this
@@ -76,6 +82,13 @@ class EnvConfig:
         reward_mode: ``"time"`` (``-dt_s`` per step: return = -task time) or ``"coverage"``
             (``coverage_reward_per_m2`` per newly observed m^2 minus ``time_penalty_per_s * dt_s``).
         goal_min_distance_m, goal_radius_m: navigation goal placement and arrival radius.
+        nav_goal: where ``robot_0``'s goal is drawn: ``"far"`` (default): any reachable cell at
+            least ``goal_min_distance_m`` from its start; ``"teammate"``: such a cell within
+            ``nav_teammate_radius_m`` of ``robot_1``'s start, a place the teammate maps during
+            the warm-up (the seed paper's protocol: a robot goes where its teammate has mapped).
+            The goal is the same for every team size (a 1-robot run draws where ``robot_1``
+            would have started from the same seed).
+        nav_teammate_radius_m: the ``"teammate"`` goal's distance from ``robot_1``'s start.
         nav_warmup_s: navigation: the team explores this long before ``robot_0`` is given its
             goal (0 = at once); the task time counts from the goal. With a warm-up, the
             single-robot and the team runs both start navigating with a partial map, the team's
@@ -110,6 +123,7 @@ class EnvConfig:
     merger: Any = "semantic"
     merge_every: int = 10
     recheck_every: int = 100
+    merge_latency_steps: int = 8
     comm_range_m: float | None = None
     target_coverage: float = 0.95
     coverage_mode: CoverageMode = "observed"
@@ -120,6 +134,8 @@ class EnvConfig:
     time_penalty_per_s: float = 0.04
     goal_min_distance_m: float = 10.0
     goal_radius_m: float = 0.4
+    nav_goal: NavGoal = "far"
+    nav_teammate_radius_m: float = 3.0
     nav_warmup_s: float = 0.0
     nav_return_to_start: bool = True
     global_view_m: float = 25.6
@@ -163,6 +179,8 @@ class EnvConfig:
             raise ConfigError(
                 f"option reward_mode must be 'time' or 'coverage', got {self.reward_mode!r}"
             )
+        if self.nav_goal not in ("far", "teammate"):
+            raise ConfigError(f"option nav_goal must be 'far' or 'teammate', got {self.nav_goal!r}")
         if self.coverage_mode not in ("observed", "held"):
             raise ConfigError(
                 f"option coverage_mode must be 'observed' or 'held', got {self.coverage_mode!r}"
@@ -176,6 +194,7 @@ class EnvConfig:
             "max_range_m",
             "max_time_s",
             "goal_radius_m",
+            "nav_teammate_radius_m",
             "global_view_m",
             "local_view_m",
         ):
@@ -198,6 +217,11 @@ class EnvConfig:
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or v < 1:
                 raise ConfigError(f"option {name} must be an integer >= 1, got {v!r}")
+        v = self.merge_latency_steps
+        if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v <= 10_000:
+            raise ConfigError(
+                f"option merge_latency_steps must be an integer in [0, 10000], got {v!r}"
+            )
         if self.obs_size_px < 36:
             # SB3's NatureCNN (CnnPolicy) needs at least 36x36 inputs.
             raise ConfigError(

@@ -53,6 +53,7 @@ Version history: v0 (this): first release.
 
 from __future__ import annotations
 
+import copy
 import math
 import warnings
 from collections.abc import Mapping
@@ -160,6 +161,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
             merger=cfg.merger,
             merge_every=cfg.merge_every,
             recheck_every=cfg.recheck_every,
+            merge_latency_steps=cfg.merge_latency_steps,
             merge_options=cfg.merge_options,
             resolution_m=self._resolution_m,
         )
@@ -237,6 +239,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
                     f"got {starts.shape}"
                 )
         self.sim = Simulation(self.world, self.config.n_robots, self._sim_config)
+        mate_start = self._teammate_start(start_rng, starts)
         self.sim.reset(start_rng, starts=starts)
         self.agents = list(self.possible_agents)
         self._collisions[:] = 0
@@ -247,7 +250,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         self._goal_world = None
         self._goal_cell = None
         if self.config.task == "navigate":
-            self._place_goal(goal_rng)
+            self._place_goal(goal_rng, mate_start)
         self._scorer = MapScorer(self.world.walls, self.sim.reachable)
         self._accuracy = {}
         self._inc, self._inc_seen = {}, {}
@@ -453,7 +456,9 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         changes = {a: m.change() for a, m in zip(self.possible_agents, self.sim.maps, strict=True)}
         links = self._links()
         self._current_links = links
-        self.fusion.update(maps, int(self.sim.steps), links, changes)
+        # No attempt at reset: single-scan maps cannot be merged, and each attempt costs ~50 ms.
+        steps = int(self.sim.steps)
+        self.fusion.update(maps, steps, links, attempt=steps > 0, changes=changes)
         # Each agent's estimated transforms, once per step (views, heard positions, infos).
         self._transforms = {a: self.fusion.transforms(a) for a in self.possible_agents}
         self._update_heard(links)
@@ -559,9 +564,26 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         return bool(self.sim.time_s >= self.config.max_time_s - 1e-9)
 
     # ------------------------------------------------------------------ navigation
-    def _place_goal(self, rng: np.random.Generator) -> None:
-        """A goal for robot_0: a reachable free cell at least ``goal_min_distance_m`` away, given
-        to the robot in its own map frame (the task definition, not a leak)."""
+    def _teammate_start(
+        self, start_rng: np.random.Generator, starts: NDArray[np.float64] | None
+    ) -> NDArray[np.float64] | None:
+        """``robot_1``'s start (world x, y metres) for a ``nav_goal="teammate"`` goal, also for a
+        1-robot team: where robot_1 would start from this seed (drawn from a copy of the start
+        stream, which the real draw then repeats). None when there is no such goal."""
+        if self.config.task != "navigate" or self.config.nav_goal != "teammate":
+            return None
+        assert self.sim is not None
+        if starts is not None:
+            return starts[1, :2].copy() if starts.shape[0] > 1 else None
+        return self.sim.sample_starts(copy.deepcopy(start_rng), 2)[1, :2]
+
+    def _place_goal(
+        self, rng: np.random.Generator, mate_start: NDArray[np.float64] | None = None
+    ) -> None:
+        """A goal for robot_0: a reachable free cell at least ``goal_min_distance_m`` away (and,
+        given ``mate_start``, within ``nav_teammate_radius_m`` of it, else the far cells
+        nearest to it), given to the robot in its own map frame (the task definition, not a
+        leak)."""
         assert self.sim is not None and self.world is not None
         world = self.world
         rows, cols = np.nonzero(self.sim.reachable_cspace)
@@ -569,6 +591,12 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         d_m = np.hypot(cols - start[0], rows - start[1]) * world.resolution_m
         far = np.nonzero(d_m >= self.config.goal_min_distance_m)[0]
         pool = far if len(far) else np.arange(len(rows))
+        if mate_start is not None:
+            mate = self.world.cell_of(mate_start[None])[0]
+            d_mate = np.hypot(cols[pool] - mate[0], rows[pool] - mate[1]) * world.resolution_m
+            near = d_mate <= self.config.nav_teammate_radius_m
+            # none that near: the far cells nearest to the teammate's start (within a cell)
+            pool = pool[near] if near.any() else pool[d_mate <= d_mate.min() + world.resolution_m]
         k = int(pool[int(rng.integers(len(pool)))])
         goal_cell_world = np.array([cols[k], rows[k]], dtype=np.float64)
         self._goal_world = world.xy_of(goal_cell_world[None])[0]

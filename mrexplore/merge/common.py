@@ -24,6 +24,7 @@ from mrexplore.grid import (
     Int8Grid,
     Transform,
 )
+from mrexplore.merge.kernels import count_both_ways
 
 #: Detectors a method may use. ``sift`` stands in for the paper's SURF (non-free, absent from
 #: OpenCV's PyPI builds); ``akaze`` is named so that asking for it gives a clear error, because
@@ -411,13 +412,12 @@ class Verifier:
 
     def __call__(self, T: Transform) -> Agreement:
         """Agreement counts of ``T`` (3x3, b cells -> a cells)."""
-        T = np.asarray(T, dtype=np.float64)
-        det = float(np.linalg.det(T[:2, :2]))
+        T = np.ascontiguousarray(T, dtype=np.float64)
+        det = float(T[0, 0] * T[1, 1] - T[0, 1] * T[1, 0])
         if not np.isfinite(T).all() or abs(det) < 1e-9:
             return Agreement(0, 0, 0.0)  # a degenerate transform agrees with nothing
-        ab, db, nb = self._count(self.points_b, T, self.codes_a)
-        aa, da, _ = self._count(
-            self.points_a, np.asarray(np.linalg.inv(T), np.float64), self.codes_b
+        ab, db, nb, aa, da = count_both_ways(
+            self.points_b, self.points_a, T, self.codes_a, self.codes_b
         )
         share = nb / self.points_b.shape[0] if self.points_b.shape[0] else 0.0
         return Agreement(ab + aa, db + da, share)

@@ -68,6 +68,7 @@ class _Hypothesis:
     T: Transform  # cropped-b cells -> cropped-a cells
     source: str
     agreement: Agreement | None = None
+    shared_bonus: float = 0.0  # the final ranking's credit for shared known space (see below)
 
     @property
     def score(self) -> float:
@@ -75,9 +76,12 @@ class _Hypothesis:
 
     @property
     def evidence(self) -> float:
-        """Agreeing minus 10 x disagreeing wall cells: the support of the pose."""
+        """Agreeing minus 10 x disagreeing wall cells (plus, in the final ranking, the credit
+        for shared known space): the support of the pose."""
         ag = self.agreement
-        return float(ag.agree - 10 * ag.disagree) if ag is not None else -1e18
+        if ag is None:
+            return -1e18
+        return float(ag.agree - 10 * ag.disagree) + self.shared_bonus
 
 
 # --------------------------------------------------------------------------------------------
@@ -556,18 +560,25 @@ def _rotation_polish(
             hyp.T, hyp.agreement = T, ag
 
 
-def _common_known_cells(a: Int8Grid, b: Int8Grid, T_ab: NDArray[np.float64]) -> int:
-    """Number of a's cells known in a and in b warped by ``T_ab`` (nearest neighbour)."""
-    known_b = (b != UNKNOWN).view(np.uint8)
-    warped = cv2.warpAffine(
-        known_b,
-        np.asarray(T_ab, dtype=np.float64)[:2],
-        (a.shape[1], a.shape[0]),
-        flags=cv2.INTER_NEAREST,
-        borderMode=cv2.BORDER_CONSTANT,
-        borderValue=0,
-    )
-    return int(np.count_nonzero(warped.view(bool) & (a != UNKNOWN)))
+class _SharedSpace:
+    """Counts a's cells known in a and in b warped by a pose (nearest neighbour): the known
+    space two maps share under it. The known masks are made once per merge, not per pose."""
+
+    def __init__(self, a: Int8Grid, b: Int8Grid) -> None:
+        self.known_a = (a != UNKNOWN).view(np.uint8)
+        self.known_b = (b != UNKNOWN).view(np.uint8)
+        self.size = (a.shape[1], a.shape[0])
+
+    def __call__(self, T_ab: NDArray[np.float64]) -> int:
+        warped = cv2.warpAffine(
+            self.known_b,
+            np.asarray(T_ab, dtype=np.float64)[:2],
+            self.size,
+            flags=cv2.INTER_NEAREST,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=0,
+        )
+        return int(cv2.countNonZero(cv2.bitwise_and(warped, self.known_a)))
 
 
 def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
@@ -615,6 +626,7 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     w_dis = opt.get_float("w_disagree", 1.0, lo=0.0, hi=100.0)
     ratio_power = opt.get_float("ratio_power", 2.0, lo=0.0, hi=20.0)
     min_common_m2 = opt.get_float("min_common_m2", 10.0, lo=0.0)
+    shared_weight = opt.get_float("shared_weight", 0.04, lo=0.0, hi=1.0)
     resolution_m = opt.get_float("resolution_m", 0.05, lo=1e-6)
     slack = opt.get_int("slack_cells", 2, lo=0, hi=10)
     min_run = opt.get_int("min_run_cells", 5, lo=1, hi=1000)
@@ -648,6 +660,7 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
         return refuse(f"too few wall cells to align (a: {n_wall_a}, b: {n_wall_b}; need 20)")
 
     verify = Verifier(ac, bc, max_samples=max_samples)
+    shared = _SharedSpace(ac, bc)
     quick = Verifier(ac, bc, max_samples=min(max_samples, 2000) if max_samples else 2000)
 
     # --- 1. rotations ---
@@ -689,6 +702,8 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
         for h in hyps[:n_polish]
         if h.agreement is not None and quick.overlap_ok(h.agreement, min_overlap, min_overlap_cells)
     ]
+    for h in ok:  # the shared-space credit of the final ranking (below), so the truth is kept
+        h.shared_bonus = shared_weight * shared(h.T)
     ok.sort(key=lambda h: -h.evidence)
     # keep distinct hypotheses only (ICP often pulls several peaks to the same pose)
     pts = verify.points_b
@@ -733,8 +748,14 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
             score=best_any,
             n_hypotheses=len(hyps),
         )
-    # The best explains the most: agreement minus heavily weighted disagreement. Ranking by the
-    # index alone ties every small, uncontradicted overlap (a corner on a corner) with the truth.
+    # The best explains the most: agreement minus heavily weighted disagreement, plus a credit
+    # for known space both maps share under the pose (one wall cell's worth per
+    # ``1 / shared_weight`` shared cells). Ranking by the index alone ties every small,
+    # uncontradicted overlap (a corner on a corner) with the truth; ranking by walls alone
+    # prefers a long wall laid on a's wall from outside (b's rooms over a's unknown) to the
+    # true pose whose rooms coincide but whose walls a bent map blurs.
+    for h in chosen:
+        h.shared_bonus = shared_weight * shared(h.T)
     chosen.sort(key=lambda h: -h.evidence)
     info["hypotheses"] = [
         (translation(bba[2], bba[0]) @ h.T @ translation(-bbb[2], -bbb[0]), h.agreement)
@@ -742,10 +763,13 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     ]
     best = chosen[0]
     assert best.agreement is not None
+
     # A rival is a pose far from the best that explains a comparable part of the maps: at least
     # ``rival_support`` of the best's agreeing wall cells. A pose that matches only a corner (b
     # mostly hanging over a's unknown) agrees perfectly with little, which any corridor end or
-    # room corner does by coincidence; it does not make the best ambiguous.
+    # room corner does by coincidence; it does not make the best ambiguous. (Walls only, not the
+    # shared-space credit of the ranking: with the credit, a pose laid on one of a warehouse's
+    # repeated rack rows lost its rivals and merged wrongly in the loop; docs/merging.md.)
     rivals = [
         h
         for h in chosen[1:]
@@ -786,7 +810,7 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
             score=best.score,
             **common,
         )
-    common_m2 = _common_known_cells(ac, bc, best.T) * resolution_m**2
+    common_m2 = shared(best.T) * resolution_m**2
     info["common_known_m2"] = common_m2
     if common_m2 < min_common_m2:
         return refuse(

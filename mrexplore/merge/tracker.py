@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -72,6 +73,29 @@ class _Patch:
     T: Transform  # T_ij it was made with
     T_inv: Transform  # its inverse (cached: used every step)
     changed: Box | None = None
+
+
+@dataclass(frozen=True)
+class _Outcome:
+    """What a merge attempt or re-check computed (on copies of the maps; applied later)."""
+
+    result: MergeResult | None  # None: a re-check that dropped without running the merger
+    T: Transform | None  # T_ij in full-canvas cells, None when refused
+    old_now: float | None = None  # re-check: the kept transform's agreement on those maps
+
+
+@dataclass
+class _Job:
+    """A merge attempt (``kind`` "attempt") or re-check ("recheck") of pair (i, j): started on
+    the maps of one step, applied at step ``due``."""
+
+    kind: str
+    i: int
+    j: int
+    due: int
+    bbox_j: Box | None  # j's known box when started: where two estimates are compared
+    T_old: Transform | None  # re-check: the kept transform it checks
+    outcome: Future[_Outcome] | _Outcome
 
 
 def _clip(box: Box, shape: tuple[int, int]) -> Box | None:
@@ -189,6 +213,11 @@ class MapMergeTracker:
         confirm_growth: an agreeing attempt confirms the pending transform only when the shared
             wall cells under it (``MergeResult.overlap_cells``) grew by this share since the
             attempt before (default 0: any agreeing attempt on grown maps confirms).
+        merge_latency_steps: an attempt or re-check started at step t is applied at step
+            t + this, computed meanwhile in a worker thread on copies of the maps, so no step
+            waits for the merger (default 0: computed and applied in the step that starts it).
+            A fixed delay, not "when ready": the same seed gives the same run on any machine.
+            With a delay, at most one attempt or re-check starts per step.
         **merge_options: options for the named merger (validated at construction).
 
     >>> import numpy as np
@@ -211,6 +240,7 @@ class MapMergeTracker:
         drop_below: float = 0.85,
         retry_growth: float = 0.02,
         confirm_growth: float = 0.0,
+        merge_latency_steps: int = 0,
         **merge_options: Any,
     ) -> None:
         if (
@@ -272,6 +302,18 @@ class MapMergeTracker:
                 f"MapMergeTracker: confirm_growth must be in [0, 10], got {confirm_growth!r}"
             )
         self.confirm_growth = float(confirm_growth)
+        if (
+            isinstance(merge_latency_steps, bool)
+            or not isinstance(merge_latency_steps, (int, np.integer))
+            or not 0 <= merge_latency_steps <= 10_000
+        ):
+            raise ConfigError(
+                "MapMergeTracker: merge_latency_steps must be an integer in [0, 10000], "
+                f"got {merge_latency_steps!r}"
+            )
+        self.merge_latency_steps = int(merge_latency_steps)
+        self._pool: ThreadPoolExecutor | None = None  # made on first use (not pickled)
+        self._jobs: list[_Job] = []
         self._merge = _resolve_merger(merger, dict(merge_options))
         self._merger_obj = merger
         self.reset()
@@ -279,6 +321,11 @@ class MapMergeTracker:
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
         """Forget every map, transform and result (call at episode start)."""
+        for job in getattr(self, "_jobs", []):
+            if isinstance(job.outcome, Future):
+                job.outcome.cancel()  # one already running finishes and is discarded
+        self._jobs = []
+        self._queue: list[tuple[str, int, int]] = []  # waiting to start (latency > 0)
         self._maps: list[Int8Grid | None] = [None] * self.n
         self._bbox: list[tuple[int, int, int, int] | None] = [None] * self.n
         self._snap: list[Int8Grid | None] = [None] * self.n  # copy of the known box, change test
@@ -313,6 +360,7 @@ class MapMergeTracker:
         maps: Sequence[Int8Grid],
         step: int,
         links: NDArray[np.bool_] | None = None,
+        attempt: bool = True,
         changes: Sequence[MapChange | None] | None = None,
     ) -> None:
         """Take the robots' current maps (own frames) at time step ``step``.
@@ -322,6 +370,8 @@ class MapMergeTracker:
             step: the environment's step counter (merge attempts at multiples of merge_every).
             links: (N, N) bool, ``links[i, j]`` False when robots i and j cannot communicate
                 (no merge attempt, no map exchange); None = all linked.
+            attempt: False = record the maps only, no merge attempt or re-check this call
+                (an env's ``reset``: single-scan maps cannot be merged, and trying costs time).
             changes: optionally, per map, what its owner knows of its changes
                 (:class:`mrexplore.grid.MapChange`, e.g.
                 :meth:`mrexplore.mapping.OccupancyMap.change`): then the tracker takes the known
@@ -351,10 +401,15 @@ class MapMergeTracker:
                 self._observe(i, m)
             else:
                 self._observe_change(i, m, change)
+        self._apply_due(step)
+        if not attempt:
+            return
         if step % self.merge_every == 0:
-            self._attempt_merges()
+            self._attempt_merges(step)
         if self.recheck_every and step % self.recheck_every == 0 and step > 0:
-            self._recheck()
+            self._recheck(step)
+        if self.merge_latency_steps and self._queue:
+            self._start(*self._queue.pop(0), step)  # at most one per step
 
     def _observe_change(self, i: int, m: Int8Grid, change: MapChange) -> None:
         """:meth:`_observe` from the owner's :class:`MapChange`: no canvas scan, no snapshot.
@@ -425,16 +480,29 @@ class MapMergeTracker:
             return None
         return m[bb[0] : bb[1], bb[2] : bb[3]], (bb[2], bb[0])
 
-    def _run(self, i: int, j: int) -> tuple[MergeResult, Transform | None] | None:
-        """Merge j into i on cropped maps; returns the result and T_ij in full-canvas cells."""
-        ci, cj = self._crop(i), self._crop(j)
-        if ci is None or cj is None:
-            return None
-        (a, (ca, ra)), (b, (cb, rb)) = ci, cj
+    def _compute(
+        self,
+        kind: str,
+        i: int,
+        j: int,
+        a: Int8Grid,
+        b: Int8Grid,
+        offsets: tuple[tuple[int, int], tuple[int, int]],
+        T_old: Transform | None,
+    ) -> _Outcome:
+        """Run the merger on cropped maps ``a`` (robot i) and ``b`` (robot j) whose cell (0, 0)
+        is at ``offsets`` (col, row) in the canvases. Pure: reads no tracker state that the
+        main thread changes, so it may run in the worker thread."""
+        (ca, ra), (cb, rb) = offsets
+        old_now = None
+        if kind == "recheck":
+            assert T_old is not None
+            old_now = Verifier(a, b)(translation(-ca, -ra) @ T_old @ translation(cb, rb)).score
+            if old_now < self.drop_below:
+                return _Outcome(None, None, old_now)
         # A merger that needs the robots' ids and crop offsets (the benchmark's oracle) says so.
         pair = getattr(self._merger_obj, "merge_pair", None)
         res = pair(i, j, a, b, (ca, ra), (cb, rb)) if pair is not None else self._merge(a, b)
-        self._results[(i, j)] = res
         T = None
         if res.matched and res.transform is not None:
             T = (
@@ -442,18 +510,58 @@ class MapMergeTracker:
                 @ np.asarray(res.transform, dtype=np.float64)
                 @ translation(-cb, -rb)
             )
-        return res, T
+        return _Outcome(res, T, old_now)
+
+    def _start(self, kind: str, i: int, j: int, step: int) -> None:
+        """Start an attempt or re-check of (i, j) on the current maps; apply it now (latency 0)
+        or hand it to the worker thread and apply it at ``step + merge_latency_steps``."""
+        ci, cj = self._crop(i), self._crop(j)
+        if ci is None or cj is None:
+            return
+        T_old = self._edges.get((i, j)) if kind == "recheck" else None
+        if kind == "recheck" and T_old is None:
+            return  # dropped or replaced since it was queued
+        (a, oa), (b, ob) = ci, cj
+        if self.merge_latency_steps == 0:
+            out = self._compute(kind, i, j, a, b, (oa, ob), T_old)
+            self._apply(_Job(kind, i, j, step, self._bbox[j], T_old, out))
+            return
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mrexplore-merge")
+        # copies: the caller may update its maps in place while the worker reads them
+        fut = self._pool.submit(self._compute, kind, i, j, a.copy(), b.copy(), (oa, ob), T_old)
+        due = step + self.merge_latency_steps
+        self._jobs.append(_Job(kind, i, j, due, self._bbox[j], T_old, fut))
+
+    def _apply_due(self, step: int) -> None:
+        """Apply the worker's jobs due by ``step``, in the order they started (waiting for any
+        not finished: a fixed schedule, whatever the machine's speed)."""
+        while self._jobs and self._jobs[0].due <= step:
+            self._apply(self._jobs.pop(0))
+
+    def _apply(self, job: _Job) -> None:
+        out = job.outcome.result() if isinstance(job.outcome, Future) else job.outcome
+        i, j = job.i, job.j
+        if out.result is not None:
+            self._results[(i, j)] = out.result
+        if job.kind == "attempt":
+            self._decide_attempt(i, j, out, job.bbox_j)
+        else:
+            self._decide_recheck(i, j, out, job.T_old)
 
     def _known_cells(self, i: int) -> int:
         """Known cells of robot i's map (counted in its known box; only on merge steps)."""
         crop = self._crop(i)
         return 0 if crop is None else int(np.count_nonzero(crop[0] != UNKNOWN))
 
-    def _attempt_merges(self) -> None:
+    def _attempt_merges(self, step: int) -> None:
+        busy = {(jb.i, jb.j) for jb in self._jobs} | {(q[1], q[2]) for q in self._queue}
         for i in range(self.n):
             for j in range(i + 1, self.n):
                 if not self._linked(i, j) or self.transform(i, j) is not None:
                     continue
+                if (i, j) in busy:
+                    continue  # its last attempt is still under way
                 known = self._known_cells(i) + self._known_cells(j)
                 last = self._last_attempt_known.get((i, j))
                 if last is not None and known < last * (1.0 + self.retry_growth):
@@ -462,72 +570,98 @@ class MapMergeTracker:
                     # maps were 2/3 of the env's step time).
                     continue
                 self._last_attempt_known[(i, j)] = known
-                pending = self._pending.get((i, j))
-                out = self._run(i, j)
-                if out is None or out[1] is None:
-                    self._pending.pop((i, j), None)  # a refusal breaks the run of agreements
-                    continue
-                T = out[1]
-                evidence = int(out[0].overlap_cells)
-                count = 1
-                if pending is not None and self._same(pending[0], T, j):
-                    # The same transform again counts as a confirmation only when it now rests
-                    # on clearly more shared evidence (wall cells both maps see under it): a
-                    # look-alike match stays confined to the look-alike part, the truth spreads
-                    # as the maps grow. Without new evidence the run is kept, not extended.
-                    grown = evidence >= pending[2] * (1.0 + self.confirm_growth)
-                    if not grown:
-                        continue
-                    count = pending[1] + 1
-                if count >= self.confirmations:
-                    self._pending.pop((i, j), None)
-                    self._edges[(i, j)] = T
-                    self._edge_score[(i, j)] = out[0].score
-                    self._paths = None
+                if self.merge_latency_steps:
+                    self._queue.append(("attempt", i, j))
                 else:
-                    self._pending[(i, j)] = (T, count, evidence)
+                    self._start("attempt", i, j, step)
 
-    def _same(self, T1: Transform, T2: Transform, j: int) -> bool:
+    def _decide_attempt(self, i: int, j: int, out: _Outcome, bbox_j: Box | None) -> None:
+        """Accept, start or extend a run of agreeing attempts, or break it (one attempt's
+        outcome)."""
+        if self.transform(i, j) is not None:
+            return  # connected meanwhile (through a chain of other pairs)
+        pending = self._pending.get((i, j))
+        if out.result is None or out.T is None:
+            self._pending.pop((i, j), None)  # a refusal breaks the run of agreements
+            return
+        T = out.T
+        evidence = int(out.result.overlap_cells)
+        count = 1
+        if pending is not None and self._same(pending[0], T, bbox_j):
+            # The same transform again counts as a confirmation only when it now rests on
+            # clearly more shared evidence (wall cells both maps see under it): a look-alike
+            # match stays confined to the look-alike part, the truth spreads as the maps grow.
+            # Without new evidence the run is kept, not extended.
+            grown = evidence >= pending[2] * (1.0 + self.confirm_growth)
+            if not grown:
+                return
+            count = pending[1] + 1
+        if count >= self.confirmations:
+            self._pending.pop((i, j), None)
+            self._edges[(i, j)] = T
+            self._edge_score[(i, j)] = out.result.score
+            self._paths = None
+        else:
+            self._pending[(i, j)] = (T, count, evidence)
+
+    def _same(self, T1: Transform, T2: Transform, bbox_j: Box | None) -> bool:
         """Do two estimates of T_ij put robot j's known box in the same place (within tolerance)?"""
-        bb = self._bbox[j]
-        if bb is None:
+        if bbox_j is None:
             return False
-        r0, r1, c0, c1 = bb
+        r0, r1, c0, c1 = bbox_j
         corners = np.array([[c0, r0, 1.0], [c1, r0, 1.0], [c0, r1, 1.0], [c1, r1, 1.0]]).T
         d = (T1 @ corners - T2 @ corners)[:2]
         return bool(np.sqrt((d**2).sum(axis=0)).max() <= self.confirm_tol_cells)
 
-    def _recheck(self) -> None:
-        for (i, j), T_old in list(self._edges.items()):
+    def _recheck(self, step: int) -> None:
+        for i, j in list(self._edges):
             if not self._linked(i, j):
                 continue
-            ci, cj = self._crop(i), self._crop(j)
-            if ci is None or cj is None:
-                continue
-            (a, (ca, ra)), (b, (cb, rb)) = ci, cj
-            old_now = Verifier(a, b)(translation(-ca, -ra) @ T_old @ translation(cb, rb)).score
-            if old_now < self.drop_below:
-                # The maps grew and now contradict the kept transform: un-merge this pair.
-                del self._edges[(i, j)]
-                self._edge_score.pop((i, j), None)
-                self._paths = None
-                self._patches = {
-                    k: p for k, p in self._patches.items() if i not in k and j not in k
-                }
-                continue
-            out = self._run(i, j)
-            if out is None:
-                continue
-            res, T_new = out
-            if T_new is None:
-                continue  # a failed re-check never drops an accepted transform
-            if res.score >= old_now + self.replace_margin:
-                self._edges[(i, j)] = T_new
-                self._edge_score[(i, j)] = res.score
-                self._paths = None
-                self._patches = {
-                    k: p for k, p in self._patches.items() if i not in k and j not in k
-                }
+            if self.merge_latency_steps:
+                if ("recheck", i, j) not in self._queue:
+                    self._queue.append(("recheck", i, j))
+            else:
+                self._start("recheck", i, j, step)
+
+    def _decide_recheck(self, i: int, j: int, out: _Outcome, T_old: Transform | None) -> None:
+        """Drop the kept transform the maps now contradict, or replace it by a clearly better
+        one; otherwise keep it (a failed re-check never drops an accepted transform)."""
+        kept = self._edges.get((i, j))
+        if kept is None or T_old is None or not np.array_equal(kept, T_old):
+            return  # dropped or replaced since the re-check started
+        assert out.old_now is not None
+        if out.old_now < self.drop_below:
+            # The maps grew and now contradict the kept transform: un-merge this pair.
+            del self._edges[(i, j)]
+            self._edge_score.pop((i, j), None)
+            self._paths = None
+            self._patches = {k: p for k, p in self._patches.items() if i not in k and j not in k}
+            return
+        if out.result is None or out.T is None:
+            return
+        if out.result.score >= out.old_now + self.replace_margin:
+            self._edges[(i, j)] = out.T
+            self._edge_score[(i, j)] = out.result.score
+            self._paths = None
+            self._patches = {k: p for k, p in self._patches.items() if i not in k and j not in k}
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle without the worker thread: jobs under way are waited for and kept as done."""
+        state = self.__dict__.copy()
+        state["_pool"] = None
+        state["_jobs"] = [
+            _Job(
+                jb.kind,
+                jb.i,
+                jb.j,
+                jb.due,
+                jb.bbox_j,
+                jb.T_old,
+                jb.outcome.result() if isinstance(jb.outcome, Future) else jb.outcome,
+            )
+            for jb in self._jobs
+        ]
+        return state
 
     # ------------------------------------------------------------------ queries
     def _all_paths(self) -> dict[tuple[int, int], Transform | None]:

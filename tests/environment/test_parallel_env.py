@@ -279,3 +279,28 @@ def test_plain_pickle_with_a_named_merger(merger: str) -> None:
     penv.reset(seed=0)
     clone = pickle.loads(pickle.dumps(penv))
     assert clone.agents == penv.agents
+
+
+def test_reset_makes_no_merge_attempt() -> None:
+    # Single-scan maps cannot be merged; an attempt per pair at every reset only costs time.
+    penv = mrexplore.parallel_env(world="symmetric_office")
+    penv.reset(seed=0)
+    assert penv.fusion.tracker.last_result(0, 1) is None
+
+
+def test_teammate_goal_is_near_robot_1_start_and_the_same_for_every_team_size() -> None:
+    goals = []
+    for n in (1, 2):
+        penv = mrexplore.parallel_env(
+            world="symmetric_office", task="navigate", nav_goal="teammate", n_robots=n
+        )
+        penv.reset(seed=3)
+        goals.append(penv._goal_world.copy())  # type: ignore[union-attr]
+        if n == 2:
+            assert penv.sim is not None
+            d_mate = np.hypot(*(goals[-1] - penv.sim.start_poses[1, :2]))
+            d_self = np.hypot(*(goals[-1] - penv.sim.start_poses[0, :2]))
+            assert d_mate <= 3.0 + 1e-9 and d_self >= 10.0 - 1e-9
+    np.testing.assert_array_equal(goals[0], goals[1])
+    with pytest.raises(ConfigError, match="nav_goal"):
+        mrexplore.parallel_env(task="navigate", nav_goal="near")

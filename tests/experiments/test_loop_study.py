@@ -53,13 +53,16 @@ def test_oracle_merges_through_the_tracker_with_confirmations() -> None:
     penv = mrexplore.parallel_env(world="small_office", merger=oracle)
     oracle.bind(penv)
     _, infos = penv.reset(seed=0)
-    assert not infos["robot_0"]["merged"]  # one attempt at step 0: not yet confirmed
+    assert not infos["robot_0"]["merged"]  # no attempt at reset (single-scan maps)
     rng = np.random.default_rng(5)
     while not infos["robot_0"]["merged"]:
         _, _, _, _, infos = penv.step(
             {a: int(rng.choice(4, p=[0.7, 0.15, 0.15, 0.0])) for a in penv.agents}
         )
-    assert infos["robot_0"]["first_merge_time_s"] == pytest.approx(2.5)  # second attempt
+    # attempts start at steps 10 and 20 (0.25 s each) and take effect merge_latency_steps
+    # later: accepted at the second, agreeing one
+    k = penv.config.merge_latency_steps
+    assert infos["robot_0"]["first_merge_time_s"] == pytest.approx((20 + k) * 0.25)
     assert infos["robot_0"]["merge_error"]["translation_cells"] < 1e-6
     T = penv.fusion.transforms("robot_0")["robot_1"]
     np.testing.assert_allclose(T, penv.sim.true_transform(0, 1), atol=1e-9)

@@ -266,6 +266,17 @@ def test_a_transform_needs_agreeing_attempts_on_growing_maps(
     assert tr.merged(0)
 
 
+def test_no_attempt_when_told_not_to() -> None:
+    seq = _Seq([translation(3.0, 0.0)])
+    tr = MapMergeTracker(2, merger=seq, merge_every=1, confirmations=1)
+    tr.update(_growing_maps(0), step=0, attempt=False)
+    assert seq.calls == 0 and not tr.merged(0)
+    tr.update(_growing_maps(1), step=1)
+    assert seq.calls == 1 and tr.merged(0)
+    with pytest.raises(ConfigError, match="merge_latency_steps"):
+        MapMergeTracker(2, merge_latency_steps=-1)
+
+
 def test_recheck_drops_a_transform_the_grown_maps_contradict(
     robots: tuple[np.ndarray, np.ndarray, np.ndarray],
 ) -> None:

@@ -36,6 +36,8 @@ def _task_time(args: argparse.Namespace) -> int:
         env_options={"max_time_s": args.max_time_s, "nav_goal": args.nav_goal},
         nav_warmup_s=args.nav_warmup_s,
         force=args.force,
+        workers=args.workers,
+        address=args.address,
     )
     return 0
 
@@ -157,6 +159,19 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="replace earlier results in --out (an interrupted run with the same settings "
         "resumes without it)",
+    )
+    t.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="episodes run at once as Ray tasks (default 1: serial, no Ray); local Ray with "
+        "this many CPUs unless --address is given",
+    )
+    t.add_argument(
+        "--address",
+        default=None,
+        help="join the Ray cluster at this address ('auto', or HEAD_IP:6379 of `ray start "
+        "--head`) and run the episodes there",
     )
 
     for name, helptext in (

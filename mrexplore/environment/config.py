@@ -19,11 +19,16 @@ from mrexplore.errors import ConfigError
 RewardMode = Literal["time", "coverage"]
 Task = Literal["explore", "navigate"]
 CoverageMode = Literal["observed", "held"]
+ObsLayout = Literal["chw", "hwc"]
+ObsDtype = Literal["uint8", "float32"]
+#: Observation layouts and dtypes (``obs_layout``, ``obs_dtype``) and the clients they suit.
+OBS_LAYOUTS = ("chw", "hwc")
+OBS_DTYPES = ("uint8", "float32")
 NavGoal = Literal["far", "teammate"]
 
 
 #: Options that take only ``True``/``False`` (or numpy bools).
-BOOL_OPTIONS = ("aligned_headings", "nav_return_to_start", "obs_heading_up")
+BOOL_OPTIONS = ("aligned_headings", "nav_return_to_start", "obs_heading_up", "info_extra")
 #: Upper limits of the noise options (name, limit, unit): beyond them the simulated robot is
 #: not a robot any more (a 100 % odometry error per step throws poses off the map).
 NOISE_LIMITS = (
@@ -102,6 +107,16 @@ class EnvConfig:
         obs_size_px: each view is ``obs_size_px`` x ``obs_size_px`` pixels.
         obs_heading_up: turn both views so the robot's heading points along +row (egocentric);
             default False keeps the axes of the robot's own map frame.
+        obs_layout: ``"chw"`` (default: channels first, ``(8, S, S)``, as SB3 and TorchRL's
+            ``ConvNet`` read images) or ``"hwc"`` (channels last, ``(S, S, 8)``, as RLlib's
+            default CNN reads them).
+        obs_dtype: ``"uint8"`` (default: 0..255, what SB3's ``CnnPolicy`` expects and
+            normalises itself) or ``"float32"`` (the same values / 255, in [0, 1], for clients
+            whose models take floats as they come: RLlib, TorchRL).
+    Infos:
+        info_extra: add ``infos[agent]["extra"]``, a dict of richer, nested evaluation data (the
+            merge error per teammate); off by default because clients that turn infos into
+            tensors (TorchRL) need flat numbers. See ``docs/clients.md`` for the info keys.
     """
 
     world: Any = "symmetric_office"
@@ -142,6 +157,9 @@ class EnvConfig:
     local_view_m: float = 6.4
     obs_size_px: int = 64
     obs_heading_up: bool = False
+    obs_layout: ObsLayout = "chw"
+    obs_dtype: ObsDtype = "uint8"
+    info_extra: bool = False
     merge_options: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -178,6 +196,16 @@ class EnvConfig:
         if self.reward_mode not in ("time", "coverage"):
             raise ConfigError(
                 f"option reward_mode must be 'time' or 'coverage', got {self.reward_mode!r}"
+            )
+        if self.obs_layout not in OBS_LAYOUTS:
+            raise ConfigError(
+                f"option obs_layout must be 'chw' (channels first: SB3, TorchRL) or 'hwc' "
+                f"(channels last: RLlib), got {self.obs_layout!r}"
+            )
+        if self.obs_dtype not in OBS_DTYPES:
+            raise ConfigError(
+                f"option obs_dtype must be 'uint8' (0..255: SB3) or 'float32' ([0, 1]: RLlib, "
+                f"TorchRL), got {self.obs_dtype!r}"
             )
         if self.nav_goal not in ("far", "teammate"):
             raise ConfigError(f"option nav_goal must be 'far' or 'teammate', got {self.nav_goal!r}")

@@ -24,13 +24,18 @@ for a learned policy whose actions are turn/forward):
        inside the view; zeros in the exploration task
 =====  ==========================================================================================
 Unknown space is where channels 0/1 (or 4/5) are both 0.
+
+Other layouts and dtypes for other clients (channels last, float in [0, 1]):
+:class:`ObservationFormat`, chosen by the env options ``obs_layout`` and ``obs_dtype``.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import cv2
+import gymnasium
 import numpy as np
 from numpy.typing import NDArray
 
@@ -316,3 +321,47 @@ def _turn(points: NDArray[np.float64], phi: float) -> NDArray[np.float64]:
         return points
     cs, sn = math.cos(phi), math.sin(phi)
     return points @ np.array([[cs, sn], [-sn, cs]])
+
+
+class ObservationFormat:
+    """The layout and dtype a client reads (``obs_layout``, ``obs_dtype`` of ``EnvConfig``).
+
+    The builder always draws ``(8, S, S)`` uint8; this turns it into what the client's default
+    model reads without a wrapper: ``"chw"`` keeps channels first (SB3, TorchRL), ``"hwc"`` puts
+    them last (RLlib); ``"float32"`` divides by 255 (values in [0, 1]) for models that take the
+    input as it comes (RLlib, TorchRL), ``"uint8"`` keeps 0..255 (SB3 normalises it itself).
+
+    >>> fmt = ObservationFormat("hwc", "float32")
+    >>> o = fmt.apply(np.full((8, 64, 64), 255, dtype=np.uint8))
+    >>> o.shape, o.dtype.name, float(o.max()), fmt.channel_axis
+    ((64, 64, 8), 'float32', 1.0, -1)
+    """
+
+    def __init__(self, layout: str = "chw", dtype: str = "uint8") -> None:
+        if layout not in ("chw", "hwc") or dtype not in ("uint8", "float32"):
+            raise ValueError(f"unknown observation format {layout!r}/{dtype!r}")
+        self.layout = layout
+        self.dtype = np.dtype(np.uint8 if dtype == "uint8" else np.float32)
+        #: the axis that holds the channels (and stacks robots in ``state()``)
+        self.channel_axis = 0 if layout == "chw" else -1
+
+    def shape(self, chw: tuple[int, ...]) -> tuple[int, ...]:
+        """The client's shape of a ``(C, H, W)`` observation."""
+        return chw if self.layout == "chw" else (*chw[1:], chw[0])
+
+    def space(self, chw: tuple[int, ...]) -> gymnasium.spaces.Box:
+        """The ``Box`` of a ``(C, H, W)`` uint8 observation in this format."""
+        if self.dtype == np.uint8:
+            return gymnasium.spaces.Box(0, 255, self.shape(chw), dtype=np.uint8)
+        return gymnasium.spaces.Box(0.0, 1.0, self.shape(chw), dtype=np.float32)
+
+    def apply(self, obs: NDArray[np.uint8]) -> NDArray[Any]:
+        """``obs`` (C, H, W) uint8 in this format: the same array when nothing changes, else a
+        new C-contiguous one (torch and RLlib copy strided views slowly)."""
+        out: NDArray[Any] = obs
+        if self.layout == "hwc":
+            out = np.ascontiguousarray(out.transpose(1, 2, 0))
+        if self.dtype == np.float32:
+            # a true division: 255 / 255 is exactly 1.0, so the Box [0, 1] always holds
+            out = np.divide(out, np.float32(255.0), dtype=np.float32)
+        return out

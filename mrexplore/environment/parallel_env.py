@@ -11,25 +11,36 @@ Action space         ``Discrete(4)``: 0 forward (0.125 m), 1 turn left (22.5 deg
 Observation space    ``Box(0, 255, (8, 64, 64), uint8)``, robot-centred, own frame; see
                      :mod:`mrexplore.environment.observations`. Built from the fused map once
                      the robot's map is merged, else from its own map. Never from the truth.
-State space          ``Box(0, 255, (8 * n, 64, 64), uint8)``: all observations stacked.
+                     ``obs_layout="hwc"``: ``(64, 64, 8)``; ``obs_dtype="float32"``: [0, 1].
+State space          ``(8 * n, 64, 64)`` (``hwc``: ``(64, 64, 8 * n)``): all observations
+                     stacked on the channel axis.
 Reward               team reward (same for all): ``"time"``: ``-dt_s`` per step, so the return
                      is minus the task time; ``"coverage"``: ``coverage_reward_per_m2`` x newly
                      observed m^2 minus ``time_penalty_per_s * dt_s``.
 Termination          explore: coverage >= ``target_coverage`` (0.95), see ``coverage_mode``;
                      navigate: ``robot_0`` within ``goal_radius_m`` of its goal.
 Truncation           simulated time >= ``max_time_s`` (600 s) or steps >= ``max_cycles``; infos
-                     then carry ``TimeLimit.truncated = True``.
+                     then carry ``TimeLimit.truncated = True`` (False on every other step).
 ===================  ==========================================================================
 
-``infos[agent]``: ``coverage`` (the share of reachable free cells that termination and the
-``"coverage"`` reward use: with ``coverage_mode="observed"`` (default) the team's union of observed
-cells; with ``"held"`` the largest, over robots, share that the robot's own-or-fused map marks
-free at the true place, so knowledge placed by a wrong merge does not count), ``task_time_s``,
-``merged``, ``merge_error`` (``{"translation_cells", "rotation_deg"}`` of the worst merged
-teammate against the truth, or None; evaluation only, policies must not read it), ``score``,
-``collisions`` (this robot's count), ``first_merge_time_s``, ``step``, and on the last step
-``TimeLimit.truncated``. For navigation also ``goal_reached`` and ``goal_given``; there
-``task_time_s`` counts from the moment the goal is given (after ``nav_warmup_s`` of exploring).
+``infos[agent]``: the same flat keys on every reset and step (:data:`INFO_KEYS`; table with
+units in ``docs/clients.md``), each a bool, an int or a float, ``-1.0`` where unknown (every such
+value is >= 0 when known; not NaN, which Gymnasium's and PettingZoo's checkers take for
+non-determinism as NaN != NaN; never None, never a nested dict, so TorchRL and Gymnasium's vector
+envs turn them into one array per key):
+``coverage`` (the share of reachable free cells that termination and the ``"coverage"`` reward
+use: with ``coverage_mode="observed"`` (default) the team's union of observed cells; with
+``"held"`` the largest, over robots, share that the robot's own-or-fused map marks free at the
+true place, so knowledge placed by a wrong merge does not count), ``task_time_s``, ``step``,
+``merged``, ``score`` (-1 until merged), ``first_merge_time_s`` (-1 until merged),
+``merge_error_cells``, ``merge_error_deg``, ``merge_error_drift_cells`` (the worst merged
+teammate's mean displacement and rotation error against the truth and the drift allowance; -1
+until merged; evaluation only, policies must not read them), ``collisions`` (this robot's count),
+``collided`` (this step), ``goal_given``, ``goal_reached`` (navigation; False when exploring, where
+``task_time_s`` counts from the moment the goal is given, after ``nav_warmup_s`` of exploring),
+``TimeLimit.truncated`` (True on a time-limit end). With ``info_extra=True`` also ``extra``: a
+nested dict (``merge_error`` as a dict or None, ``merge_errors`` per teammate) that clients which
+need flat infos must drop.
 
 Map accuracy, evaluation only (scored against the truth; nothing of it reaches a robot, a policy
 or the merger), two float keys present on every step:
@@ -38,17 +49,18 @@ or the merger), two float keys present on every step:
   known-free and known-occupied cells, warped into the world with the true transform) that
   contradict the truth: a free cell on a true wall, or an occupied cell with no true wall within
   1 cell (:class:`mrexplore.truth.MapScorer`). About 0.005 for a correct map without odometry
-  noise; a wrong merge raises it. NaN when the map makes no claim inside the world. Recomputed
+  noise; a wrong merge raises it. -1.0 when the map makes no claim inside the world. Recomputed
   only when the fused map changed (:meth:`mrexplore.fusion.FusionStage.fused_version`).
 - ``merged_wrongly_s``: simulated seconds since reset during which this agent held a transform
   to some teammate whose merge error (``translation_cells``, the mean displacement of the
   teammate's known cells) was >= ``WRONG_MERGE_CELLS`` (5) cells more than odometry drift
-  explains (``merge_error["drift_cells"]``, 0 with exact odometry; :func:`is_wrong_merge`);
+  explains (``merge_error_drift_cells``, 0 with exact odometry; :func:`is_wrong_merge`);
   0.0 when never.
 
 Policies read what a robot knows through :meth:`MultiRobotExplorationEnv.robot_view`.
 
-Version history: v0 (this): first release.
+Version history: v0 (this): first release; infos flat and fixed (``merge_error`` became
+``merge_error_cells``/``_deg``/``_drift_cells``, None became NaN); ``obs_layout``/``obs_dtype``.
 """
 
 from __future__ import annotations
@@ -65,7 +77,7 @@ from numpy.typing import NDArray
 from pettingzoo import ParallelEnv
 
 from mrexplore.environment.config import EnvConfig
-from mrexplore.environment.observations import ObservationBuilder
+from mrexplore.environment.observations import ObservationBuilder, ObservationFormat
 from mrexplore.environment.view import RobotView
 from mrexplore.errors import ConfigError
 from mrexplore.fusion import FusionStage
@@ -77,6 +89,32 @@ from mrexplore.truth import IncrementalScore, MapScorer, nearest_sampling
 from mrexplore.world import World, load_world
 
 AgentID = str
+
+#: The keys of ``infos[agent]``, on every reset and step, in this order (plus ``"extra"`` with
+#: ``info_extra=True``). Values: bool, int or float (``UNKNOWN_INFO`` where unknown).
+INFO_KEYS = (
+    "coverage",
+    "task_time_s",
+    "step",
+    "merged",
+    "score",
+    "first_merge_time_s",
+    "merge_error_cells",
+    "merge_error_deg",
+    "merge_error_drift_cells",
+    "collisions",
+    "collided",
+    "fused_contradiction",
+    "merged_wrongly_s",
+    "goal_given",
+    "goal_reached",
+    "TimeLimit.truncated",
+)
+
+#: The value of a float info that is not known (yet): never merged, no map claim. Every such
+#: value is >= 0 when known. Not NaN: Gymnasium's ``check_env`` and PettingZoo's seed test
+#: compare infos with ``==``, and NaN != NaN.
+UNKNOWN_INFO = -1.0
 
 #: A merge error (mean displacement of the teammate's known cells) at least this large is a
 #: wrong merge (cells; the merge benchmark's threshold too).
@@ -95,7 +133,28 @@ def is_wrong_merge(err: Mapping[str, float]) -> bool:
     return err["translation_cells"] >= WRONG_MERGE_CELLS + err.get("drift_cells", 0.0)
 
 
-class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
+def merge_error_of(info: Mapping[str, Any]) -> dict[str, float] | None:
+    """The merge error dict (``translation_cells``, ``rotation_deg``, ``drift_cells``) of one
+    agent's flat infos, or None when it holds no transform (the flat keys are -1).
+
+    >>> merge_error_of({"merge_error_cells": 0.5, "merge_error_deg": 0.2,
+    ...                 "merge_error_drift_cells": 0.0})
+    {'translation_cells': 0.5, 'rotation_deg': 0.2, 'drift_cells': 0.0}
+    >>> merge_error_of({"merge_error_cells": -1.0, "merge_error_deg": -1.0,
+    ...                 "merge_error_drift_cells": -1.0}) is None
+    True
+    """
+    cells = float(info["merge_error_cells"])
+    if cells < 0:
+        return None
+    return {
+        "translation_cells": cells,
+        "rotation_deg": float(info["merge_error_deg"]),
+        "drift_cells": float(info["merge_error_drift_cells"]),
+    }
+
+
+class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
     """PettingZoo parallel env; build it with :func:`mrexplore.parallel_env`.
 
     Options: :class:`~mrexplore.environment.config.EnvConfig`.
@@ -131,12 +190,12 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
             cfg.obs_size_px,
             heading_up=cfg.obs_heading_up,
         )
-        self._obs_space = gymnasium.spaces.Box(0, 255, self._obs_builder.shape, dtype=np.uint8)
-        self._act_space = gymnasium.spaces.Discrete(len(Action))
+        # What the client reads: channels first or last, uint8 or float in [0, 1].
+        self._obs_format = ObservationFormat(cfg.obs_layout, cfg.obs_dtype)
+        self._obs_space = self._obs_format.space(self._obs_builder.shape)
+        self._act_space: gymnasium.spaces.Discrete = gymnasium.spaces.Discrete(len(Action))
         n, s = cfg.n_robots, cfg.obs_size_px
-        self.state_space = gymnasium.spaces.Box(
-            0, 255, (self._obs_builder.shape[0] * n, s, s), dtype=np.uint8
-        )
+        self.state_space = self._obs_format.space((self._obs_builder.shape[0] * n, s, s))
         self._sim_config = SimConfig(
             robot=RobotConfig(
                 radius_m=cfg.radius_m,
@@ -169,8 +228,9 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         self._run_rng = np.random.default_rng(0)
         self.sim: Simulation | None = None
         self.world: World | None = None
-        self._obs: dict[AgentID, NDArray[np.uint8]] = {}
+        self._obs: dict[AgentID, NDArray[Any]] = {}
         self._collisions = np.zeros(cfg.n_robots, dtype=np.int64)
+        self._collided = np.zeros(cfg.n_robots, dtype=bool)  # this step's bumps (infos)
         self._goal_world: NDArray[np.float64] | None = None
         self._goal_cell: tuple[float, float] | None = None
         self._done = True
@@ -195,7 +255,9 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
 
     # ------------------------------------------------------------------ spaces
     def observation_space(self, agent: AgentID) -> gymnasium.spaces.Box:
-        """``Box(0, 255, (8, S, S), uint8)``; the same object for every call."""
+        """``Box(0, 255, (8, S, S), uint8)`` by default; ``(S, S, 8)`` with ``obs_layout="hwc"``,
+        ``Box(0.0, 1.0, ..., float32)`` with ``obs_dtype="float32"``. The same object for every
+        call."""
         self._check_agent(agent)
         return self._obs_space
 
@@ -207,7 +269,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
     # ------------------------------------------------------------------ API
     def reset(
         self, seed: int | None = None, options: dict[str, Any] | None = None
-    ) -> tuple[dict[AgentID, NDArray[np.uint8]], dict[AgentID, dict[str, Any]]]:
+    ) -> tuple[dict[AgentID, NDArray[Any]], dict[AgentID, dict[str, Any]]]:
         """Start an episode.
 
         ``seed`` (an integer >= 0) re-seeds the env's one Generator (``None`` continues it). From
@@ -243,6 +305,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         self.sim.reset(start_rng, starts=starts)
         self.agents = list(self.possible_agents)
         self._collisions[:] = 0
+        self._collided[:] = False
         self._error_cache = {}
         self._heard = {}
         self._done = False
@@ -264,7 +327,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
     def step(
         self, actions: dict[AgentID, int]
     ) -> tuple[
-        dict[AgentID, NDArray[np.uint8]],
+        dict[AgentID, NDArray[Any]],
         dict[AgentID, float],
         dict[AgentID, bool],
         dict[AgentID, bool],
@@ -276,7 +339,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         act = self._parse_actions(actions)
         sim = self.sim
         given_before = self._goal_given()
-        collided = self._act(act)
+        self._act(act)
         if (
             self.config.task == "navigate"
             and self.config.nav_return_to_start
@@ -299,19 +362,19 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         terms = dict.fromkeys(agents, terminated)
         truncs = dict.fromkeys(agents, truncated)
         infos = {a: self._info(a, truncated=truncated) for a in agents}
-        for a in agents:
-            infos[a]["collided"] = bool(collided[self.possible_agents.index(a)])
         if self._done:
             self.agents = []
         if self.render_mode == "human":
             self.render()
         return obs, rewards, terms, truncs, infos
 
-    def state(self) -> NDArray[np.uint8]:
-        """All robots' observations stacked on the channel axis (no ground truth)."""
+    def state(self) -> NDArray[Any]:
+        """All robots' observations stacked on the channel axis (first or last, as
+        ``obs_layout``), in ``state_space`` (no ground truth)."""
         if self.sim is None:
             raise RuntimeError("state() called before reset()")
-        return np.concatenate([self._obs[a] for a in self.possible_agents], axis=0)
+        axis = self._obs_format.channel_axis
+        return np.concatenate([self._obs[a] for a in self.possible_agents], axis=axis)
 
     def robot_view(self, agent: AgentID) -> RobotView:
         """What ``agent`` knows now: the documented accessor for policies (no ground truth)."""
@@ -378,11 +441,20 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
             raise RuntimeError("own_pose_cell() called before reset()")
         return self.sim.pose_cell(self.possible_agents.index(agent))
 
-    def render(self) -> NDArray[np.uint8] | None:
+    def render(self, mode: str | None = None) -> NDArray[np.uint8] | None:
         """``"rgb_array"``: an HxWx3 uint8 frame (true world with robots, beams and trails beside
         each robot's map and the fused map, merge status written on it). ``"human"``: shows the
         frame in a matplotlib window when matplotlib and a display are available; on a headless
-        machine it draws nothing and returns None (a warning is issued once)."""
+        machine it draws nothing and returns None (a warning is issued once).
+
+        ``mode`` is accepted only because RLlib's ``ParallelPettingZooEnv.render()`` passes its
+        own ``render_mode`` (None, or ours) positionally; the mode is fixed at construction, so
+        any other value is an error."""
+        if mode is not None and mode != self.render_mode:
+            raise ConfigError(
+                f"render(mode={mode!r}): the render mode is set when the env is built "
+                f"(render_mode={self.render_mode!r})"
+            )
         if self.render_mode is None:
             gymnasium.logger.warn(
                 "render() called without a render_mode; pass render_mode='rgb_array'"
@@ -408,6 +480,12 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
             except Exception:  # pragma: no cover - closing a window must never raise
                 pass
             self._renderer = None
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Plain ``pickle`` support: everything but a human-mode window (re-opened on demand)."""
+        state = dict(self.__dict__)
+        state["_renderer"] = None
+        return state
 
     # ------------------------------------------------------------------ step parts
     def _parse_actions(self, actions: dict[AgentID, int]) -> NDArray[np.int64]:
@@ -438,6 +516,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         info = self.sim.step(act, self._run_rng)
         collided = np.asarray(info.collided, dtype=bool)
         self._collisions += collided
+        self._collided[:] = collided
         return collided
 
     def _links(self) -> NDArray[np.bool_] | None:
@@ -477,11 +556,12 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
                 p = apply_transform(T, np.array([[c, r]]))[0]
                 self._heard[(a, other)] = (float(p[0]), float(p[1]))
 
-    def _observe(self) -> dict[AgentID, NDArray[np.uint8]]:
+    def _observe(self) -> dict[AgentID, NDArray[Any]]:
         assert self.sim is not None
         out = {}
         for i, a in enumerate(self.possible_agents):
-            out[a] = self._obs_builder.build(self.robot_view(a), self.sim.trail_cells(i))
+            obs = self._obs_builder.build(self.robot_view(a), self.sim.trail_cells(i))
+            out[a] = self._obs_format.apply(obs)
         return out
 
     def _reward(self) -> float:
@@ -627,20 +707,22 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         """Worst error of ``agent``'s estimated transforms against the truth (evaluation only):
         mean displacement (cells) of the teammate's known cells (an even sample of at most 4096),
         and the rotation error (degrees). The merge bench uses the same measure."""
-        assert self.sim is not None
-        transforms = self._transforms[agent]
-        if not transforms:
-            return None
-        i = self.possible_agents.index(agent)
         worst: dict[str, float] | None = None
-        for other, T in transforms.items():
-            j = self.possible_agents.index(other)
-            err = self._pair_error(i, j, T)
-            if err is not None and (
-                worst is None or err["translation_cells"] > worst["translation_cells"]
-            ):
+        for err in self._merge_errors(agent).values():
+            if worst is None or err["translation_cells"] > worst["translation_cells"]:
                 worst = err
         return worst
+
+    def _merge_errors(self, agent: AgentID) -> dict[AgentID, dict[str, float]]:
+        """The error of each of ``agent``'s estimated transforms (teammate -> error dict)."""
+        assert self.sim is not None
+        i = self.possible_agents.index(agent)
+        out: dict[AgentID, dict[str, float]] = {}
+        for other, T in self._transforms[agent].items():
+            err = self._pair_error(i, self.possible_agents.index(other), T)
+            if err is not None:
+                out[other] = err
+        return out
 
     def _pair_error(self, i: int, j: int, T: NDArray[np.float64]) -> dict[str, float] | None:
         """Error of the estimated ``T`` (j's cells -> i's) against the truth. Cached: recomputed
@@ -669,26 +751,39 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[np.uint8], int]):
         return err
 
     def _info(self, agent: AgentID, truncated: bool) -> dict[str, Any]:
+        """The fixed, flat info dict of ``agent`` (:data:`INFO_KEYS`, in that order): the same
+        keys on every reset and step, every value a bool, an int or a float (NaN where unknown),
+        so that clients which turn infos into arrays or tensors (TorchRL, Gymnasium's vector
+        envs) get one dtype per key; ``UNKNOWN_INFO`` (-1.0) where unknown. Richer data only
+        under ``"extra"`` (``info_extra=True``)."""
         assert self.sim is not None
         i = self.possible_agents.index(agent)
         first = self.fusion.first_merge_step(agent)
+        score = self.fusion.score(agent)
+        err = self._merge_error(agent)
+        contradiction = float(self._map_accuracy(i)[0])  # NaN: no claim (NaN >= 0 is False)
+        unknown = UNKNOWN_INFO
+        goal_given = self._goal_given()
         info: dict[str, Any] = {
             "coverage": self.coverage,
             "task_time_s": self._task_time(),
             "step": int(self.sim.steps),
-            "merged": self.fusion.merged(agent),
-            "merge_error": self._merge_error(agent),
-            "score": self.fusion.score(agent),
-            "first_merge_time_s": None if first is None else first * self.config.dt_s,
+            "merged": bool(self.fusion.merged(agent)),
+            "score": unknown if score is None else float(score),
+            "first_merge_time_s": unknown if first is None else float(first * self.config.dt_s),
+            "merge_error_cells": unknown if err is None else err["translation_cells"],
+            "merge_error_deg": unknown if err is None else err["rotation_deg"],
+            "merge_error_drift_cells": unknown if err is None else err["drift_cells"],
             "collisions": int(self._collisions[i]),
-            "fused_contradiction": float(self._map_accuracy(i)[0]),
+            "collided": bool(self._collided[i]),
+            "fused_contradiction": contradiction if contradiction >= 0 else unknown,
             "merged_wrongly_s": float(self._wrong_s[i]),
+            "goal_given": goal_given,
+            "goal_reached": goal_given and self._goal_reached(),
+            "TimeLimit.truncated": bool(truncated),
         }
-        if self.config.task == "navigate":
-            info["goal_given"] = self._goal_given()
-            info["goal_reached"] = self._goal_given() and self._goal_reached()
-        if truncated:
-            info["TimeLimit.truncated"] = True
+        if self.config.info_extra:
+            info["extra"] = {"merge_error": err, "merge_errors": self._merge_errors(agent)}
         return info
 
     def _check_agent(self, agent: AgentID) -> None:

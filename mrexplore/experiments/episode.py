@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 import mrexplore
-from mrexplore.environment.parallel_env import is_wrong_merge
+from mrexplore.environment.parallel_env import is_wrong_merge, merge_error_of
 
 
 @dataclass
@@ -76,10 +76,10 @@ class _MapQuality:
 
     def add(self, infos: Mapping[str, Mapping[str, Any]]) -> None:
         for info in infos.values():
-            c = float(info.get("fused_contradiction", math.nan))
-            if not math.isnan(c) and not c <= self.max_contradiction:
+            c = float(info.get("fused_contradiction", -1.0))  # -1: no claim yet
+            if c >= 0 and not c <= self.max_contradiction:
                 self.max_contradiction = c
-            err = info.get("merge_error")
+            err = merge_error_of(info)
             if err is not None and is_wrong_merge(err):
                 self.wrong = True
             self.wrong_s = max(self.wrong_s, float(info.get("merged_wrongly_s", 0.0)))
@@ -146,6 +146,7 @@ def run_episode(
         if on_step is not None:
             on_step(step)
     collisions = sum(int(i["collisions"]) for i in infos.values())
+    first = float(info0["first_merge_time_s"])  # -1: never merged
     penv.close()
     return EpisodeResult(
         task_time_s=float(info0["task_time_s"]),
@@ -153,8 +154,8 @@ def run_episode(
         coverage=float(info0["coverage"]),
         times_s=times,
         coverages=covs,
-        first_merge_time_s=info0["first_merge_time_s"],
-        merge_error=info0["merge_error"],
+        first_merge_time_s=None if first < 0 else first,
+        merge_error=merge_error_of(info0),
         collisions=collisions,
         frames=frames,
         merge_frame=merge_frame,

@@ -20,7 +20,7 @@ from tqdm import tqdm
 
 from mrexplore.errors import ConfigError
 from mrexplore.experiments.episode import EpisodeResult, run_episode
-from mrexplore.experiments.trained import TrainedTeamPolicy, read_config
+from mrexplore.experiments.trained import RLLIB_MODULE, load_team_policy, read_config
 from mrexplore.io_safety import atomic_path, check_out_dir, write_text
 
 EVAL_SEED_BASE = 1_000_000
@@ -108,10 +108,11 @@ def evaluate_folder(
     folder = Path(folder)
     if isinstance(n_seeds, bool) or not isinstance(n_seeds, (int, np.integer)) or n_seeds < 1:
         raise ConfigError(f"evaluate needs at least 1 seed, got {n_seeds!r}")
-    if not (folder / "config.yaml").is_file() or not (folder / "model.zip").is_file():
+    has_model = (folder / "model.zip").is_file() or (folder / RLLIB_MODULE).is_dir()
+    if not (folder / "config.yaml").is_file() or not has_model:
         raise ConfigError(
-            f"{folder} is not a trained policy folder (it needs model.zip and config.yaml, "
-            "as written by `mrexplore train`)"
+            f"{folder} is not a trained policy folder (it needs config.yaml and model.zip, or "
+            "an RLlib checkpoint/, as written by `mrexplore train`)"
         )
     out_dir = (
         None
@@ -121,10 +122,12 @@ def evaluate_folder(
     config = read_config(folder)
     env_options = eval_env_options(config)
     seeds = list(range(EVAL_SEED_BASE, EVAL_SEED_BASE + int(n_seeds)))
-    trained = TrainedTeamPolicy.load(
+    trained = load_team_policy(
         folder, [f"robot_{i}" for i in range(int(env_options.get("n_robots", 2)))]
     )
-    policies: dict[str, Any] = {f"trained ({config.get('algo', 'ppo')})": lambda agents: trained}
+    rllib = " rllib" if config.get("backend") == "rllib" else ""
+    name = f"trained ({config.get('algo', 'ppo')}{rllib})"
+    policies: dict[str, Any] = {name: lambda agents: trained}
     for b in BASELINES:
         policies[b] = lambda agents, b=b: make_team_policy(b, agents)
     if progress:

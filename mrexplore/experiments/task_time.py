@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import csv
 import json
+import logging
 import math
 import statistics
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -61,9 +62,9 @@ def make_team(policy: str, agents: Sequence[str], task: str) -> Any:
     from mrexplore.policies import GoalPolicy, make_team_policy
 
     if Path(policy).is_dir():
-        from mrexplore.experiments.trained import TrainedTeamPolicy
+        from mrexplore.experiments.trained import load_team_policy
 
-        team: Any = TrainedTeamPolicy.load(policy, agents)
+        team: Any = load_team_policy(policy, agents)
     else:
         team = make_team_policy(policy, list(agents))
     if task == "navigate":
@@ -102,6 +103,12 @@ def _episode_from_json(d: Mapping[str, Any]) -> EpisodeResult:
         first_merge_time_s=d["first_merge_time_s"],
         merge_error=d["merge_error"],
         collisions=int(d["collisions"]),
+        # the map-accuracy fields too, so a resumed (or Ray) run writes what a serial one does
+        max_fused_contradiction=(
+            math.nan if d.get("max_fused_contradiction") is None else d["max_fused_contradiction"]
+        ),
+        merged_wrongly_s=float(d.get("merged_wrongly_s", 0.0)),
+        wrong_merge=bool(d.get("wrong_merge", False)),
     )
 
 
@@ -137,6 +144,70 @@ def _load_log(path: Path, settings: Mapping[str, Any], force: bool) -> dict[str,
     return done
 
 
+#: One episode of the experiment: (task, team name, seed, env options).
+Job = tuple[str, str, int, dict[str, Any]]
+
+
+def run_job(policy: str, job: Job) -> EpisodeResult:
+    """Run one episode of the experiment (a fresh team policy; the same in every process)."""
+    task, _, seed, opts = job
+    n = int(opts["n_robots"])
+    team = make_team(policy, [f"robot_{i}" for i in range(n)], task)
+    return run_episode(opts, team, seed)
+
+
+def _for_workers(policy: str, job: Job) -> tuple[str, Job]:
+    """Paths made absolute: a Ray worker need not start in the driver's folder."""
+    task, team_name, seed, opts = job
+    opts = dict(opts)
+    if isinstance(opts.get("world"), str) and Path(opts["world"]).is_file():
+        opts["world"] = str(Path(opts["world"]).resolve())
+    if Path(policy).is_dir():
+        policy = str(Path(policy).resolve())
+    return policy, (task, team_name, seed, opts)
+
+
+def _ray_results(
+    policy: str, jobs: Sequence[Job], workers: int, address: str | None
+) -> Iterator[tuple[Job, EpisodeResult]]:
+    """Run ``jobs`` as Ray tasks (one CPU each), at most ``workers`` in flight, and yield each
+    result as it completes. Starts local Ray with ``workers`` CPUs when ``address`` is None and
+    Ray is not running, else joins the cluster at ``address``; shuts down only what it started."""
+    try:
+        import ray
+    except ImportError as exc:
+        raise ConfigError(
+            "task-time --workers/--address needs Ray: pip install 'mrexplore[rllib]'"
+        ) from exc
+    started = not ray.is_initialized()
+    if started:
+        if address is None:
+            ray.init(num_cpus=workers, include_dashboard=False, logging_level=logging.WARNING)
+        else:
+            ray.init(address=address, logging_level=logging.WARNING)
+    remote = ray.remote(num_cpus=1)(run_job)
+    pending: dict[Any, Job] = {}
+    queue = iter(jobs)
+    try:
+        while True:
+            # Ray schedules the tasks; this only bounds how many wait in its queue at once.
+            for job in queue:
+                p, remote_job = _for_workers(policy, job)
+                pending[remote.remote(p, remote_job)] = job
+                if len(pending) >= workers:
+                    break
+            if not pending:
+                return
+            ready, _ = ray.wait(list(pending), num_returns=1)
+            for ref in ready:
+                yield pending.pop(ref), ray.get(ref)
+    finally:
+        for ref in pending:
+            ray.cancel(ref)
+        if started:
+            ray.shutdown()
+
+
 def run_task_time(
     world: str = "symmetric_office",
     seeds: int = 20,
@@ -148,8 +219,15 @@ def run_task_time(
     progress: bool = True,
     nav_warmup_s: float = 120.0,
     force: bool = False,
+    workers: int = 1,
+    address: str | None = None,
 ) -> dict[str, Any]:
     """Run the experiment and write the result files; returns the JSON document.
+
+    ``workers > 1`` or an ``address`` runs the episodes as Ray tasks (local Ray with ``workers``
+    CPUs, or the cluster at ``address``, e.g. ``"auto"`` or ``"HEAD_IP:6379"``), at most
+    ``workers`` at a time; every episode depends only on its seed and settings, so the results
+    are those of the serial run.
 
     Navigation episodes first explore for ``nav_warmup_s`` (the same for one robot and for the
     team), then ``robot_0`` gets a goal at least 10 m away; its task time counts from then.
@@ -167,6 +245,9 @@ def run_task_time(
     """
     seeds = _check_int("seeds", seeds, 1)
     first_seed = _check_int("first_seed", first_seed, 0)
+    workers = _check_int("workers", workers, 1)
+    if address is not None and (not isinstance(address, str) or not address.strip()):
+        raise ConfigError(f"task-time: address must be a Ray address like 'auto', got {address!r}")
     unknown = sorted(set(tasks) - set(TASKS))
     if unknown or not tasks:
         raise ConfigError(f"unknown task(s) {unknown}; tasks are {list(TASKS)}")
@@ -181,7 +262,7 @@ def run_task_time(
         # A trained policy sees the observations it was trained on.
         base.update(observation_options(policy))
     seed_list = list(range(first_seed, first_seed + seeds))
-    jobs: list[tuple[str, str, int, dict[str, Any]]] = []
+    jobs: list[Job] = []
     for task in tasks:
         for team_name, n in (("single", 1), ("multi", 2)):
             opts = {**base, "n_robots": n, "task": task}
@@ -210,18 +291,22 @@ def run_task_time(
         print(f"resuming from {log_path}: {len(jobs) - todo} of {len(jobs)} episodes done")
     bar = tqdm(total=len(jobs), desc="task-time episodes", disable=not progress, unit="ep")
     bar.update(len(jobs) - todo)
+    missing = [j for j in jobs if f"{j[0]}/{j[1]}/{j[2]}" not in done]
+    results: Iterator[tuple[Job, EpisodeResult]]
+    if workers > 1 or address is not None:
+        results = _ray_results(policy, missing, workers, address)
+    else:
+        results = ((job, run_job(policy, job)) for job in missing)
     with log_path.open("a") as log:
-        for task, team_name, seed, opts in jobs:
-            key = f"{task}/{team_name}/{seed}"
-            if key not in done:
-                n = int(opts["n_robots"])
-                team = make_team(policy, [f"robot_{i}" for i in range(n)], task)
-                done[key] = run_episode(opts, team, seed)
-                log.write(json.dumps({"key": key, "result": _episode_to_json(done[key])}) + "\n")
-                log.flush()
-                bar.update(1)
-            runs[task][team_name].append(done[key])
+        for job, result in results:  # in the order they finish
+            key = f"{job[0]}/{job[1]}/{job[2]}"
+            done[key] = result
+            log.write(json.dumps({"key": key, "result": _episode_to_json(result)}) + "\n")
+            log.flush()
+            bar.update(1)
     bar.close()
+    for task, team_name, seed, _ in jobs:  # in seed order, however they ran
+        runs[task][team_name].append(done[f"{task}/{team_name}/{seed}"])
     doc = _document(runs, world, policy, seed_list, base)
     doc["nav_warmup_s"] = nav_warmup_s
     write_text(out / "task_time.json", json.dumps(doc, indent=2, allow_nan=False))

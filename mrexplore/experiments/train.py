@@ -300,6 +300,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     Writes to ``--out DIR``.
     """
     p = argparse.ArgumentParser(prog="mrexplore train", description=__doc__)
+    p.add_argument(
+        "--backend",
+        default="sb3",
+        choices=("sb3", "rllib"),
+        help="sb3 (default): stable-baselines3 in this process; rllib: RLlib PPO on Ray "
+        "(local, or --address), with --env-runners sampling actors",
+    )
     p.add_argument("--algo", default="ppo", choices=ALGOS)
     p.add_argument(
         "--world", default=None, help="a generator name (trained on fresh worlds) or a world spec"
@@ -325,7 +332,39 @@ def main(argv: Sequence[str] | None = None) -> int:
         "0 skips it)",
     )
     p.add_argument("--n-copies", type=int, default=None)
+    p.add_argument(
+        "--env-runners",
+        type=int,
+        default=2,
+        help="rllib: env runner actors (one CPU each; 0 samples in the driver)",
+    )
+    p.add_argument(
+        "--address",
+        default=None,
+        help="rllib: join the Ray cluster at this address ('auto' or HEAD_IP:6379 of "
+        "`ray start --head`); default: local Ray",
+    )
     args = p.parse_args(argv)
+    if args.backend == "rllib":
+        if args.algo != "ppo":
+            raise ConfigError("train --backend rllib trains PPO only (--algo ppo)")
+        from mrexplore.experiments.train_rllib import train_rllib
+
+        train_rllib(
+            timesteps=args.timesteps,
+            out=args.out if args.out is not None else "runs/rllib",
+            world=args.world,
+            n_robots=args.n_robots,
+            seed=args.seed,
+            env_runners=args.env_runners,
+            address=args.address,
+            hyperparams_file=args.hyperparams,
+            final_eval_seeds=args.final_eval_seeds,
+            force=args.force,
+        )
+        return 0
+    if args.address is not None:
+        raise ConfigError("train: --address needs --backend rllib")
     train(
         algo=args.algo,
         timesteps=args.timesteps,

@@ -19,7 +19,14 @@ from mrexplore.errors import ConfigError
 
 ALGOS = ("ppo", "a2c", "dqn")
 #: Env options that shape the observation: a trained policy must run with the ones it saw.
-OBSERVATION_OPTIONS = ("obs_heading_up", "global_view_m", "local_view_m", "obs_size_px")
+OBSERVATION_OPTIONS = (
+    "obs_heading_up",
+    "global_view_m",
+    "local_view_m",
+    "obs_size_px",
+    "obs_layout",
+    "obs_dtype",
+)
 
 
 def read_config(folder: str | Path) -> dict[str, Any]:
@@ -155,3 +162,83 @@ class TrainedTeamPolicy:
 
     def act(self, views: Mapping[str, Any]) -> dict[str, int]:
         raise TypeError("TrainedTeamPolicy acts on observations: call act_obs(observations)")
+
+
+#: Where ``mrexplore train --backend rllib`` leaves the shared policy inside its folder.
+RLLIB_MODULE = Path("checkpoint") / "learner_group" / "learner" / "rl_module" / "shared"
+
+
+def is_rllib_folder(folder: str | Path) -> bool:
+    """A folder written by ``mrexplore train --backend rllib`` (its config says so)."""
+    return read_config(folder).get("backend") == "rllib"
+
+
+class RllibTeamPolicy:
+    """Every robot acts with the RLlib ``RLModule`` trained by ``train --backend rllib`` (the
+    shared policy), on its own observation (channels-last float, as trained). Actions are
+    sampled from the policy's logits with a torch Generator seeded by :meth:`reset`, like
+    :class:`TrainedTeamPolicy`; ``deterministic`` takes the arg-max."""
+
+    uses_observations = True
+
+    def __init__(self, module: Any, agents: Sequence[str], deterministic: bool = False) -> None:
+        import torch
+
+        self.module = module
+        self.agents = list(agents)
+        self.deterministic = deterministic
+        self._gen = torch.Generator().manual_seed(0)
+
+    @classmethod
+    def load(
+        cls, folder: str | Path, agents: Sequence[str], deterministic: bool = False
+    ) -> RllibTeamPolicy:
+        """Load ``folder/checkpoint/.../rl_module/shared``.
+
+        Raises:
+            FileNotFoundError: no checkpoint in ``folder``.
+            ConfigError: RLlib is not installed.
+        """
+        path = Path(folder) / RLLIB_MODULE
+        if not path.is_dir():
+            raise FileNotFoundError(f"no RLlib policy checkpoint at {path}")
+        try:
+            from ray.rllib.core.rl_module.rl_module import RLModule
+        except ImportError as exc:
+            raise ConfigError(
+                f"{folder} holds an RLlib policy: pip install 'mrexplore[rllib]'"
+            ) from exc
+        return cls(RLModule.from_checkpoint(path.resolve()), agents, deterministic)
+
+    def reset(self, rng: np.random.Generator) -> None:
+        """Seed the action sampling from ``rng``: the same episode seed gives the same run."""
+        self._gen.manual_seed(int(rng.integers(2**62)))
+
+    def act_obs(self, observations: Mapping[str, NDArray[Any]]) -> dict[str, int]:
+        """Actions for all robots from their observations, in one batch."""
+        import torch
+
+        agents = [a for a in self.agents if a in observations]
+        if not agents:
+            return {}
+        batch = torch.as_tensor(np.stack([observations[a] for a in agents]))
+        with torch.no_grad():
+            logits = self.module.forward_inference({"obs": batch})["action_dist_inputs"]
+        if self.deterministic:
+            actions = logits.argmax(dim=-1)
+        else:
+            probs = torch.softmax(logits, dim=-1)
+            actions = torch.multinomial(probs, 1, generator=self._gen).reshape(-1)
+        return {a: int(x) for a, x in zip(agents, actions.tolist(), strict=True)}
+
+    def act(self, views: Mapping[str, Any]) -> dict[str, int]:
+        raise TypeError("RllibTeamPolicy acts on observations: call act_obs(observations)")
+
+
+def load_team_policy(
+    folder: str | Path, agents: Sequence[str], deterministic: bool = False
+) -> TrainedTeamPolicy | RllibTeamPolicy:
+    """The trained policy in ``folder``: an SB3 ``model.zip`` or an RLlib checkpoint."""
+    if is_rllib_folder(folder):
+        return RllibTeamPolicy.load(folder, agents, deterministic)
+    return TrainedTeamPolicy.load(folder, agents, deterministic)

@@ -28,10 +28,12 @@ SB3's ``VecEnv`` contract, as implemented here:
 * ``use_subprocess=True`` runs each copy in its own process (a worker loop over a
   ``multiprocessing.Pipe``, like SB3's ``SubprocVecEnv``; the factories are cloudpickled).
 
-Why not SuperSuit: it is the usual PettingZoo -> SB3 bridge, but it calls itself
-semi-maintained, PettingZoo's own SB3 tutorial built on it is marked broken, and its
-``concat_vec_envs_v1`` breaks with several CPUs in some versions (3.10). This adapter is small,
-has no dependency beyond SB3, and is tested against SB3's ``VecEnv`` contract here.
+Why not SuperSuit: it is the usual PettingZoo -> SB3 bridge and it works with our env (3.11,
+``num_cpus`` 0 and 2 tried here; the README has a tested recipe), but it calls itself
+semi-maintained, its SB3 wrapper cannot be seeded the SB3 way (``seed()`` and ``reset(seed=)``
+raise ``AttributeError``), and its tutorial's order (seed, then ``concat_vec_envs_v1``) gives
+every copy the same random stream. This adapter is small, has no dependency beyond SB3, seeds
+copy ``k`` with ``seed + k``, and is tested against SB3's ``VecEnv`` contract here.
 
 Bad input: agents with different observation or action spaces (one policy cannot serve them), or
 copies whose spaces differ, raise :class:`~mrexplore.errors.ConfigError` at construction.

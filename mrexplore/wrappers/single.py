@@ -81,8 +81,9 @@ class SingleRobotExploreEnv(gymnasium.Env[NDArray[np.uint8], Any]):
             infos[_AGENT],
         )
 
-    def render(self) -> NDArray[np.uint8] | None:
-        """The frame of the multi-robot env (``"rgb_array"``), or None."""
+    def render(self) -> Any:
+        """The frame of the multi-robot env (``"rgb_array"``: HxWx3 uint8), or None."""
+        # Typed Any: gymnasium 1.2's stubs want its RenderFrame type var here, 1.4's an array.
         return self.penv.render()
 
     def close(self) -> None:

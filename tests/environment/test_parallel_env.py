@@ -11,6 +11,7 @@ from pettingzoo.test.max_cycles_test import max_cycles_test
 from pettingzoo.test.state_test import state_test
 
 import mrexplore
+from mrexplore.environment.parallel_env import INFO_KEYS
 from mrexplore.errors import ConfigError, WorldError
 
 SMALL = {"world": "small_office", "max_time_s": 60.0}
@@ -93,7 +94,7 @@ def test_episode_observations_in_space_and_infos_complete() -> None:
         )
         steps += 1
         for a, i in infos.items():
-            assert {"coverage", "task_time_s", "merged", "merge_error", "collisions"} <= set(i)
+            assert tuple(i) == INFO_KEYS  # the same flat keys on every step
             assert 0.0 <= i["coverage"] <= 1.0
             assert rew[a] == pytest.approx(-0.25)  # time mode: -dt per step
     assert steps == 120

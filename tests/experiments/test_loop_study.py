@@ -63,7 +63,7 @@ def test_oracle_merges_through_the_tracker_with_confirmations() -> None:
     # later: accepted at the second, agreeing one
     k = penv.config.merge_latency_steps
     assert infos["robot_0"]["first_merge_time_s"] == pytest.approx((20 + k) * 0.25)
-    assert infos["robot_0"]["merge_error"]["translation_cells"] < 1e-6
+    assert infos["robot_0"]["merge_error_cells"] < 1e-6
     T = penv.fusion.transforms("robot_0")["robot_1"]
     np.testing.assert_allclose(T, penv.sim.true_transform(0, 1), atol=1e-9)
 

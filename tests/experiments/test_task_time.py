@@ -68,6 +68,8 @@ def _no_episodes(*args: object, **kwargs: object) -> None:
         (["--seeds", "0"], "seeds must be an integer >= 1"),
         (["--policy", "nope"], "unknown policy 'nope'"),
         (["--world", "no_such_world"], "no_such_world"),
+        (["--workers", "0"], "workers must be an integer >= 1"),
+        (["--address", " "], "address must be a Ray address"),
     ],
 )
 def test_task_time_checks_every_argument_before_any_episode(
@@ -157,3 +159,47 @@ def test_task_time_json_has_map_accuracy(tmp_path: Path) -> None:
         (c,) = entry["max_fused_contradiction"]
         assert isinstance(c, float) and 0.0 <= c < 0.05
         assert entry["merged_wrongly_s"] == [0.0]
+
+
+@pytest.mark.expensive
+def test_ray_workers_give_the_serial_results(tmp_path: Path) -> None:
+    """2 seeds on 2 local Ray workers: the same task_time.json as the serial run."""
+    pytest.importorskip("ray")
+    kw = {
+        "world": "small_office",
+        "seeds": 2,
+        "first_seed": 3,
+        "policy": "nearest-frontier",
+        "tasks": ("explore",),
+        "env_options": {"max_time_s": 20.0, "aligned_headings": False},
+        "progress": False,
+    }
+    serial = run_task_time(out=tmp_path / "serial", **kw)  # type: ignore[arg-type]
+    parallel = run_task_time(out=tmp_path / "ray", workers=2, **kw)  # type: ignore[arg-type]
+    assert parallel == serial
+    for name in ("task_time.json", "task_time.csv"):
+        assert (tmp_path / "ray" / name).read_bytes() == (tmp_path / "serial" / name).read_bytes()
+    single = serial["tasks"]["explore"]["single"]  # type: ignore[index]
+    assert len(single["task_times_s"]) == 2
+
+
+def test_a_resumed_episode_keeps_every_field() -> None:
+    # A log line read back must give the EpisodeResult the run produced (Ray results and
+    # resumed runs go through it), map-accuracy fields included.
+    from mrexplore.experiments.episode import EpisodeResult
+
+    r = EpisodeResult(
+        task_time_s=12.5,
+        success=True,
+        coverage=0.96,
+        times_s=[0.0, 0.25],
+        coverages=[0.1, 0.2],
+        first_merge_time_s=2.5,
+        merge_error={"translation_cells": 0.5, "rotation_deg": 0.1, "drift_cells": 0.0},
+        collisions=3,
+        max_fused_contradiction=0.004,
+        merged_wrongly_s=1.25,
+        wrong_merge=True,
+    )
+    back = task_time._episode_from_json(json.loads(json.dumps(task_time._episode_to_json(r))))
+    assert back == r

@@ -154,13 +154,14 @@ CASES: dict[str, tuple[int, int, str | None, dict[str, Any]]] = {
     ),
 }
 
-#: Recorded on main's code without the lean step: 35eda8a, and for the two merging cases again
-#: at 0a26b06 (merge attempts moved off the step path change when merges take effect).
+#: Recorded on main's code without the lean step: first at 35eda8a, then at each merge of main
+#: whose changes reach these figures (0a26b06: merge attempts off the step path; 5d3198e: flat
+#: infos, which report -1 where the figures were None); the lean step reproduces each.
 PINNED: dict[str, str] = {
-    "coarse_held": "e1f3db51f6bc13d3069c09b2130bb23a38f21598574b1e20600daf8d3f421c82",
-    "default_merging": "98217b6e8a21c8a48261f170c955dc07367b3c96af39fe70933a9bbb9cb5eaed",
-    "heading_up_noisy": "6f67a482941dee16c70553f1a85f4cbac3971f4b19783c2418085fb45bd2d1c8",
-    "navigate_three": "0100d00142b279267f7cf26f8efb262034da6e0636f725050ea65f2ce8689a0e",
+    "coarse_held": "e129f616ae84e3aca58b726531136ba160e6eadbfd780c739a59a0eaa2694850",
+    "default_merging": "cc9f7a4d7c3b3619a89e21d31120d0e8d465a09acc54d8ba9e969d644fe4bfdd",
+    "heading_up_noisy": "f3fcfeefec852c58e0e24a27c6a179e423d2edc39961e49f918fae5946d990a7",
+    "navigate_three": "61a5ca44952e704f57a85fa776b2c0dfac9f1bfec349cd3f59eb98ddc450ebf9",
 }
 
 

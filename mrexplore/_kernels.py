@@ -236,6 +236,7 @@ def map_update(
     thresholds: NDArray[np.float32],
     pct_clip: NDArray[np.int64],
     bbox: NDArray[np.int64],
+    changed: NDArray[np.int64],
 ) -> None:
     """Integrate one scan into a log-odds map (flat arrays of an (h, w) canvas).
 
@@ -259,6 +260,9 @@ def map_update(
         pct_clip: int64 (4,) ``FREE, OCCUPIED, lowest, highest`` percent of an undecided cell.
         bbox: int64 (4,) ``row0, row1, col0, col1`` inclusive of the known cells (updated;
             ``row1 < 0`` when none yet).
+        changed: int64 (4,) out: ``row0, row1, col0, col1`` inclusive of the cells whose int8
+            value this scan changed (``row1 < 0``: none). Consumers of the int8 map (the merge
+            tracker) then need not compare whole canvases to find what changed.
     """
     n_b = dx.shape[0]
     l_free, l_occ, l_min, l_max = deltas[0], deltas[1], deltas[2], deltas[3]
@@ -296,6 +300,7 @@ def map_update(
     r0, r1, c0, c1 = bbox[0], bbox[1], bbox[2], bbox[3]
     if r1 < 0:
         r0, r1, c0, c1 = h, -1, w, -1
+    q0, q1, p0, p1 = h, -1, w, -1  # box of the int8 changes
     # 1) occupied end cells: applied first, stamped so that no free mark touches them.
     for b in range(n_b):
         if not hits[b]:
@@ -307,7 +312,8 @@ def map_update(
         r0, r1, c0, c1 = min(r0, er), max(r1, er), min(c0, ec), max(c1, ec)
         if stamp[f] != s_occ:
             stamp[f] = s_occ
-            _apply(logodds, int8_map, f, l_occ, l_min, l_max, thresholds, pct_clip)
+            if _apply(logodds, int8_map, f, l_occ, l_min, l_max, thresholds, pct_clip):
+                q0, q1, p0, p1 = min(q0, er), max(q1, er), min(p0, ec), max(p1, ec)
     # 2) free cells: the robot's own cell, then every crossing before the end of each beam.
     orow = int(oy)
     ocol = int(ox)
@@ -315,7 +321,8 @@ def map_update(
     r0, r1, c0, c1 = min(r0, orow), max(r1, orow), min(c0, ocol), max(c1, ocol)
     if stamp[f] != s_occ and stamp[f] != s_free:
         stamp[f] = s_free
-        _apply(logodds, int8_map, f, l_free, l_min, l_max, thresholds, pct_clip)
+        if _apply(logodds, int8_map, f, l_free, l_min, l_max, thresholds, pct_clip):
+            q0, q1, p0, p1 = min(q0, orow), max(q1, orow), min(p0, ocol), max(p1, ocol)
     for b in range(n_b):
         group_max = max_short if t_end[b] < short_cells else max_long
         n_slots = math.ceil(group_max) + 1
@@ -345,7 +352,8 @@ def map_update(
             base = (foo - off) * st_other + (fo + sg) * st_across
             step = sg * st_across
             for k in range(n):
-                f = base + k * step + math.floor(k * s + a) * st_other
+                cell = math.floor(k * s + a)
+                f = base + k * step + cell * st_other
                 # Branch-free apply (a select, not a jump): whether a cell is new in this scan
                 # is unpredictable near the robot, where the beams overlap, and mispredicted
                 # branches dominated this loop.
@@ -357,13 +365,20 @@ def map_update(
                 lo = lo if fresh else old
                 logodds[f] = lo
                 if lo >= thresholds[1]:
-                    int8_map[f] = pct_clip[1]
+                    v = pct_clip[1]
                 elif lo > thresholds[0]:
                     pct = np.rint(100.0 / (1.0 + math.exp(-float(lo))))
-                    int8_map[f] = min(max(int(pct), pct_clip[2]), pct_clip[3])
+                    v = min(max(int(pct), pct_clip[2]), pct_clip[3])
                 else:
-                    int8_map[f] = pct_clip[0]
+                    v = pct_clip[0]
+                if int8_map[f] != v:
+                    int8_map[f] = v
+                    other = foo - off + cell
+                    across = fo + (k + 1) * sg
+                    row, col = (other, across) if fam == 0 else (across, other)
+                    q0, q1, p0, p1 = min(q0, row), max(q1, row), min(p0, col), max(p1, col)
     bbox[0], bbox[1], bbox[2], bbox[3] = r0, r1, c0, c1
+    changed[0], changed[1], changed[2], changed[3] = q0, q1, p0, p1
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -376,9 +391,10 @@ def _apply(
     l_max: np.float32,
     thresholds: NDArray[np.float32],
     pct_clip: NDArray[np.int64],
-) -> None:
+) -> bool:
     """Add ``delta`` to cell ``f`` (float32, clamped) and refresh its int8 value, as
-    ``mrexplore.mapping._logodds_to_int8`` (thresholds compared in float32)."""
+    ``mrexplore.mapping._logodds_to_int8`` (thresholds compared in float32). Returns whether
+    the int8 value changed."""
     lo = logodds[f] + delta
     if lo < l_min:
         lo = l_min
@@ -386,13 +402,16 @@ def _apply(
         lo = l_max
     logodds[f] = lo
     if lo >= thresholds[1]:
-        int8_map[f] = pct_clip[1]
+        v = pct_clip[1]
     elif lo > thresholds[0]:
         pct = np.rint(100.0 / (1.0 + math.exp(-float(lo))))
         v = min(max(int(pct), pct_clip[2]), pct_clip[3])
-        int8_map[f] = v
     else:
-        int8_map[f] = pct_clip[0]
+        v = pct_clip[0]
+    if int8_map[f] == v:
+        return False
+    int8_map[f] = v
+    return True
 
 
 @numba.njit(cache=True, nogil=True)
@@ -457,6 +476,223 @@ def motion_forward(
     return out
 
 
+#: Bits of a block's free-cell count in the packed per-cell class code of :func:`view_shares`
+#: (a block holds at most 16 cells: factor 4).
+SHARE_BITS: int = 5
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _share_code(v: int, free_lo: int, free_hi: int, occ_lo: int) -> int:
+    """1 for a free value, ``1 << SHARE_BITS`` for an occupied one, else 0 (branch-free)."""
+    return ((v >= free_lo) & (v <= free_hi)) + ((v >= occ_lo) << SHARE_BITS)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _add_blocks(
+    row: NDArray[np.int8],
+    acc: NDArray[np.int32],
+    c0: int,
+    size: int,
+    stride: int,
+    factor: int,
+    free_lo: int,
+    free_hi: int,
+    occ_lo: int,
+) -> None:
+    """``acc[x] +=`` the packed class codes of ``row[c0 + stride * (factor * x + k)]``,
+    k < factor (called with literal ``stride`` and ``factor``)."""
+    for x in range(size):
+        b = c0 + factor * stride * x
+        t = 0
+        for k in range(factor):
+            t += _share_code(row[b + k * stride], free_lo, free_hi, occ_lo)
+        acc[x] += t
+
+
+@numba.njit(cache=True, nogil=True)
+def view_shares(
+    grid: NDArray[np.int8],
+    r0: int,
+    c0: int,
+    stride: int,
+    factor: int,
+    lut: NDArray[np.uint8],
+    code: NDArray[np.int32],
+    bounds: NDArray[np.int8],
+    acc: NDArray[np.int32],
+    out_free: NDArray[np.uint8],
+    out_occ: NDArray[np.uint8],
+) -> None:
+    """Free and occupied shares of a square window of an int8 map, in one pass.
+
+    Pixel ``(y, x)`` of the ``(S, S)`` outputs covers the ``factor x factor`` block of window
+    cells ``(r0 + stride * (factor * y + a), c0 + stride * (factor * x + b))``; cells outside
+    the grid are unknown. ``code[v + 128]`` is 1 for a free value ``v``, ``1 << SHARE_BITS`` for
+    an occupied one, else 0 (``bounds``: int8 ``free_lo, free_hi, occ_lo``, the same classes by
+    comparisons: free ``free_lo <= v <= free_hi``, occupied ``v >= occ_lo``), so one sum per
+    block counts both classes without a branch; a
+    pixel's value is ``lut[count]`` (``lut`` reproduces OpenCV's INTER_AREA of 0/255 masks, whose
+    output depends only on the count: checked when the lut is built). ``acc``: int32 (S,)
+    scratch. Requires ``factor * factor < 2 ** SHARE_BITS``.
+    """
+    h, w = grid.shape
+    size = out_free.shape[0]
+    mask = (1 << SHARE_BITS) - 1
+    span = stride * (factor * size - 1)
+    free_lo, free_hi, occ_lo = bounds[0], bounds[1], bounds[2]
+    if r0 >= 0 and r0 + span < h and c0 >= 0 and c0 + span < w:
+        # The window lies inside the grid (the usual case): no bounds tests, and the block
+        # sums of the usual (stride, factor) pairs with literal steps (measured: several times
+        # faster than the generic loop with runtime steps, which LLVM does not vectorise).
+        for y in range(size):
+            for x in range(size):
+                acc[x] = 0
+            for a in range(factor):
+                row = grid[r0 + stride * (factor * y + a)]
+                # literal strides and factors, so that LLVM unrolls and vectorises each case
+                if stride == 2 and factor == 4:
+                    _add_blocks(row, acc, c0, size, 2, 4, free_lo, free_hi, occ_lo)
+                elif stride == 1 and factor == 2:
+                    _add_blocks(row, acc, c0, size, 1, 2, free_lo, free_hi, occ_lo)
+                elif stride == 2 and factor == 2:
+                    _add_blocks(row, acc, c0, size, 2, 2, free_lo, free_hi, occ_lo)
+                elif stride == 1 and factor == 1:
+                    _add_blocks(row, acc, c0, size, 1, 1, free_lo, free_hi, occ_lo)
+                else:
+                    c = c0
+                    for x in range(size):
+                        t = 0
+                        for _ in range(factor):
+                            t += code[row[c] + 128]
+                            c += stride
+                        acc[x] += t
+            for x in range(size):
+                out_free[y, x] = lut[acc[x] & mask]
+                out_occ[y, x] = lut[acc[x] >> SHARE_BITS]
+        return
+    for y in range(size):
+        for x in range(size):
+            t = 0
+            for a in range(factor):
+                r = r0 + stride * (factor * y + a)
+                if r < 0 or r >= h:
+                    continue
+                for b in range(factor):
+                    c = c0 + stride * (factor * x + b)
+                    if c >= 0 and c < w:
+                        t += code[grid[r, c] + 128]
+            out_free[y, x] = lut[t & mask]
+            out_occ[y, x] = lut[t >> SHARE_BITS]
+
+
+@numba.njit(cache=True, nogil=True)
+def claim_counts(
+    in_world: NDArray[np.int8],
+    walls: NDArray[np.bool_],
+    near_wall: NDArray[np.bool_],
+    reachable: NDArray[np.bool_],
+    free_hi: int,
+    occ_lo: int,
+    want_held: bool,
+) -> tuple[int, int, int]:
+    """One pass of :class:`mrexplore.truth.MapScorer` over a map warped into the world (all
+    (H, W)): ``(claims, contradicting claims, held free cells)``. A claim is a free cell
+    (``0 <= v <= free_hi``) or an occupied one (``v >= occ_lo``); it contradicts the truth when
+    free on a wall or occupied with no wall within one cell (``near_wall``); held free cells are
+    free claims on ``reachable`` cells (counted only when ``want_held``)."""
+    h, w = in_world.shape
+    n = 0
+    bad = 0
+    held = 0
+    for r in range(h):
+        for c in range(w):
+            v = in_world[r, c]
+            if v >= 0 and v <= free_hi:
+                n += 1
+                if walls[r, c]:
+                    bad += 1
+                if want_held and reachable[r, c]:
+                    held += 1
+            elif v >= occ_lo:
+                n += 1
+                if not near_wall[r, c]:
+                    bad += 1
+    return n, bad, held
+
+
+@numba.njit(cache=True, nogil=True)
+def score_region(
+    src: NDArray[np.int8],
+    sample: NDArray[np.int32],
+    cls: NDArray[np.uint8],
+    walls: NDArray[np.bool_],
+    near_wall: NDArray[np.bool_],
+    reachable: NDArray[np.bool_],
+    r0: int,
+    r1: int,
+    c0: int,
+    c1: int,
+    free_hi: int,
+    occ_lo: int,
+    counts: NDArray[np.int64],
+) -> None:
+    """Re-score the world cells ``[r0, r1) x [c0, c1)`` of a map sampled into the world.
+
+    ``sample[r, c]``: the flat index into ``src`` (the map, flat int8) that world cell (r, c)
+    takes (nearest neighbour), -1 outside the map. ``cls`` (H, W) uint8 holds each world cell's
+    class as last scored (0 no claim, 1 free, 2 occupied); ``counts`` int64 (3,) the running
+    ``claims, contradicting claims, reachable free claims`` over the world (as
+    :func:`claim_counts`): both are updated for the cells whose class changed.
+    """
+    for r in range(r0, r1):
+        for c in range(c0, c1):
+            k = sample[r, c]
+            v = -1 if k < 0 else src[k]
+            new = 0
+            if v >= 0 and v <= free_hi:
+                new = 1
+            elif v >= occ_lo:
+                new = 2
+            old = cls[r, c]
+            if new == old:
+                continue
+            if old == 1:
+                counts[0] -= 1
+                counts[1] -= walls[r, c]
+                counts[2] -= reachable[r, c]
+            elif old == 2:
+                counts[0] -= 1
+                counts[1] -= not near_wall[r, c]
+            if new == 1:
+                counts[0] += 1
+                counts[1] += walls[r, c]
+                counts[2] += reachable[r, c]
+            elif new == 2:
+                counts[0] += 1
+                counts[1] += not near_wall[r, c]
+            cls[r, c] = new
+
+
+@numba.njit(cache=True, nogil=True)
+def trail_dots(
+    channel: NDArray[np.uint8],
+    cells: NDArray[np.float64],
+    cx: float,
+    cy: float,
+    scale: float,
+) -> None:
+    """Set pixel ``floor((cell - centre) * scale + S / 2)`` of every trail cell (N, 2)
+    ``(col, row)`` inside the ``(S, S)`` channel to 255 (the same float64 operations, in the same
+    order, as the numpy drawing of an axis-aligned view)."""
+    s = channel.shape[0]
+    half = s / 2
+    for k in range(cells.shape[0]):
+        px = math.floor((cells[k, 0] - cx) * scale + half)
+        py = math.floor((cells[k, 1] - cy) * scale + half)
+        if px >= 0 and px < s and py >= 0 and py < s:
+            channel[py, px] = 255
+
+
 def warm_up() -> None:
     """Compile (or load from the cache) every kernel on tiny inputs."""
     table = np.zeros(3 * 4 * 4, dtype=np.bool_)
@@ -503,6 +739,38 @@ def warm_up() -> None:
         np.array([-1.0, 0.6], dtype=np.float32),
         np.array([0, 100, 26, 64], dtype=np.int64),
         np.array([0, -1, 0, -1], dtype=np.int64),
+        np.array([0, -1, 0, -1], dtype=np.int64),
+    )
+    view_shares(
+        np.zeros((4, 4), dtype=np.int8),
+        0,
+        0,
+        1,
+        2,
+        np.arange(5, dtype=np.uint8),
+        np.zeros(256, dtype=np.int32),
+        np.array([0, 25, 65], dtype=np.int8),
+        np.zeros(2, dtype=np.int32),
+        np.zeros((2, 2), dtype=np.uint8),
+        np.zeros((2, 2), dtype=np.uint8),
+    )
+    trail_dots(np.zeros((2, 2), dtype=np.uint8), np.zeros((1, 2)), 0.0, 0.0, 1.0)
+    no = np.zeros((1, 1), dtype=np.bool_)
+    claim_counts(np.zeros((1, 1), dtype=np.int8), no, no, no, 25, 65, True)
+    score_region(
+        np.zeros(1, dtype=np.int8),
+        np.zeros((1, 1), dtype=np.int32),
+        np.zeros((1, 1), dtype=np.uint8),
+        no,
+        no,
+        no,
+        0,
+        1,
+        0,
+        1,
+        25,
+        65,
+        np.zeros(3, dtype=np.int64),
     )
     motion_forward(
         np.zeros((3, 3), dtype=np.bool_),

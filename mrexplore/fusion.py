@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from mrexplore.grid import check_int8_map
+from mrexplore.grid import MapChange, check_int8_map
 
 #: Known space (m^2) two maps must share before the every-step merger accepts a match: about a
 #: room, so a match confined to one room (which an identical room elsewhere would explain as
@@ -95,11 +95,15 @@ class FusionStage:
         step: int,
         links: NDArray[np.bool_] | None = None,
         attempt: bool = True,
+        changes: Mapping[str, MapChange] | None = None,
     ) -> None:
         """Feed this step's own-frame maps (one per agent, int8 -1/0/100).
 
         ``links[i, j]`` False means agents i and j cannot exchange maps this step; ``attempt``
         False records the maps without a merge attempt (at ``reset``: single-scan maps).
+        ``changes``: optionally, per agent, what the map's owner knows of its changes (known
+        and changed boxes, :class:`mrexplore.grid.MapChange`), which spares the tracker a scan
+        of every canvas.
         """
         missing = [a for a in self.agents if a not in local_maps]
         if missing:
@@ -109,7 +113,8 @@ class FusionStage:
         self._update_version = self._counter
         if self.tracker is None:
             return
-        self.tracker.update(self._maps, step, links, attempt=attempt)
+        hints = None if changes is None else [changes.get(a) for a in self.agents]
+        self.tracker.update(self._maps, step, links, attempt=attempt, changes=hints)
         for a in self.agents:
             if self._first_merge_step[a] is None and self.tracker.merged(self.index[a]):
                 self._first_merge_step[a] = step
@@ -154,6 +159,15 @@ class FusionStage:
         self._counter += 1
         self._seen[agent] = (key, self._counter)
         return self._counter
+
+    def fused_change(self, agent: str) -> tuple[int, tuple[int, int, int, int] | None] | None:
+        """For a merged ``agent``: ``(composition count, changed box)`` of its fused map (see
+        :meth:`mrexplore.merge.MapMergeTracker.fused_change`; call :meth:`fused` first); None
+        when it is not merged (its fused map is then its own map, which says what changed)."""
+        if self.tracker is None or not self.tracker.merged(self.index[agent]):
+            return None
+        count, box = self.tracker.fused_change(self.index[agent])
+        return int(count), box
 
     def transforms(self, agent: str) -> dict[str, NDArray[np.float64]]:
         """Estimated transforms from each merged teammate's cells into ``agent``'s cells."""

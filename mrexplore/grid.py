@@ -16,7 +16,7 @@ Conventions (see README, "Conventions"):
 
 from __future__ import annotations
 
-from typing import Final
+from typing import Final, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,6 +34,23 @@ FREE_THRESHOLD: Final[int] = 25
 
 Int8Grid = NDArray[np.int8]
 Transform = NDArray[np.float64]
+
+
+class MapChange(NamedTuple):
+    """What the owner of an int8 map already knows about its changes, so that a reader (the
+    merge tracker) need not scan the canvas to find them. Boxes are ``(row0, row1, col0, col1)``,
+    half-open, in the map's cells.
+
+    Attributes:
+        version: grows by one with every update that changed at least one int8 cell.
+        known_box: the box of the cells that are not unknown, None while all are unknown.
+        changed_box: the box of the cells the update that made ``version`` changed (None at
+            version 0).
+    """
+
+    version: int
+    known_box: tuple[int, int, int, int] | None
+    changed_box: tuple[int, int, int, int] | None
 
 
 def validate_grid(grid: object, name: str = "grid") -> Int8Grid:

@@ -31,7 +31,14 @@ from numpy.typing import NDArray
 
 from mrexplore import sensors
 from mrexplore.errors import ConfigError, GridError
-from mrexplore.grid import FREE, FREE_THRESHOLD, OCCUPIED, OCCUPIED_THRESHOLD, UNKNOWN
+from mrexplore.grid import (
+    FREE,
+    FREE_THRESHOLD,
+    OCCUPIED,
+    OCCUPIED_THRESHOLD,
+    UNKNOWN,
+    MapChange,
+)
 from mrexplore.sensors import CORNER_EPS, traverse
 
 #: Beams are traversed in two groups: those shorter than this many cells (most beams indoors)
@@ -115,6 +122,12 @@ class OccupancyMap:
         self._kdeltas = np.array(
             [self.l_free, self.l_occ, self.l_min, self.l_max], dtype=np.float32
         )
+        #: Grows by one with every update that changed at least one int8 cell.
+        self.version = 0
+        # inclusive box of the int8 cells the last update changed (row1 < 0: none), and that of
+        # the update that made ``version``
+        self._changed_arr = np.array([0, -1, 0, -1], dtype=np.int64)
+        self._changed_box: tuple[int, int, int, int] | None = None
 
     # ------------------------------------------------------------------ queries
     def cell_of(self, x_m: float, y_m: float) -> tuple[float, float]:
@@ -149,6 +162,20 @@ class OccupancyMap:
             if self._bbox is None
             else (self._bbox[0], self._bbox[1], self._bbox[2], self._bbox[3])
         )
+
+    def change(self) -> MapChange:
+        """The map's version, known box and last changed box (half-open boxes): what a reader
+        of :meth:`to_int8` needs to follow the map without comparing canvases."""
+        box = self.known_bbox()
+        known = None if box is None else (box[0], box[1] + 1, box[2], box[3] + 1)
+        return MapChange(self.version, known, self._changed_box)
+
+    def _note_change(self) -> None:
+        """Bump :attr:`version` when the last update changed an int8 cell (``_changed_arr``)."""
+        q = self._changed_arr
+        if q[1] >= 0:
+            self.version += 1
+            self._changed_box = (int(q[0]), int(q[1]) + 1, int(q[2]), int(q[3]) + 1)
 
     # ------------------------------------------------------------------ update
     def update(
@@ -204,6 +231,7 @@ class OccupancyMap:
         t_end = np.asarray(rng_m, dtype=np.float64) / res
         if sensors.USE_NUMBA and sensors._kernels is not None:
             self._integrate_numba(ox, oy, np.cos(a), np.sin(a), t_end, hits)
+            self._note_change()
             return
         d = np.stack([np.cos(a), np.sin(a)], axis=1)
         hits = hits.copy()
@@ -255,7 +283,16 @@ class OccupancyMap:
         flat_lo = self.logodds.reshape(-1)
         lo = np.clip(flat_lo[idx] + self._delta[code], self.l_min, self.l_max)
         flat_lo[idx] = lo
-        self._int8.reshape(-1)[idx] = _logodds_to_int8(lo)
+        flat8 = self._int8.reshape(-1)
+        new8 = _logodds_to_int8(lo)
+        moved = idx[flat8[idx] != new8]
+        flat8[idx] = new8
+        if moved.size:
+            mr, mc = moved // w, moved % w
+            self._changed_arr[:] = (mr.min(), mr.max(), mc.min(), mc.max())
+        else:
+            self._changed_arr[:] = (0, -1, 0, -1)
+        self._note_change()
         # Rows by a float multiply (exact for these sizes; int64 division is slower).
         rr = np.floor((idx + 0.5) * (1.0 / w)).astype(np.int64)
         cc = idx - rr * w
@@ -308,6 +345,7 @@ class OccupancyMap:
             _KTHRESHOLDS,
             _KPCT,
             self._bbox_arr,
+            self._changed_arr,
         )
 
     def save(self, path_yaml: str | Path) -> Path:

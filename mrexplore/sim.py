@@ -199,6 +199,7 @@ class Simulation:
         self._team_observed = np.zeros((h, w), dtype=bool)
         self._team_covered = 0
         self._trails: list[_Trail] = []
+        self._world_from_map: list[Transform | None] = [None] * self.n_robots
 
     # ------------------------------------------------------------------ lifecycle
     def reset(self, rng: np.random.Generator, starts: NDArray[np.floating] | None = None) -> None:
@@ -222,6 +223,7 @@ class Simulation:
                 )
             poses[:, 2] = wrap_angle(poses[:, 2])
         self.start_poses = poses.copy()
+        self._world_from_map = [None] * self.n_robots
         self.true_poses = poses.copy()
         self.est_poses = np.zeros_like(poses)
         self.maps = [
@@ -380,9 +382,15 @@ class Simulation:
 
     def world_from_map(self, i: int) -> Transform:
         """3x3 transform from robot ``i``'s map cells to world cells (truth)."""
-        return T_world_from_map(
-            self.start_poses[i], self.maps[i].origin_cell, self.resolution_m, self.world
-        )
+        # Fixed for an episode (start pose and canvas): computed once per reset (the env's
+        # map-accuracy infos ask for it every step).
+        T = self._world_from_map[i]
+        if T is None:
+            T = T_world_from_map(
+                self.start_poses[i], self.maps[i].origin_cell, self.resolution_m, self.world
+            )
+            self._world_from_map[i] = T
+        return T.copy()
 
     def true_transform(self, a: int, b: int) -> Transform:
         """``T_ab``: robot b's map cells -> robot a's map cells (truth)."""

@@ -223,12 +223,146 @@ class MapScorer:
         )
         return bad / n
 
+    def scores(self, in_world: Int8Grid, held: bool = False) -> tuple[float, int | None]:
+        """``(contradiction(in_world), held_free(in_world) if held else None)`` in one compiled
+        pass over the world's cells (the env scores every robot's map every step it changed);
+        the same integers, hence the same figures, as the two methods."""
+        from mrexplore import _kernels
+
+        if held and self.reachable is None:
+            raise GridError("MapScorer.held_free needs the reachable cells (reachable=...)")
+        m = np.ascontiguousarray(in_world)
+        if m.shape != self.shape or m.dtype != np.int8:
+            raise GridError(f"in_world must be int8 {self.shape}, got {m.dtype} {m.shape}")
+        reach = self.reachable if self.reachable is not None else self._near_wall
+        n, bad, n_held = _kernels.claim_counts(
+            m, self.walls, self._near_wall, reach, FREE_THRESHOLD, OCCUPIED_THRESHOLD, held
+        )
+        share = float("nan") if n == 0 else bad / n
+        return share, (int(n_held) if held else None)
+
     def held_free(self, in_world: Int8Grid) -> int:
         """Reachable free cells that a warped map (int8 (H, W)) marks free at their true place."""
         if self.reachable is None:
             raise GridError("MapScorer.held_free needs the reachable cells (reachable=...)")
         free = (in_world >= FREE) & (in_world <= FREE_THRESHOLD)
         return int(np.count_nonzero(free & self.reachable))
+
+
+def nearest_sampling(
+    T_world_from_map: Transform, map_shape: tuple[int, int], world_shape: tuple[int, int]
+) -> NDArray[np.int32] | None:
+    """For every world cell, the flat index of the map cell :func:`map_in_world` copies into it
+    (int32 ``world_shape``; -1 where it copies the unknown border), or None if that could not
+    be established exactly.
+
+    The index image is warped as four uint8 channels with the same nearest-neighbour warp; the
+    three index bytes are then checked against single-channel warps of each byte plane, which
+    sample exactly as :func:`map_in_world` does: a mismatch (an OpenCV whose multi-channel path
+    rounds differently) gives None, and the caller warps the map itself."""
+    h, w = int(map_shape[0]), int(map_shape[1])
+    if h * w >= 1 << 24:
+        return None  # three index bytes
+    M = np.asarray(T_world_from_map, dtype=np.float64)[:2]
+    size = (int(world_shape[1]), int(world_shape[0]))
+    idx = np.arange(h * w, dtype=np.int32).reshape(h, w)
+    planes = idx.view(np.uint8).reshape(h, w, 4)  # little-endian bytes; byte 3 is 0
+    warped = cv2.warpAffine(
+        planes,
+        M,
+        size,
+        flags=cv2.INTER_NEAREST,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=(255, 255, 255, 255),
+    )
+    out = np.ascontiguousarray(warped).view(np.int32).reshape(world_shape)
+    for b in range(3):
+        one = cv2.warpAffine(
+            np.ascontiguousarray(planes[:, :, b]),
+            M,
+            size,
+            flags=cv2.INTER_NEAREST,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=255,
+        )
+        if not np.array_equal(one, warped[:, :, b]):
+            return None
+    return np.asarray(out, dtype=np.int32)
+
+
+class IncrementalScore:
+    """:meth:`MapScorer.scores` of one robot's map kept up to date from the boxes that changed.
+
+    Built once per episode for a robot whose map-to-world transform is fixed: each world cell's
+    source cell (:func:`nearest_sampling`) is known, so a change of the map inside a box only
+    re-scores the world cells that sample from it. The figures equal a full warp and count.
+
+    Args:
+        scorer: the episode's :class:`MapScorer` (with ``reachable`` for the held cells).
+        T_world_from_map: the robot's map cells -> world cells.
+        sample: :func:`nearest_sampling` of that transform.
+    """
+
+    def __init__(
+        self, scorer: MapScorer, T_world_from_map: Transform, sample: NDArray[np.int32]
+    ) -> None:
+        self.scorer = scorer
+        self.T = np.asarray(T_world_from_map, dtype=np.float64)
+        # its entries as Python floats: the box of every step is mapped in plain Python
+        self._t = tuple(float(v) for v in self.T[:2].reshape(-1))
+        self.sample = sample
+        self.cls = np.zeros(scorer.shape, dtype=np.uint8)
+        self.counts = np.zeros(3, dtype=np.int64)
+        self._reach = scorer.reachable if scorer.reachable is not None else scorer._near_wall
+
+    def update(
+        self, map_grid: Int8Grid, box: tuple[int, int, int, int] | None
+    ) -> tuple[float, int]:
+        """Re-score after ``map_grid`` changed inside ``box`` (map cells, half-open
+        ``(r0, r1, c0, c1)``; None = anywhere). Returns ``(contradiction share or NaN, reachable
+        free claims)``, as :meth:`MapScorer.scores`."""
+        from mrexplore import _kernels
+
+        src = np.ascontiguousarray(map_grid).reshape(-1)
+        H, W = self.scorer.shape
+        if box is None:
+            region: tuple[int, int, int, int] | None = (0, H, 0, W)
+        elif box[1] <= box[0] or box[3] <= box[2]:
+            region = None  # nothing changed
+        else:
+            region = self._world_box(box)
+        if region is not None:
+            r0, r1, c0, c1 = region
+            _kernels.score_region(
+                src,
+                self.sample,
+                self.cls,
+                self.scorer.walls,
+                self.scorer._near_wall,
+                self._reach,
+                r0,
+                r1,
+                c0,
+                c1,
+                FREE_THRESHOLD,
+                OCCUPIED_THRESHOLD,
+                self.counts,
+            )
+        n, bad, held = (int(v) for v in self.counts)
+        return (float("nan") if n == 0 else bad / n), held
+
+    def _world_box(self, box: tuple[int, int, int, int]) -> tuple[int, int, int, int] | None:
+        """World cells that may sample from map ``box``: the image of its cell centres with two
+        cells of slack (nearest sampling moves a cell by at most ~0.71), clipped."""
+        r0, r1, c0, c1 = box
+        a, b, tx, c, d, ty = self._t
+        corners = ((c0, r0), (c1 - 1, r0), (c0, r1 - 1), (c1 - 1, r1 - 1))
+        xs = [a * x + b * y + tx for x, y in corners]
+        ys = [c * x + d * y + ty for x, y in corners]
+        H, W = self.scorer.shape
+        wr0, wr1 = max(0, math.floor(min(ys)) - 2), min(H, math.ceil(max(ys)) + 3)
+        wc0, wc1 = max(0, math.floor(min(xs)) - 2), min(W, math.ceil(max(xs)) + 3)
+        return (wr0, wr1, wc0, wc1) if wr1 > wr0 and wc1 > wc0 else None
 
 
 def map_contradiction(

@@ -248,3 +248,41 @@ def test_simulation_rollout_equals_numpy(numpy_path: None) -> None:
         assert np.array_equal(ma.logodds, mb.logodds)
         assert np.array_equal(ma.to_int8(), mb.to_int8())
         assert ma.known_bbox() == mb.known_bbox()
+
+
+@pytest.mark.parametrize("use_numba", [True, False])
+def test_map_change_matches_a_canvas_comparison(numpy_path: None, use_numba: bool) -> None:
+    """``OccupancyMap.change()`` (kept by the update, no canvas scan) equals what comparing the
+    int8 canvas before and after each scan finds: the known box, the changed box, and a
+    version that grows exactly when a cell changed."""
+    from mrexplore.merge.common import known_bbox
+
+    set_path(use_numba)
+    cfg = SimConfig(
+        lidar=LidarConfig(n_beams=90, max_range_m=3.0, noise_std_m=0.02),
+        aligned_headings=False,
+    )
+    sim = Simulation(office(), 2, cfg)
+    rng = np.random.default_rng(5)
+    sim.reset(rng)
+    act_rng = np.random.default_rng(6)
+    before = [m.to_int8().copy() for m in sim.maps]
+    versions = [m.version for m in sim.maps]
+    for _ in range(80):
+        # a third of the steps stand still: rescans that may change nothing
+        act = np.where(act_rng.random(2) < 0.4, Action.FORWARD, act_rng.integers(1, 4, 2))
+        sim.step(act, rng)
+        for i, m in enumerate(sim.maps):
+            now = m.to_int8()
+            ch = m.change()
+            assert ch.known_box == known_bbox(now)
+            diff = now != before[i]
+            if diff.any():
+                rows, cols = np.nonzero(diff)
+                box = (rows.min(), rows.max() + 1, cols.min(), cols.max() + 1)
+                assert ch.version == versions[i] + 1
+                assert ch.changed_box == tuple(int(v) for v in box)
+            else:
+                assert ch.version == versions[i]
+            versions[i] = ch.version
+            before[i] = now.copy()

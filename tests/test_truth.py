@@ -173,3 +173,18 @@ def test_a_correct_map_agrees_and_a_misplaced_one_contradicts() -> None:
     bad = map_contradiction(m, make_transform(0.0, 12.0, 7.0) @ T, world.walls)
     assert good < 0.02
     assert bad > 0.1
+
+
+def test_scores_in_one_pass_equal_the_two_methods() -> None:
+    rng = np.random.default_rng(4)
+    walls = rng.random((60, 50)) < 0.2
+    reach = rng.random((60, 50)) < 0.6
+    scorer = MapScorer(walls, reach)
+    for p_known in (0.0, 0.3, 1.0):
+        m = rng.choice(np.array([-1, 0, 10, 25, 26, 50, 64, 65, 100], dtype=np.int8), (60, 50))
+        m[rng.random(m.shape) >= p_known] = -1
+        share, held = scorer.scores(m, held=True)
+        ref = scorer.contradiction(m)
+        assert share == ref or (np.isnan(share) and np.isnan(ref))
+        assert held == scorer.held_free(m)
+        assert scorer.scores(m)[1] is None

@@ -42,6 +42,11 @@ from numpy.typing import NDArray
 from mrexplore.environment.view import RobotView
 from mrexplore.grid import FREE, FREE_THRESHOLD, OCCUPIED_THRESHOLD, UNKNOWN
 
+try:  # numba is a core dependency; without it every view is drawn by the OpenCV path below
+    from mrexplore import _kernels
+except ImportError:  # pragma: no cover - only without numba
+    _kernels = None  # type: ignore[assignment]
+
 N_CHANNELS = 8
 
 
@@ -84,6 +89,47 @@ def _shares(window: NDArray[np.int8], size: int) -> tuple[NDArray[np.uint8], NDA
     return free_px.astype(np.uint8, copy=False), occ_px.astype(np.uint8, copy=False)
 
 
+def _class_code() -> NDArray[np.int32]:
+    """Per int8 value ``v`` (at index ``v + 128``): 1 when free, ``1 << SHARE_BITS`` when
+    occupied, else 0 (the classes of :func:`_shares`)."""
+    v = np.arange(-128, 128)
+    free = (v >= FREE) & (v <= FREE_THRESHOLD)
+    occ = v >= OCCUPIED_THRESHOLD
+    bits = _kernels.SHARE_BITS if _kernels is not None else 5
+    return (free.astype(np.int32) + (occ.astype(np.int32) << bits)).astype(np.int32)
+
+
+_CLASS_CODE = _class_code()
+_CLASS_BOUNDS = np.array([FREE, FREE_THRESHOLD, OCCUPIED_THRESHOLD], dtype=np.int8)
+
+
+def _area_lut(factor: int, size: int) -> NDArray[np.uint8] | None:
+    """What OpenCV's INTER_AREA resize of a 0/255 mask by an integer ``factor`` (to ``size`` x
+    ``size`` pixels, the size it is used at) gives a pixel whose block holds k set cells, for
+    k = 0 .. factor**2; None when the value depends on more than the count (then the caller keeps
+    OpenCV). Measured, not assumed: a block of k set cells is drawn at two different places in
+    the block and both must agree."""
+    n = factor * factor
+    counts = np.arange(size * size) % (n + 1)
+    lut = np.zeros(n + 1, dtype=np.uint8)
+    seen = np.zeros(n + 1, dtype=bool)
+    for flip in (False, True):
+        order = np.arange(n)[::-1] if flip else np.arange(n)
+        blocks = (order[None, :] < counts[:, None]).astype(np.uint8) * 255  # (size*size, n)
+        img = (
+            blocks.reshape(size, size, factor, factor)
+            .transpose(0, 2, 1, 3)
+            .reshape(size * factor, size * factor)
+        )
+        out = cv2.resize(img, (size, size), interpolation=cv2.INTER_AREA).reshape(-1)
+        for k in range(n + 1):
+            vals = np.unique(out[counts == k])
+            if vals.size != 1 or (seen[k] and lut[k] != vals[0]):
+                return None
+            lut[k], seen[k] = vals[0], True
+    return lut
+
+
 class ObservationBuilder:
     """Builds the ``(8, S, S)`` uint8 observation of one robot from its :class:`RobotView`.
 
@@ -107,6 +153,12 @@ class ObservationBuilder:
         self.local_cells = max(2, round(local_view_m / resolution_m))
         self.heading_up = bool(heading_up)
         self.shape = (N_CHANNELS, self.size, self.size)
+        # (factor, size) -> the INTER_AREA lut of that resize, None where OpenCV is kept
+        self._luts: dict[tuple[int, int], NDArray[np.uint8] | None] = {}
+        # heading-up scratch: the shares of the wider window, before they are turned
+        big = 3 * self.size // 2
+        self._big = (np.zeros((big, big), np.uint8), np.zeros((big, big), np.uint8))
+        self._acc = np.zeros(big, dtype=np.int32)
 
     def build(self, view: RobotView, trail_cells: NDArray[np.float64]) -> NDArray[np.uint8]:
         """Observation of one robot. ``trail_cells`` (T, 2): the robot's past (col, row) cells."""
@@ -117,14 +169,19 @@ class ObservationBuilder:
         # every observation), which spares a policy with turn/forward actions from learning to
         # rotate its input; otherwise the views keep the axes of the robot's own map frame.
         phi = math.pi / 2 - theta if self.heading_up else 0.0
-        obs[0], obs[1] = self._shares_view(view.map, (col, row), self.global_cells, phi)
+        self._shares_view(view.map, (col, row), self.global_cells, phi, obs[0], obs[1])
         scale_g = s / self.global_cells
-        self._dots(obs[2], trail_cells, (col, row), scale_g, phi, radius=0)
+        if phi == 0.0 and _kernels is not None and len(trail_cells):
+            # one compiled pass over the trail instead of ~10 numpy calls on it
+            cells = np.ascontiguousarray(trail_cells, dtype=np.float64)
+            _kernels.trail_dots(obs[2], cells, float(col), float(row), scale_g)
+        else:
+            self._dots(obs[2], trail_cells, (col, row), scale_g, phi, radius=0)
         if view.teammates:
             mates = np.array(list(view.teammates.values()), dtype=np.float64)
             self._dots(obs[3], mates, (col, row), scale_g, phi, radius=2)
 
-        obs[4], obs[5] = self._shares_view(view.map, (col, row), self.local_cells, phi)
+        self._shares_view(view.map, (col, row), self.local_cells, phi, obs[4], obs[5])
         scale_l = s / self.local_cells
         centre = (s // 2, s // 2)
         radius_px = max(1, round(view.robot_radius_m / view.resolution_m * scale_l))
@@ -139,26 +196,77 @@ class ObservationBuilder:
         return obs
 
     def _shares_view(
-        self, grid: NDArray[np.int8], centre: tuple[float, float], side: int, phi: float
-    ) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
-        """Free/occupied shares of a ``side``-cell view centred on ``centre``, turned by ``phi``."""
+        self,
+        grid: NDArray[np.int8],
+        centre: tuple[float, float],
+        side: int,
+        phi: float,
+        out_free: NDArray[np.uint8],
+        out_occ: NDArray[np.uint8],
+    ) -> None:
+        """Free/occupied shares of a ``side``-cell view centred on ``centre``, turned by ``phi``,
+        written into ``out_free`` / ``out_occ`` (S, S)."""
         s = self.size
         if phi == 0.0:
-            return _shares(_window(grid, centre, side), s)
+            self._shares_into(grid, centre, side, out_free, out_occ)
+            return
         # A window 1.5x as wide (its inscribed circle covers the turned square), resampled to
         # 1.5x the pixels, turned about its centre, and cropped back to s x s.
         big_side, big_px = 3 * side // 2, 3 * s // 2
-        free, occ = _shares(_window(grid, centre, big_side), big_px)
+        free, occ = self._big
+        self._shares_into(grid, centre, big_side, free, occ)
         c = (big_px - 1) / 2.0
         cs, sn = math.cos(phi), math.sin(phi)
         off = (big_px - s) // 2
         # dst = R (src - c) + c - off: turn about the centre, then shift the crop to the origin
         M = np.array([[cs, -sn, c - cs * c + sn * c - off], [sn, cs, c - sn * c - cs * c - off]])
-        out = tuple(
-            cv2.warpAffine(im, M, (s, s), flags=cv2.INTER_LINEAR, borderValue=0).astype(np.uint8)
-            for im in (free, occ)
+        for im, out in ((free, out_free), (occ, out_occ)):
+            out[:] = cv2.warpAffine(im, M, (s, s), flags=cv2.INTER_LINEAR, borderValue=0)
+
+    def _shares_into(
+        self,
+        grid: NDArray[np.int8],
+        centre: tuple[float, float],
+        side: int,
+        out_free: NDArray[np.uint8],
+        out_occ: NDArray[np.uint8],
+    ) -> None:
+        """:func:`_shares` of :func:`_window` into ``out_free`` / ``out_occ`` (n, n): by one
+        compiled pass over the window when the resize is an integer INTER_AREA factor whose
+        OpenCV values the lut reproduces (the defaults: 4 for the coarse view, 2 for the fine
+        one), else by the OpenCV path. The same values either way (tested)."""
+        size = out_free.shape[0]
+        stride = 2 if side >= 4 * size else 1  # as _shares: every second cell of a big window
+        cells = -(-side // stride)
+        factor = cells // size
+        lut = None
+        if (
+            _kernels is not None
+            and factor >= 1
+            and factor * factor < 1 << _kernels.SHARE_BITS
+            and factor * size == cells
+        ):
+            key = (factor, size)
+            if key not in self._luts:
+                self._luts[key] = _area_lut(factor, size)
+            lut = self._luts[key]
+        if lut is None:
+            out_free[:], out_occ[:] = _shares(_window(grid, centre, side), size)
+            return
+        half = side // 2
+        _kernels.view_shares(
+            grid,
+            round(centre[1]) - half,
+            round(centre[0]) - half,
+            stride,
+            factor,
+            lut,
+            _CLASS_CODE,
+            _CLASS_BOUNDS,
+            self._acc,
+            out_free,
+            out_occ,
         )
-        return out[0], out[1]
 
     def _dots(
         self,

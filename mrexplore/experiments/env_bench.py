@@ -1,10 +1,23 @@
-"""``mrexplore bench env``: environment steps per second, with a breakdown by stage.
+"""``mrexplore bench env``: environment steps per second, per team size, with latencies.
 
-Runs the PettingZoo env with random actions (seeded) and times each stage of a step by
-wrapping the env's named step parts on the instance (the env itself carries no timing code):
-``act`` (move + lidar cast + own-map update, in the simulator), ``merge`` (fusion stage: merge
-attempts and fused-map composition), ``observe`` (observation images), and the rest (reward,
-termination, infos, Python overhead).
+Steps the PettingZoo env with seeded random actions and measures the **CPU time of the stepping
+thread** (``time.thread_time``), so the figures hold on a machine shared with other work (wall
+time would count the other processes' turns). Per setting it prints env steps/s, robot-steps/s
+(steps/s x robots), and the p50 / p99 / max CPU time of one ``step()`` (merge attempts
+included: they run inside a step). Episodes that end are reset (not timed).
+
+The last column, steps per second of the whole process's CPU time, also counts the worker
+threads OpenCV spreads some calls over (the stepping thread's time does not).
+
+Settings: ``symmetric_office`` (0.05 m/cell, 360 beams, 4 m, merging on) for ``--robots``
+(default 1, 2, 4, 8), and two robots on the Explore-Bench-sized world (250 x 250 cells,
+0.1 m/cell, 3 m). ``--breakdown`` also times the stages of the default 2-robot step by wrapping
+the env's named step parts on the instance (``act``: move + lidar + own maps; ``merge``: fusion
+stage; ``observe``: observation images; ``other``: reward, termination, infos).
+
+:func:`measure` uses only the public API (``parallel_env``, ``reset``, ``step``), so the same
+harness times an older checkout: ``scripts/bench_env_vs.py`` runs it on two trees in turn and
+prints the ratios measured side by side.
 """
 
 from __future__ import annotations
@@ -22,69 +35,119 @@ import mrexplore
 from mrexplore.errors import ConfigError
 from mrexplore.io_safety import check_outputs, write_text
 
+#: The settings of the printed table: (label, env options without n_robots).
+DEFAULT_WORLD: dict[str, Any] = {"world": "symmetric_office"}
+EXPLORE_BENCH_WORLD: dict[str, Any] = {"world": "symmetric_office_coarse", "max_range_m": 3.0}
+
 
 def _timed(fn: Callable[..., Any], acc: dict[str, float], key: str) -> Callable[..., Any]:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
-        t0 = time.perf_counter()
+        t0 = time.thread_time()
         try:
             return fn(*args, **kwargs)
         finally:
-            acc[key] += time.perf_counter() - t0
+            acc[key] += time.thread_time() - t0
 
     return wrapper
 
 
-def bench_env(steps: int = 2000, seed: int = 0, **options: Any) -> dict[str, Any]:
-    """Step the env ``steps`` times with random actions; returns figures (seconds, steps/s)."""
+def measure(
+    steps: int = 2000,
+    seed: int = 0,
+    warmup: int = 20,
+    breakdown: bool = False,
+    **options: Any,
+) -> dict[str, Any]:
+    """Step ``parallel_env(**options)`` ``steps`` times with random actions (after ``warmup``
+    untimed steps, which also compile the kernels); returns CPU-time figures.
+
+    Returns a dict: ``steps``, ``episodes``, ``cpu_s`` (stepping thread), ``steps_per_s``,
+    ``robot_steps_per_s``, ``p50_ms`` / ``p99_ms`` / ``max_ms`` (CPU time of one ``step()``),
+    and with ``breakdown`` ``ms_per_step`` by stage.
+    """
     penv = mrexplore.parallel_env(**options)
     acc: dict[str, float] = defaultdict(float)
-    for name in ("_act", "_merge", "_observe"):
-        setattr(penv, name, _timed(getattr(penv, name), acc, name.strip("_")))
+    if breakdown:
+        for name in ("_act", "_merge", "_observe"):
+            setattr(penv, name, _timed(getattr(penv, name), acc, name.strip("_")))
     rng = np.random.default_rng(seed)
     penv.reset(seed=seed)
-    n_act = penv.action_space(penv.possible_agents[0]).n
-    done_steps = 0
+    n_act = int(penv.action_space(penv.possible_agents[0]).n)
+    n_robots = len(penv.possible_agents)
     episodes = 1
-    t0 = time.perf_counter()
-    for _ in range(steps):
+    lat = np.zeros(steps, dtype=np.float64)
+    proc = 0.0
+    for k in range(-warmup, steps):
         if not penv.agents:
             penv.reset()
             episodes += 1
         actions = {a: int(rng.integers(n_act)) for a in penv.agents}
+        if k == 0:
+            acc.clear()
+        p0 = time.process_time()
+        t0 = time.thread_time()
         penv.step(actions)
-        done_steps += 1
-    total = time.perf_counter() - t0
-    parts = {k: acc[k] for k in ("act", "merge", "observe")}
-    parts["other"] = total - sum(parts.values())
-    return {
-        "options": {k: v for k, v in options.items()},
-        "steps": done_steps,
+        if k >= 0:
+            lat[k] = time.thread_time() - t0
+            proc += time.process_time() - p0
+    total = float(lat.sum())
+    out: dict[str, Any] = {
+        "options": dict(options),
+        "n_robots": n_robots,
+        "steps": steps,
         "episodes": episodes,
-        "seconds": total,
-        "steps_per_s": done_steps / total,
-        "robot_updates_per_s": done_steps * penv.config.n_robots / total,
-        "ms_per_step": {k: 1000.0 * v / done_steps for k, v in parts.items()},
-        "merged_at_end": bool(penv.fusion.merged(penv.possible_agents[0])) if penv.agents else None,
+        "cpu_s": total,
+        "steps_per_s": steps / total,
+        "robot_steps_per_s": steps * n_robots / total,
+        # all threads of the process (OpenCV spreads some calls over worker threads)
+        "process_cpu_s": proc,
+        "steps_per_process_cpu_s": steps / proc,
+        "p50_ms": 1000.0 * float(np.percentile(lat, 50)),
+        "p99_ms": 1000.0 * float(np.percentile(lat, 99)),
+        "max_ms": 1000.0 * float(lat.max()),
     }
+    if breakdown:
+        parts = {k: acc[k] for k in ("act", "merge", "observe")}
+        parts["other"] = total - sum(parts.values())
+        out["ms_per_step"] = {k: 1000.0 * v / steps for k, v in parts.items()}
+    return out
 
 
-def _print(title: str, r: dict[str, Any]) -> None:
-    ms = r["ms_per_step"]
-    print(
-        f"{title}: {r['steps_per_s']:.0f} env steps/s "
-        f"({r['robot_updates_per_s']:.0f} robot updates/s) over "
-        f"{r['steps']} steps, {r['episodes']} episode(s)\n"
-        f"   per step: act (move+sense+map) {ms['act']:.3f} ms | merge {ms['merge']:.3f} ms | "
-        f"observe {ms['observe']:.3f} ms | other {ms['other']:.3f} ms"
+def row(label: str, r: dict[str, Any]) -> str:
+    """One printed line of a result of :func:`measure`."""
+    return (
+        f"{label:<44} {r['steps_per_s']:>8.0f} {r['robot_steps_per_s']:>9.0f} "
+        f"{r['p50_ms']:>7.2f} {r['p99_ms']:>7.2f} {r['max_ms']:>7.1f} "
+        f"{r['steps_per_process_cpu_s']:>10.0f}"
     )
 
 
+HEADER = (
+    f"{'setting (CPU time of the stepping thread)':<44} {'steps/s':>8} {'robot-st/s':>9} "
+    f"{'p50 ms':>7} {'p99 ms':>7} {'max ms':>7} {'st/proc-s':>10}"
+)
+
+
+def settings(robots: Sequence[int], merger: Any) -> list[tuple[str, dict[str, Any]]]:
+    """The (label, options) pairs of the table."""
+    out = [
+        (f"symmetric_office, {n} robot{'s' if n > 1 else ''}", {**DEFAULT_WORLD, "n_robots": n})
+        for n in robots
+    ]
+    out.append(("Explore-Bench-sized (0.1 m, 3 m), 2 robots", {**EXPLORE_BENCH_WORLD}))
+    for _, opts in out:
+        opts["merger"] = merger
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Print env steps/s on the default world and on the Explore-Bench-like 0.1 m/cell world."""
+    """Print env steps/s, robot-steps/s and step latencies per team size (see the module doc)."""
     p = argparse.ArgumentParser(prog="mrexplore bench env", description=__doc__)
-    p.add_argument("--steps", type=int, default=2000, help="steps per world (at least 1)")
+    p.add_argument("--steps", type=int, default=2000, help="timed steps per setting (>= 1)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--merger", default="semantic")
+    p.add_argument("--robots", default="1,2,4,8", help="team sizes, comma-separated")
+    p.add_argument("--merger", default="semantic", help='a merge method, or "none"')
+    p.add_argument("--breakdown", action="store_true", help="also time the stages (2 robots)")
     p.add_argument("--json", default=None, help="also write the figures to this JSON file")
     p.add_argument("--force", action="store_true", help="replace an existing --json file")
     args = p.parse_args(argv)
@@ -92,34 +155,34 @@ def main(argv: Sequence[str] | None = None) -> int:
         raise ConfigError(f"bench env: --steps must be at least 1, got {args.steps}")
     if args.seed < 0:
         raise ConfigError(f"bench env: --seed must be an integer >= 0, got {args.seed}")
+    try:
+        robots = [int(v) for v in args.robots.split(",") if v.strip()]
+    except ValueError:
+        raise ConfigError(f"bench env: --robots must be integers, got {args.robots!r}") from None
+    if not robots or min(robots) < 1:
+        raise ConfigError(f"bench env: --robots must be integers >= 1, got {args.robots!r}")
     if args.json:
         check_outputs([args.json], force=args.force, what="mrexplore bench env")
-    results = {}
-    results["default"] = bench_env(
-        args.steps, args.seed, world="symmetric_office", n_robots=2, merger=args.merger
-    )
-    _print(
-        "2 robots, symmetric_office (0.05 m/cell), 360 beams, 4 m, merging on", results["default"]
-    )
-    results["explore_bench_like"] = bench_env(
-        args.steps,
-        args.seed,
-        world="symmetric_office_coarse",
-        n_robots=2,
-        max_range_m=3.0,
-        merger=args.merger,
-    )
-    _print(
-        "2 robots, symmetric_office_coarse (250x250 cells, 0.1 m/cell, 3 m range; "
-        "Explore-Bench's settings)",
-        results["explore_bench_like"],
-    )
-    ref = 10.0
+    merger = None if args.merger.lower() == "none" else args.merger
     print(
-        f"   vs Explore-Bench's grid env measured at about {ref:.0f} steps/s on this kind of "
-        "machine: "
-        f"x{results['explore_bench_like']['steps_per_s'] / ref:.0f}"
+        f"mrexplore bench env: {args.steps} random-action steps per setting, seed {args.seed}, "
+        f"merger {merger}; figures are CPU time of the stepping thread"
     )
+    print(HEADER)
+    results: dict[str, Any] = {}
+    for label, opts in settings(robots, merger):
+        r = measure(args.steps, args.seed, **opts)
+        results[label] = r
+        print(row(label, r), flush=True)
+    if args.breakdown:
+        r = measure(args.steps, args.seed, breakdown=True, **{**DEFAULT_WORLD, "merger": merger})
+        ms = r["ms_per_step"]
+        print(
+            "stages, symmetric_office, 2 robots (ms per step): "
+            f"act (move+sense+map) {ms['act']:.3f} | merge {ms['merge']:.3f} | "
+            f"observe {ms['observe']:.3f} | other (reward, infos) {ms['other']:.3f}"
+        )
+        results["breakdown"] = r
     if args.json:
         write_text(args.json, json.dumps(results, indent=2))
     return 0

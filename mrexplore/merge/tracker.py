@@ -36,13 +36,21 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError, GridError
-from mrexplore.grid import UNKNOWN, Int8Grid, Transform, check_int8_map, invert_transform
+from mrexplore.grid import (
+    UNKNOWN,
+    Int8Grid,
+    MapChange,
+    Transform,
+    check_int8_map,
+    invert_transform,
+)
 from mrexplore.merge.api import METHODS, merge_maps
-from mrexplore.merge.common import MergeResult, Verifier, known_bbox, translation, warp_into
+from mrexplore.merge.common import MergeResult, Verifier, known_bbox, translation
 
 Merger = Callable[[Int8Grid, Int8Grid], MergeResult]
 
@@ -95,6 +103,10 @@ def _clip(box: Box, shape: tuple[int, int]) -> Box | None:
     return (r0, r1, c0, c1) if r1 > r0 and c1 > c0 else None
 
 
+def _union(a: Box, b: Box) -> Box:
+    return (min(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), max(a[3], b[3]))
+
+
 def _map_box(T: Transform, box: Box) -> Box:
     """Cells (r0, r1, c0, c1) covering the image of ``box`` under T, one cell of slack.
 
@@ -112,6 +124,29 @@ def _map_box(T: Transform, box: Box) -> Box:
         math.floor(min(xs)) - 1,
         math.ceil(max(xs)) + 2,
     )
+
+
+def _warp_nn(
+    src: Int8Grid,
+    T_dst_src: Transform,
+    dst_shape: tuple[int, int],
+    dst_origin: tuple[int, int],
+) -> Int8Grid:
+    """:func:`mrexplore.merge.common.warp_into` without its two int16 round trips: a
+    nearest-neighbour warp only copies values, so the int8 map is warped as its uint8 view with
+    unknown (-1, 255 as uint8) as the border: the same cells, bit for bit (tested)."""
+    M = np.asarray(T_dst_src, dtype=np.float64)[:2].copy()
+    M[0, 2] -= dst_origin[0]
+    M[1, 2] -= dst_origin[1]
+    out = cv2.warpAffine(
+        np.ascontiguousarray(src).view(np.uint8),
+        M,
+        (int(dst_shape[1]), int(dst_shape[0])),
+        flags=cv2.INTER_NEAREST,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=255,
+    )
+    return np.asarray(out).view(np.int8)
 
 
 class NamedMerger:
@@ -310,8 +345,14 @@ class MapMergeTracker:
         # per robot: the fusion buffer and the versions it reflects (own, {j: patch version})
         self._fbuf: list[Int8Grid | None] = [None] * self.n
         self._fbuf_ver: list[tuple[int, dict[int, int]] | None] = [None] * self.n
+        # per robot: compositions of the fused map so far, and the box the last one rewrote
+        # (None: all of it), for readers that follow the fused map incrementally
+        self._fcount = [0] * self.n
+        self._fchanged: list[Box | None] = [None] * self.n
         self._paths: dict[tuple[int, int], Transform | None] | None = None
         self._links: NDArray[np.bool_] | None = None
+        # per robot: the MapChange.version last observed (None: observed without one)
+        self._seen_version: list[int | None] = [None] * self.n
 
     # ------------------------------------------------------------------ step
     def update(
@@ -320,6 +361,7 @@ class MapMergeTracker:
         step: int,
         links: NDArray[np.bool_] | None = None,
         attempt: bool = True,
+        changes: Sequence[MapChange | None] | None = None,
     ) -> None:
         """Take the robots' current maps (own frames) at time step ``step``.
 
@@ -330,6 +372,11 @@ class MapMergeTracker:
                 (no merge attempt, no map exchange); None = all linked.
             attempt: False = record the maps only, no merge attempt or re-check this call
                 (an env's ``reset``: single-scan maps cannot be merged, and trying costs time).
+            changes: optionally, per map, what its owner knows of its changes
+                (:class:`mrexplore.grid.MapChange`, e.g.
+                :meth:`mrexplore.mapping.OccupancyMap.change`): then the tracker takes the known
+                and changed boxes from it instead of scanning the canvas. It must describe the
+                array passed in ``maps``.
         """
         if len(maps) != self.n:
             raise GridError(f"MapMergeTracker.update: expected {self.n} maps, got {len(maps)}")
@@ -341,10 +388,19 @@ class MapMergeTracker:
                     f"got shape {links.shape}"
                 )
         self._links = links
+        if changes is not None and len(changes) != self.n:
+            raise GridError(
+                f"MapMergeTracker.update: expected {self.n} changes, got {len(changes)}"
+            )
         for i, m in enumerate(maps):
             # Cheap checks only: a full value-range scan of a 1500 x 1500 canvas every step
             # would cost more than everything else here; merge_maps validates fully.
-            self._observe(i, check_int8_map(m, f"MapMergeTracker.update: map {i}"))
+            m = check_int8_map(m, f"MapMergeTracker.update: map {i}")
+            change = None if changes is None else changes[i]
+            if change is None:
+                self._observe(i, m)
+            else:
+                self._observe_change(i, m, change)
         self._apply_due(step)
         if not attempt:
             return
@@ -355,12 +411,31 @@ class MapMergeTracker:
         if self.merge_latency_steps and self._queue:
             self._start(*self._queue.pop(0), step)  # at most one per step
 
+    def _observe_change(self, i: int, m: Int8Grid, change: MapChange) -> None:
+        """:meth:`_observe` from the owner's :class:`MapChange`: no canvas scan, no snapshot.
+
+        Consecutive owner versions give the changed box; anything else (the first map, a skipped
+        version, a new canvas) is taken as "everything changed", as :meth:`_observe` does.
+        """
+        prev, seen = self._maps[i], self._seen_version[i]
+        self._maps[i] = m
+        same_canvas = prev is not None and prev.shape == m.shape and seen is not None
+        if same_canvas and change.version == seen:
+            return  # nothing changed
+        consecutive = same_canvas and seen is not None and change.version == seen + 1
+        self._seen_version[i] = change.version
+        self._bbox[i] = change.known_box
+        self._snap[i] = None  # only the scanning path needs it
+        self._delta[i] = change.changed_box if consecutive else None
+        self._version[i] += 1
+
     def _observe(self, i: int, m: Int8Grid) -> None:
         """Record robot i's map; bump its version and note the changed box when it changed.
 
         Cost: the known box (two SIMD max-reductions) and one comparison of the known box with
         the previous snapshot, which also yields the (usually small) box of changed cells.
         """
+        self._seen_version[i] = None
         bb = known_bbox(m)
         prev, old_bb, snap = self._maps[i], self._bbox[i], self._snap[i]
         self._maps[i] = m
@@ -641,8 +716,8 @@ class MapMergeTracker:
 
         Composed incrementally: only the boxes that changed since the last call (in i's map or
         in a teammate's warped patch) are recomputed in an internal buffer; the result is a
-        fresh read-only copy of that buffer, cached (the same array is returned) until a map or
-        transform changes. Copy it before writing.
+        read-only view of that buffer, the same object until a map or transform changes. Like
+        an own map's ``to_int8()`` it reflects the next composition: copy it to keep it.
         """
         own = self._maps[i]
         if own is None:
@@ -671,6 +746,7 @@ class MapMergeTracker:
                     regions = None
                 else:
                     regions.append(p.changed)
+        changed: Box | None = None
         if regions is None:  # rebuild the buffer
             buf = own.copy()
             for p in patches.values():
@@ -684,6 +760,7 @@ class MapMergeTracker:
                 if cl is None:
                     continue
                 r0, r1, c0, c1 = cl
+                changed = cl if changed is None else _union(changed, cl)
                 buf[r0:r1, c0:c1] = own[r0:r1, c0:c1]
                 for p in patches.values():
                     h, w = p.data.shape
@@ -695,20 +772,21 @@ class MapMergeTracker:
                     np.maximum(win, p.data[a0:a1, b0:b1], out=win)
         self._fbuf[i] = buf
         self._fbuf_ver[i] = (self._version[i], {j: p.version for j, p in patches.items()})
-        # A fresh array: unknown everywhere (a memset) except the box that can hold knowledge,
-        # copied from the buffer: cheaper than copying the whole canvas.
-        out = np.full(buf.shape, UNKNOWN, dtype=np.int8)
-        boxes = [self._bbox[i]] + [
-            (p.r0, p.r0 + p.data.shape[0], p.c0, p.c0 + p.data.shape[1]) for p in patches.values()
-        ]
-        live = [bx for bx in boxes if bx is not None]
-        if live:
-            r0, r1 = min(bx[0] for bx in live), max(bx[1] for bx in live)
-            c0, c1 = min(bx[2] for bx in live), max(bx[3] for bx in live)
-            out[r0:r1, c0:c1] = buf[r0:r1, c0:c1]
+        self._fcount[i] += 1
+        self._fchanged[i] = None if regions is None else (changed or (0, 0, 0, 0))
+        # A read-only view of the buffer, a new view object whenever the content changed (as
+        # the own maps' ``to_int8``): a fresh copy cost a memset of the canvas per changed step.
+        out = buf.view()
         out.flags.writeable = False
         self._fused[i], self._fused_key[i] = out, key
         return out
+
+    def fused_change(self, i: int) -> tuple[int, Box | None]:
+        """``(composition count, box)`` of robot i's fused map: the count grows by one with
+        every :meth:`fused` that recomposed it, and ``box`` (half-open, i's cells; empty when
+        nothing changed, None when rebuilt whole) bounds what that composition rewrote. A reader
+        that saw count k - 1 need only look at the box to follow count k."""
+        return self._fcount[i], self._fchanged[i]
 
     def _patch(self, i: int, j: int) -> _Patch | None:
         """j's map warped into i's canvas (cached); stale copy when the link is down.
@@ -743,7 +821,7 @@ class MapMergeTracker:
                     src = _clip(_map_box(old.T_inv, dst), mj.shape)
                     if src is not None:
                         s0, s1, t0, t1 = src
-                        piece = warp_into(
+                        piece = _warp_nn(
                             mj[s0:s1, t0:t1],
                             T @ translation(t0, s0),
                             (dst[1] - dst[0], dst[3] - dst[2]),
@@ -766,7 +844,7 @@ class MapMergeTracker:
         if box is None:
             return old  # j's known part falls outside i's canvas
         r0, r1, c0, c1 = box
-        data = warp_into(b, T_crop, (r1 - r0, c1 - c0), dst_origin=(c0, r0))
+        data = _warp_nn(b, T_crop, (r1 - r0, c1 - c0), dst_origin=(c0, r0))
         p = _Patch(r0, c0, data, self._version[j], T.copy(), invert_transform(T), None)
         self._patches[(i, j)] = p
         return p

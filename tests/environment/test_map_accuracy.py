@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -11,7 +12,7 @@ import mrexplore
 from mrexplore.experiments.loop_study import OracleMerger
 from mrexplore.grid import make_transform
 from mrexplore.merge.common import MergeResult
-from mrexplore.truth import MapScorer
+from mrexplore.truth import IncrementalScore, MapScorer
 
 SMALL: dict[str, Any] = {"world": "small_office", "n_robots": 2}
 
@@ -66,6 +67,13 @@ def test_contradiction_is_cached_on_the_fused_map_version(
     calls = []
     warp = penv._scorer.warp
     monkeypatch.setattr(penv._scorer, "warp", lambda *a: calls.append(1) or warp(*a))
+    # the incremental scorer (when OpenCV's sampling could be pinned down) stands for the warp
+    update = IncrementalScore.update
+    monkeypatch.setattr(
+        IncrementalScore,
+        "update",
+        lambda *a: calls.append(1) or update(*a),  # type: ignore[misc]
+    )
     for _ in range(5):
         penv.step({a: 3 for a in penv.agents})
     assert calls == []  # unchanged maps cost nothing
@@ -120,3 +128,31 @@ def test_held_coverage_is_the_best_robots_correctly_placed_free_space() -> None:
         assert infos["robot_0"]["coverage"] <= penv.sim.coverage() + 1e-9
         done = terms["robot_0"] or truncs["robot_0"]
     assert terms["robot_0"] and infos["robot_0"]["coverage"] >= 0.3
+
+
+@pytest.mark.parametrize("coverage_mode", ["observed", "held"])
+def test_incremental_scores_equal_a_full_warp_every_step(coverage_mode: str) -> None:
+    """The map accuracy kept from the changed boxes equals warping and scoring the whole
+    own-or-fused map, at every step, before and after a merge, with odometry drift."""
+    merger = OracleMerger()
+    penv = mrexplore.parallel_env(
+        **{**SMALL, "merger": merger, "coverage_mode": coverage_mode, "odom_noise_trans": 0.02}
+    )
+    merger.bind(penv)
+    penv.reset(seed=0)
+    rng = np.random.default_rng(7)
+    assert penv._scorer is not None and penv.sim is not None
+    merged = False
+    for _ in range(60):
+        acts = {a: int(rng.choice(4, p=[0.7, 0.15, 0.15, 0.0])) for a in penv.agents}
+        _, _, _, _, infos = penv.step(acts)
+        for i, a in enumerate(penv.possible_agents):
+            assert penv._inc.get(i) is not None  # the sampling was pinned down
+            merged = merged or infos[a]["merged"]
+            warped = penv._scorer.warp(penv.fusion.fused(a), penv.sim.world_from_map(i))
+            share, held = penv._scorer.scores(warped, held=coverage_mode == "held")
+            got = infos[a]["fused_contradiction"]
+            assert got == share or (math.isnan(got) and math.isnan(share))
+            if held is not None:
+                assert penv._map_accuracy(i)[1] == held
+    assert merged

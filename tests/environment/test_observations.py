@@ -50,3 +50,51 @@ def test_heading_up_keeps_the_robot_marker_fixed() -> None:
     b = ObservationBuilder(0.05, 12.8, 6.4, 64, heading_up=True)
     markers = {b.build(_view(t), np.zeros((0, 2)))[6].tobytes() for t in (0.0, 1.0, -2.5)}
     assert len(markers) == 1
+
+
+@pytest.mark.parametrize(
+    ("resolution_m", "global_m", "local_m", "size"),
+    [
+        (0.05, 25.6, 6.4, 64),  # the defaults: factors 4 (every second cell) and 2
+        (0.1, 25.6, 6.4, 64),  # Explore-Bench's resolution: factors 2 and 1
+        (0.05, 25.6, 6.4, 48),  # no integer factor: the OpenCV path
+        (0.05, 4.0, 1.0, 32),  # a fine view smaller than the image: nearest neighbour, OpenCV
+    ],
+)
+def test_compiled_shares_equal_the_opencv_path(
+    resolution_m: float, global_m: float, local_m: float, size: int
+) -> None:
+    """The one-pass compiled shares give OpenCV's inRange + INTER_AREA values exactly, for
+    windows inside the map, across its border and outside it, in noisy maps with every value."""
+    from mrexplore.environment.observations import _shares, _window
+
+    rng = np.random.default_rng(1)
+    m = rng.choice(
+        np.array([UNKNOWN, FREE, 10, 25, 26, 50, 64, 65, OCCUPIED], dtype=np.int8), (700, 650)
+    )
+    m[rng.random(m.shape) < 0.5] = UNKNOWN
+    b = ObservationBuilder(resolution_m, global_m, local_m, size)
+    for side in (b.global_cells, b.local_cells, 3 * b.global_cells // 2, 3 * b.local_cells // 2):
+        n = size if side in (b.global_cells, b.local_cells) else 3 * size // 2
+        for centre in [(325.0, 350.0), (10.4, 690.6), (640.5, 2.5), (-300.0, 200.0), (3.5, 4.5)]:
+            free = np.zeros((n, n), np.uint8)
+            occ = np.zeros((n, n), np.uint8)
+            b._shares_into(m, centre, side, free, occ)
+            ref = _shares(_window(m, centre, side), n)
+            np.testing.assert_array_equal(free, ref[0])
+            np.testing.assert_array_equal(occ, ref[1])
+
+
+def test_compiled_trail_equals_the_numpy_drawing() -> None:
+    from mrexplore import _kernels
+
+    rng = np.random.default_rng(2)
+    b = ObservationBuilder(0.05, 25.6, 6.4, 64)
+    cells = rng.uniform(-100.0, 900.0, (3000, 2))
+    cells[:50] = np.round(cells[:50] * 8.0) / 8.0  # on pixel boundaries
+    for centre in [(400.0, 400.0), (412.5, 398.75), (0.0, 0.0)]:
+        a = np.zeros((64, 64), np.uint8)
+        ref = np.zeros((64, 64), np.uint8)
+        _kernels.trail_dots(a, cells, centre[0], centre[1], 64 / 512)
+        b._dots(ref, cells, centre, 64 / 512, 0.0, radius=0)
+        np.testing.assert_array_equal(a, ref)

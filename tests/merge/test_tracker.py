@@ -297,3 +297,54 @@ def test_recheck_drops_a_transform_the_grown_maps_contradict(
     for step in range(2, 11):
         tr.update([ca, moved], step=step)
     assert not tr.merged(0) and tr.transform(0, 1) is None
+
+
+def test_tracker_fed_map_changes_equals_the_scanning_tracker() -> None:
+    """Fed the maps' own change records (no canvas scans), the tracker keeps the same boxes,
+    versions and fused maps as when it compares canvases itself."""
+    from mrexplore.sim import Simulation
+    from mrexplore.world import load_world
+
+    world = load_world("small_office")
+    sim = Simulation(world, 2)
+    rng = np.random.default_rng(2)
+    sim.reset(rng)
+    T = sim.true_transform(0, 1)
+    never = MergeResult(matched=False, transform=None, score=0.0)
+    scan = MapMergeTracker(2, merger=lambda a, b: never)
+    told = MapMergeTracker(2, merger=lambda a, b: never)
+    act_rng = np.random.default_rng(3)
+    for step in range(1, 60):
+        act = np.where(act_rng.random(2) < 0.6, 0, act_rng.integers(1, 4, 2))
+        sim.step(act, rng)
+        maps = [m.to_int8() for m in sim.maps]
+        scan.update(maps, step)
+        told.update(maps, step, changes=[m.change() for m in sim.maps])
+        if step == 20:  # merge both the same way, with the true transform (from now on,
+            # fused maps: incremental patches from the changed boxes)
+            for tr in (scan, told):
+                tr._edges[(0, 1)] = T
+                tr._paths = None
+        for i in range(2):
+            assert scan._bbox[i] == told._bbox[i]
+            assert scan._version[i] == told._version[i]
+            assert scan._delta[i] == told._delta[i]
+            np.testing.assert_array_equal(scan.fused(i), told.fused(i))
+
+
+def test_patch_warp_equals_warp_into() -> None:
+    """The tracker's patch warp (int8 viewed as uint8) gives warp_into's cells exactly."""
+    from mrexplore.grid import make_transform
+    from mrexplore.merge.common import warp_into
+    from mrexplore.merge.tracker import _warp_nn
+
+    rng = np.random.default_rng(6)
+    src = rng.choice(np.array([UNKNOWN, 0, 30, 64, OCC], dtype=np.int8), (90, 70))
+    for k in range(30):
+        T = make_transform(rng.uniform(-3.2, 3.2), rng.uniform(-40, 120), rng.uniform(-40, 120))
+        if k % 3 == 0:
+            T = make_transform(k * np.pi / 6, 30.0, 20.0)
+        origin = (int(rng.integers(-20, 20)), int(rng.integers(-20, 20)))
+        np.testing.assert_array_equal(
+            _warp_nn(src, T, (80, 100), origin), warp_into(src, T, (80, 100), dst_origin=origin)
+        )

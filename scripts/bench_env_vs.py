@@ -1,0 +1,124 @@
+"""Env speed of this checkout against another one, measured side by side in one run.
+
+    python scripts/bench_env_vs.py --base /path/to/older/checkout [--rounds 3] [--steps 1500]
+
+Each round runs the same harness (:func:`mrexplore.experiments.env_bench.measure` of *this*
+checkout, which uses only the public env API) on every setting, once on the other tree and once
+on this one, in fresh processes whose ``import mrexplore`` resolves to that tree, alternating
+setting by setting so that a change of the machine's load hits both sides alike. Run each tree
+once before (numba compiles its kernels into the tree's ``__pycache__`` on first use). Figures
+are CPU time of the stepping thread; the printed ratio is this tree over the base, per setting,
+as the median over rounds.
+
+Create the base tree with ``git worktree add --detach ../base <commit>``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+HERE = Path(__file__).resolve().parent.parent
+HARNESS = HERE / "mrexplore" / "experiments" / "env_bench.py"
+
+# Run in the child: load the harness by path, with the chosen tree first on sys.path.
+CHILD = """
+import importlib.util, json, sys
+sys.path.insert(0, sys.argv[1])
+spec = importlib.util.spec_from_file_location("harness", sys.argv[2])
+h = importlib.util.module_from_spec(spec); spec.loader.exec_module(h)
+import mrexplore
+assert mrexplore.__file__.startswith(sys.argv[1]), mrexplore.__file__
+out = {}
+for label, opts in json.loads(sys.argv[3]):
+    out[label] = h.measure(int(sys.argv[4]), 0, **opts)
+print(json.dumps(out))
+"""
+
+
+def run(tree: Path, settings: list[tuple[str, dict[str, Any]]], steps: int) -> dict[str, Any]:
+    """One measurement of every setting on ``tree`` in a fresh process."""
+    res = subprocess.run(
+        [sys.executable, "-c", CHILD, str(tree), str(HARNESS), json.dumps(settings), str(steps)],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    return dict(json.loads(res.stdout.strip().splitlines()[-1]))
+
+
+def _proc_ratio(runs: dict[str, list[dict[str, Any]]], label: str) -> float | None:
+    """Median ratio of steps per second of process CPU time (all threads), if measured."""
+    try:
+        return statistics.median(
+            t[label]["steps_per_process_cpu_s"] / b[label]["steps_per_process_cpu_s"]
+            for b, t in zip(runs["base"], runs["this"], strict=True)
+        )
+    except KeyError:
+        return None
+
+
+def main() -> int:
+    """Measure both trees in turn and print steps/s, p50/p99 and the ratio per setting."""
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    p.add_argument("--base", required=True, help="the other checkout (its top folder)")
+    p.add_argument("--rounds", type=int, default=3)
+    p.add_argument("--steps", type=int, default=1500)
+    p.add_argument("--robots", default="1,2,4,8")
+    p.add_argument("--merger", default="semantic", help='a merge method, or "none"')
+    args = p.parse_args()
+    sys.path.insert(0, str(HERE))
+    from mrexplore.experiments.env_bench import settings
+
+    merger = None if args.merger.lower() == "none" else args.merger
+    table = settings([int(v) for v in args.robots.split(",")], merger)
+    base, this = Path(args.base).resolve(), HERE
+    runs: dict[str, list[dict[str, Any]]] = {"base": [], "this": []}
+    for k in range(args.rounds):
+        # setting by setting, base then this: a drift of the machine's load hits both alike
+        got: dict[str, dict[str, Any]] = {"base": {}, "this": {}}
+        for setting in table:
+            for name, tree in (("base", base), ("this", this)):
+                got[name].update(run(tree, [setting], args.steps))
+        for name in runs:
+            runs[name].append(got[name])
+        print(f"round {k + 1}/{args.rounds} done", file=sys.stderr, flush=True)
+    print(
+        f"{args.steps} random-action steps per setting, {args.rounds} alternating rounds, "
+        f"merger {merger}; CPU time of the stepping thread; medians over rounds\n"
+        f"base: {base}\nthis: {this}"
+    )
+    print(
+        f"{'setting':<44} {'base st/s':>9} {'this st/s':>9} {'ratio':>6} "
+        f"{'this robot-st/s':>15} {'p50 ms b/t':>13} {'p99 ms b/t':>13}"
+    )
+    for label, _ in table:
+
+        def med(name: str, key: str, label: str = label) -> float:
+            return statistics.median(r[label][key] for r in runs[name])
+
+        ratios = [
+            t[label]["steps_per_s"] / b[label]["steps_per_s"]
+            for b, t in zip(runs["base"], runs["this"], strict=True)
+        ]
+        print(
+            f"{label:<44} {med('base', 'steps_per_s'):>9.0f} {med('this', 'steps_per_s'):>9.0f} "
+            f"{statistics.median(ratios):>5.2f}x {med('this', 'robot_steps_per_s'):>15.0f} "
+            f"{med('base', 'p50_ms'):>6.2f}/{med('this', 'p50_ms'):<6.2f}"
+            f"{med('base', 'p99_ms'):>6.1f}/{med('this', 'p99_ms'):<6.1f}"
+            + (
+                f" process CPU: {proc:.2f}x"
+                if (proc := _proc_ratio(runs, label)) is not None
+                else ""
+            )
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,178 @@
+"""Pinned rollouts: observations, rewards, infos and maps of short seeded episodes, hashed.
+
+The digests were recorded before the step was made lean (issue 12: compiled observation,
+tracker bookkeeping from the maps' own known and changed boxes, reused buffers). Any change to
+what a step returns, however small, changes a digest: a speed-up must leave them as they are.
+A deliberate behaviour change updates them in the same commit, saying why.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from typing import Any
+
+import numpy as np
+import pytest
+
+import mrexplore
+from mrexplore.policies import make_team_policy
+
+
+def _feed(h: Any, value: Any) -> None:
+    """Hash a nested structure exactly (floats by repr, arrays by dtype, shape and bytes)."""
+    if isinstance(value, np.ndarray):
+        h.update(f"{value.dtype}{value.shape}".encode())
+        h.update(np.ascontiguousarray(value).tobytes())
+    elif isinstance(value, dict):
+        for k in sorted(value):
+            h.update(repr(k).encode())
+            _feed(h, value[k])
+    elif isinstance(value, (list, tuple)):
+        h.update(f"{type(value).__name__}{len(value)}".encode())
+        for v in value:
+            _feed(h, v)
+    else:
+        h.update(repr(value).encode())
+
+
+def _nan(v: Any) -> float:
+    return float("nan") if v is None else float(v)
+
+
+def _info_core(info: dict[str, Any]) -> tuple[Any, ...]:
+    """The figures of one agent's infos, the same whichever info layout (nested ``merge_error``
+    dict and None, or the flat keys with NaN) the env uses."""
+    err = info.get("merge_error")
+    if "merge_error_cells" in info:
+        cells, deg, drift = (
+            info["merge_error_cells"],
+            info["merge_error_deg"],
+            info["merge_error_drift_cells"],
+        )
+    elif err is not None:
+        cells, deg, drift = err["translation_cells"], err["rotation_deg"], err["drift_cells"]
+    else:
+        cells = deg = drift = None
+    return (
+        info["coverage"],
+        info["task_time_s"],
+        info["step"],
+        bool(info["merged"]),
+        _nan(info["score"]),
+        _nan(info["first_merge_time_s"]),
+        _nan(cells),
+        _nan(deg),
+        _nan(drift),
+        info["collisions"],
+        bool(info.get("collided", False)),
+        info["fused_contradiction"],
+        info["merged_wrongly_s"],
+        bool(info.get("goal_given", False)),
+        bool(info.get("goal_reached", False)),
+        bool(info.get("TimeLimit.truncated", False)),
+    )
+
+
+def _infos(infos: dict[str, dict[str, Any]]) -> dict[str, tuple[Any, ...]]:
+    return {a: _info_core(i) for a, i in infos.items()}
+
+
+def rollout_digest(
+    steps: int, seed: int, policy: str | None, **options: Any
+) -> tuple[str, int | None]:
+    """Run ``steps`` steps (random actions when ``policy`` is None); return the digest and the
+    first step at which robot_0 was merged (None if never)."""
+    penv = mrexplore.parallel_env(**options)
+    obs, infos = penv.reset(seed=seed)
+    h = hashlib.sha256()
+    _feed(h, obs)
+    _feed(h, _infos(infos))
+    rng = np.random.default_rng(seed)
+    team = None
+    if policy is not None:
+        team = make_team_policy(policy, penv.possible_agents)
+        team.reset(np.random.default_rng(seed))
+    first_merge = None
+    for t in range(steps):
+        if not penv.agents:
+            break
+        if team is not None:
+            actions = team.act({a: penv.robot_view(a) for a in penv.agents})
+        else:
+            actions = {a: int(rng.integers(4)) for a in penv.agents}
+        obs, rew, term, trunc, infos = penv.step(actions)
+        _feed(h, [obs, rew, term, trunc, _infos(infos)])
+        if first_merge is None and infos["robot_0"]["merged"]:
+            first_merge = t
+    assert penv.sim is not None
+    for i, a in enumerate(penv.possible_agents):
+        v = penv.robot_view(a)
+        _feed(h, [v.map, v.pose_cell, v.teammates, v.transforms, sorted(v.in_range)])
+        _feed(h, penv.sim.maps[i].logodds)
+    _feed(h, penv.state())
+    return h.hexdigest(), first_merge
+
+
+CASES: dict[str, tuple[int, int, str | None, dict[str, Any]]] = {
+    # the default env, merged from step ~150 on: own maps, fused maps, teammates
+    "default_merging": (260, 3, "coordinated-frontier", {"world": "symmetric_office"}),
+    # egocentric views, range and odometry noise, random actions
+    "heading_up_noisy": (
+        150,
+        5,
+        None,
+        {
+            "world": "small_office",
+            "obs_heading_up": True,
+            "range_noise_m": 0.02,
+            "odom_noise_trans": 0.02,
+            "odom_noise_rot": 0.02,
+        },
+    ),
+    # three robots, a radio range, navigation with a goal channel, random headings, merged from
+    # step ~120 on, egocentric views
+    "navigate_three": (
+        150,
+        2,
+        "coordinated-frontier",
+        {
+            "world": "small_office",
+            "n_robots": 3,
+            "task": "navigate",
+            "nav_warmup_s": 10.0,
+            "comm_range_m": 6.0,
+            "aligned_headings": False,
+            "obs_heading_up": True,
+        },
+    ),
+    # Explore-Bench's resolution and range; held coverage (map accuracy every step)
+    "coarse_held": (
+        150,
+        1,
+        "coordinated-frontier",
+        {"world": "symmetric_office_coarse", "max_range_m": 3.0, "coverage_mode": "held"},
+    ),
+}
+
+#: Recorded on main's code without the lean step: first at 35eda8a, then at each merge of main
+#: whose changes reach these figures (0a26b06: merge attempts off the step path; 5d3198e: flat
+#: infos, which report -1 where the figures were None); the lean step reproduces each.
+PINNED: dict[str, str] = {
+    "coarse_held": "e129f616ae84e3aca58b726531136ba160e6eadbfd780c739a59a0eaa2694850",
+    "default_merging": "cc9f7a4d7c3b3619a89e21d31120d0e8d465a09acc54d8ba9e969d644fe4bfdd",
+    "heading_up_noisy": "f3fcfeefec852c58e0e24a27c6a179e423d2edc39961e49f918fae5946d990a7",
+    "navigate_three": "61a5ca44952e704f57a85fa776b2c0dfac9f1bfec349cd3f59eb98ddc450ebf9",
+}
+
+
+#: Cases that take seconds (a long merged episode, held coverage): in the expensive set.
+SLOW = {"default_merging", "coarse_held"}
+
+
+@pytest.mark.parametrize(
+    "name", [pytest.param(n, marks=[pytest.mark.expensive] if n in SLOW else []) for n in CASES]
+)
+def test_rollout_is_pinned(name: str) -> None:
+    steps, seed, policy, options = CASES[name]
+    digest, _ = rollout_digest(steps, seed, policy, **options)
+    assert digest == PINNED[name]

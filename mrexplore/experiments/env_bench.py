@@ -116,14 +116,14 @@ def measure(
 def row(label: str, r: dict[str, Any]) -> str:
     """One printed line of a result of :func:`measure`."""
     return (
-        f"{label:<44} {r['steps_per_s']:>8.0f} {r['robot_steps_per_s']:>9.0f} "
+        f"{label:<56} {r['steps_per_s']:>8.0f} {r['robot_steps_per_s']:>9.0f} "
         f"{r['p50_ms']:>7.2f} {r['p99_ms']:>7.2f} {r['max_ms']:>7.1f} "
         f"{r['steps_per_process_cpu_s']:>10.0f}"
     )
 
 
 HEADER = (
-    f"{'setting (CPU time of the stepping thread)':<44} {'steps/s':>8} {'robot-st/s':>9} "
+    f"{'setting (CPU time of the stepping thread)':<56} {'steps/s':>8} {'robot-st/s':>9} "
     f"{'p50 ms':>7} {'p99 ms':>7} {'max ms':>7} {'st/proc-s':>10}"
 )
 
@@ -147,6 +147,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--robots", default="1,2,4,8", help="team sizes, comma-separated")
     p.add_argument("--merger", default="semantic", help='a merge method, or "none"')
+    p.add_argument(
+        "--merge-latency-steps",
+        default=None,
+        help="comma-separated values of the env's merge_latency_steps, each measured in turn "
+        "(default: the env's default, 8); e.g. 0,8 puts in-step and off-path merging side by side",
+    )
     p.add_argument("--breakdown", action="store_true", help="also time the stages (2 robots)")
     p.add_argument("--json", default=None, help="also write the figures to this JSON file")
     p.add_argument("--force", action="store_true", help="replace an existing --json file")
@@ -161,6 +167,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         raise ConfigError(f"bench env: --robots must be integers, got {args.robots!r}") from None
     if not robots or min(robots) < 1:
         raise ConfigError(f"bench env: --robots must be integers >= 1, got {args.robots!r}")
+    latencies: list[int | None] = [None]
+    if args.merge_latency_steps is not None:
+        try:
+            latencies = [int(v) for v in args.merge_latency_steps.split(",") if v.strip()]
+        except ValueError:
+            latencies = []
+        if not latencies or min(v for v in latencies if v is not None) < 0:
+            raise ConfigError(
+                "bench env: --merge-latency-steps must be integers >= 0, "
+                f"got {args.merge_latency_steps!r}"
+            )
     if args.json:
         check_outputs([args.json], force=args.force, what="mrexplore bench env")
     merger = None if args.merger.lower() == "none" else args.merger
@@ -170,10 +187,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     print(HEADER)
     results: dict[str, Any] = {}
-    for label, opts in settings(robots, merger):
-        r = measure(args.steps, args.seed, **opts)
-        results[label] = r
-        print(row(label, r), flush=True)
+    for latency in latencies:
+        for label, opts in settings(robots, merger):
+            if latency is not None:
+                label = f"{label}, latency {latency}"
+                opts = {**opts, "merge_latency_steps": latency}
+            r = measure(args.steps, args.seed, **opts)
+            results[label] = r
+            print(row(label, r), flush=True)
     if args.breakdown:
         r = measure(args.steps, args.seed, breakdown=True, **{**DEFAULT_WORLD, "merger": merger})
         ms = r["ms_per_step"]

@@ -18,6 +18,8 @@ from mrexplore.cli import main
         (["merge", "--n", "0"], "n_cases must be >= 1"),
         (["env", "--steps", "0"], "--steps must be at least 1"),
         (["env", "--seed", "-1"], "--seed must be an integer >= 0"),
+        (["env", "--merge-latency-steps", "x"], "--merge-latency-steps must be integers >= 0"),
+        (["env", "--merge-latency-steps", "0,-2"], "--merge-latency-steps must be integers >= 0"),
     ],
 )
 def test_bench_bad_options_exit_2(args: list[str], words: str, capsys) -> None:  # type: ignore[no-untyped-def]

@@ -16,33 +16,28 @@ Each step the caller hands over the robots' own-frame maps. The tracker
   and drops it when, on the current maps, it agrees less than ``drop_below`` (new evidence
   contradicts it: a wrong merge is worse than no merge);
 - chains transforms through merged pairs (0-1 and 1-2 merged => 0-2 known);
-- composes robot i's fused map in its own canvas: each teammate's map, cropped to its known
-  bounding box, warped (nearest neighbour) into i's frame and fused by "occupied beats free
-  beats unknown" (cell-wise maximum of -1 < 0 < 100, so a wall seen by anyone stays a wall).
-  The warped patches are cached until the teammate's map changes, and maps travel only over
-  links that are up: a teammate out of range contributes the last map received from it.
+- hands the pixels to :class:`~mrexplore.merge.compositor.MapCompositor`: change detection,
+  each teammate's map warped into i's frame, and robot i's fused map ("occupied beats free
+  beats unknown"); maps travel only over links that are up.
 
-Cost on steps without a merge attempt (2 robots, 1500 x 1500 canvases, ~400 x 400 known):
-about 0.1 ms per map to find its known box, a copy of the own canvas and one ~0.1 ms warp per
-changed teammate (see ``scripts/merge_bench.py --tracker``).
+The decision rules are :meth:`MapMergeTracker._decide_attempt` and
+:meth:`MapMergeTracker._decide_recheck`; :meth:`MapMergeTracker._compute` is the only call of
+the merger.
 """
 
 from __future__ import annotations
 
-import math
 from collections import deque
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError, GridError
 from mrexplore.grid import (
-    UNKNOWN,
     Int8Grid,
     MapChange,
     Transform,
@@ -50,29 +45,10 @@ from mrexplore.grid import (
     invert_transform,
 )
 from mrexplore.merge.api import METHODS, merge_maps
-from mrexplore.merge.common import MergeResult, Verifier, known_bbox, translation
+from mrexplore.merge.common import MergeResult, Verifier, translation
+from mrexplore.merge.compositor import Box, MapCompositor
 
 Merger = Callable[[Int8Grid, Int8Grid], MergeResult]
-
-
-Box = tuple[int, int, int, int]  # (r0, r1, c0, c1), half-open, in some robot's cells
-
-
-@dataclass
-class _Patch:
-    """Teammate j's map warped into robot i's canvas, restricted to a window.
-
-    ``changed``: the region of i's canvas (r0, r1, c0, c1) rewritten by the last incremental
-    update, or None after a full rebuild.
-    """
-
-    r0: int
-    c0: int
-    data: Int8Grid
-    version: int  # j's map version it was made from
-    T: Transform  # T_ij it was made with
-    T_inv: Transform  # its inverse (cached: used every step)
-    changed: Box | None = None
 
 
 @dataclass(frozen=True)
@@ -96,57 +72,6 @@ class _Job:
     bbox_j: Box | None  # j's known box when started: where two estimates are compared
     T_old: Transform | None  # re-check: the kept transform it checks
     outcome: Future[_Outcome] | _Outcome
-
-
-def _clip(box: Box, shape: tuple[int, int]) -> Box | None:
-    r0, r1, c0, c1 = max(0, box[0]), min(shape[0], box[1]), max(0, box[2]), min(shape[1], box[3])
-    return (r0, r1, c0, c1) if r1 > r0 and c1 > c0 else None
-
-
-def _union(a: Box, b: Box) -> Box:
-    return (min(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), max(a[3], b[3]))
-
-
-def _map_box(T: Transform, box: Box) -> Box:
-    """Cells (r0, r1, c0, c1) covering the image of ``box`` under T, one cell of slack.
-
-    Plain Python on the four corners: called every step, where numpy's per-call overhead on
-    4 x 2 arrays would cost more than the arithmetic.
-    """
-    r0, r1, c0, c1 = box
-    a, b, tx = float(T[0, 0]), float(T[0, 1]), float(T[0, 2])
-    c, d, ty = float(T[1, 0]), float(T[1, 1]), float(T[1, 2])
-    xs = [a * x + b * y + tx for x, y in ((c0, r0), (c1 - 1, r0), (c0, r1 - 1), (c1 - 1, r1 - 1))]
-    ys = [c * x + d * y + ty for x, y in ((c0, r0), (c1 - 1, r0), (c0, r1 - 1), (c1 - 1, r1 - 1))]
-    return (
-        math.floor(min(ys)) - 1,
-        math.ceil(max(ys)) + 2,
-        math.floor(min(xs)) - 1,
-        math.ceil(max(xs)) + 2,
-    )
-
-
-def _warp_nn(
-    src: Int8Grid,
-    T_dst_src: Transform,
-    dst_shape: tuple[int, int],
-    dst_origin: tuple[int, int],
-) -> Int8Grid:
-    """:func:`mrexplore.merge.common.warp_into` without its two int16 round trips: a
-    nearest-neighbour warp only copies values, so the int8 map is warped as its uint8 view with
-    unknown (-1, 255 as uint8) as the border: the same cells, bit for bit (tested)."""
-    M = np.asarray(T_dst_src, dtype=np.float64)[:2].copy()
-    M[0, 2] -= dst_origin[0]
-    M[1, 2] -= dst_origin[1]
-    out = cv2.warpAffine(
-        np.ascontiguousarray(src).view(np.uint8),
-        M,
-        (int(dst_shape[1]), int(dst_shape[0])),
-        flags=cv2.INTER_NEAREST,
-        borderMode=cv2.BORDER_CONSTANT,
-        borderValue=255,
-    )
-    return np.asarray(out).view(np.int8)
 
 
 class NamedMerger:
@@ -326,10 +251,7 @@ class MapMergeTracker:
                 job.outcome.cancel()  # one already running finishes and is discarded
         self._jobs = []
         self._queue: list[tuple[str, int, int]] = []  # waiting to start (latency > 0)
-        self._maps: list[Int8Grid | None] = [None] * self.n
-        self._bbox: list[tuple[int, int, int, int] | None] = [None] * self.n
-        self._snap: list[Int8Grid | None] = [None] * self.n  # copy of the known box, change test
-        self._version = [0] * self.n
+        self._px = MapCompositor(self.n)  # the pixels: change detection, patches, fused maps
         self._edges: dict[tuple[int, int], Transform] = {}  # (i, j), i < j: T_ij direct
         self._edge_score: dict[tuple[int, int], float] = {}
         # (i, j) -> (T_ij candidate, agreeing attempts so far, shared wall cells it rested on)
@@ -337,22 +259,8 @@ class MapMergeTracker:
         # (i, j) -> known cells of both maps at the last merge attempt
         self._last_attempt_known: dict[tuple[int, int], int] = {}
         self._results: dict[tuple[int, int], MergeResult] = {}
-        self._patches: dict[tuple[int, int], _Patch] = {}
-        # what changed in each robot's map at its last version: a box in its cells, None = all
-        self._delta: list[Box | None] = [None] * self.n
-        self._fused: list[Int8Grid | None] = [None] * self.n
-        self._fused_key: list[tuple[Any, ...] | None] = [None] * self.n
-        # per robot: the fusion buffer and the versions it reflects (own, {j: patch version})
-        self._fbuf: list[Int8Grid | None] = [None] * self.n
-        self._fbuf_ver: list[tuple[int, dict[int, int]] | None] = [None] * self.n
-        # per robot: compositions of the fused map so far, and the box the last one rewrote
-        # (None: all of it), for readers that follow the fused map incrementally
-        self._fcount = [0] * self.n
-        self._fchanged: list[Box | None] = [None] * self.n
         self._paths: dict[tuple[int, int], Transform | None] | None = None
         self._links: NDArray[np.bool_] | None = None
-        # per robot: the MapChange.version last observed (None: observed without one)
-        self._seen_version: list[int | None] = [None] * self.n
 
     # ------------------------------------------------------------------ step
     def update(
@@ -396,11 +304,7 @@ class MapMergeTracker:
             # Cheap checks only: a full value-range scan of a 1500 x 1500 canvas every step
             # would cost more than everything else here; merge_maps validates fully.
             m = check_int8_map(m, f"MapMergeTracker.update: map {i}")
-            change = None if changes is None else changes[i]
-            if change is None:
-                self._observe(i, m)
-            else:
-                self._observe_change(i, m, change)
+            self._px.observe(i, m, None if changes is None else changes[i])
         self._apply_due(step)
         if not attempt:
             return
@@ -411,74 +315,8 @@ class MapMergeTracker:
         if self.merge_latency_steps and self._queue:
             self._start(*self._queue.pop(0), step)  # at most one per step
 
-    def _observe_change(self, i: int, m: Int8Grid, change: MapChange) -> None:
-        """:meth:`_observe` from the owner's :class:`MapChange`: no canvas scan, no snapshot.
-
-        Consecutive owner versions give the changed box; anything else (the first map, a skipped
-        version, a new canvas) is taken as "everything changed", as :meth:`_observe` does.
-        """
-        prev, seen = self._maps[i], self._seen_version[i]
-        self._maps[i] = m
-        same_canvas = prev is not None and prev.shape == m.shape and seen is not None
-        if same_canvas and change.version == seen:
-            return  # nothing changed
-        consecutive = same_canvas and seen is not None and change.version == seen + 1
-        self._seen_version[i] = change.version
-        self._bbox[i] = change.known_box
-        self._snap[i] = None  # only the scanning path needs it
-        self._delta[i] = change.changed_box if consecutive else None
-        self._version[i] += 1
-
-    def _observe(self, i: int, m: Int8Grid) -> None:
-        """Record robot i's map; bump its version and note the changed box when it changed.
-
-        Cost: the known box (two SIMD max-reductions) and one comparison of the known box with
-        the previous snapshot, which also yields the (usually small) box of changed cells.
-        """
-        self._seen_version[i] = None
-        bb = known_bbox(m)
-        prev, old_bb, snap = self._maps[i], self._bbox[i], self._snap[i]
-        self._maps[i] = m
-        delta: Box | None = None
-        if prev is None or prev.shape != m.shape or snap is None or old_bb is None or bb is None:
-            if prev is not None and bb is None and old_bb is None:
-                return  # still all unknown: nothing changed
-        elif (
-            bb[0] <= old_bb[0] and bb[1] >= old_bb[1] and bb[2] <= old_bb[2] and bb[3] >= old_bb[3]
-        ):
-            # the known box kept or grew: compare with the old snapshot placed in the new box
-            cur = m[bb[0] : bb[1], bb[2] : bb[3]]
-            if bb == old_bb:
-                diff = cur != snap
-            else:
-                before = np.full(cur.shape, UNKNOWN, dtype=np.int8)
-                before[
-                    old_bb[0] - bb[0] : old_bb[1] - bb[0], old_bb[2] - bb[2] : old_bb[3] - bb[2]
-                ] = snap
-                diff = cur != before
-            rows = np.flatnonzero(diff.any(axis=1))
-            if rows.size == 0:
-                return  # same content
-            cols = np.flatnonzero(diff[rows[0] : rows[-1] + 1].any(axis=0))
-            delta = (
-                bb[0] + int(rows[0]),
-                bb[0] + int(rows[-1]) + 1,
-                bb[2] + int(cols[0]),
-                bb[2] + int(cols[-1]) + 1,
-            )
-        self._bbox[i] = bb
-        self._snap[i] = None if bb is None else m[bb[0] : bb[1], bb[2] : bb[3]].copy()
-        self._delta[i] = delta
-        self._version[i] += 1
-
     def _linked(self, i: int, j: int) -> bool:
         return self._links is None or bool(self._links[i, j] and self._links[j, i])
-
-    def _crop(self, i: int) -> tuple[Int8Grid, tuple[int, int]] | None:
-        bb, m = self._bbox[i], self._maps[i]
-        if bb is None or m is None:
-            return None
-        return m[bb[0] : bb[1], bb[2] : bb[3]], (bb[2], bb[0])
 
     def _compute(
         self,
@@ -515,7 +353,7 @@ class MapMergeTracker:
     def _start(self, kind: str, i: int, j: int, step: int) -> None:
         """Start an attempt or re-check of (i, j) on the current maps; apply it now (latency 0)
         or hand it to the worker thread and apply it at ``step + merge_latency_steps``."""
-        ci, cj = self._crop(i), self._crop(j)
+        ci, cj = self._px.crop(i), self._px.crop(j)
         if ci is None or cj is None:
             return
         T_old = self._edges.get((i, j)) if kind == "recheck" else None
@@ -524,14 +362,14 @@ class MapMergeTracker:
         (a, oa), (b, ob) = ci, cj
         if self.merge_latency_steps == 0:
             out = self._compute(kind, i, j, a, b, (oa, ob), T_old)
-            self._apply(_Job(kind, i, j, step, self._bbox[j], T_old, out))
+            self._apply(_Job(kind, i, j, step, self._px.bbox(j), T_old, out))
             return
         if self._pool is None:
             self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mrexplore-merge")
         # copies: the caller may update its maps in place while the worker reads them
         fut = self._pool.submit(self._compute, kind, i, j, a.copy(), b.copy(), (oa, ob), T_old)
         due = step + self.merge_latency_steps
-        self._jobs.append(_Job(kind, i, j, due, self._bbox[j], T_old, fut))
+        self._jobs.append(_Job(kind, i, j, due, self._px.bbox(j), T_old, fut))
 
     def _apply_due(self, step: int) -> None:
         """Apply the worker's jobs due by ``step``, in the order they started (waiting for any
@@ -549,11 +387,6 @@ class MapMergeTracker:
         else:
             self._decide_recheck(i, j, out, job.T_old)
 
-    def _known_cells(self, i: int) -> int:
-        """Known cells of robot i's map (counted in its known box; only on merge steps)."""
-        crop = self._crop(i)
-        return 0 if crop is None else int(np.count_nonzero(crop[0] != UNKNOWN))
-
     def _attempt_merges(self, step: int) -> None:
         busy = {(jb.i, jb.j) for jb in self._jobs} | {(q[1], q[2]) for q in self._queue}
         for i in range(self.n):
@@ -562,7 +395,7 @@ class MapMergeTracker:
                     continue
                 if (i, j) in busy:
                     continue  # its last attempt is still under way
-                known = self._known_cells(i) + self._known_cells(j)
+                known = self._px.known_cells(i) + self._px.known_cells(j)
                 last = self._last_attempt_known.get((i, j))
                 if last is not None and known < last * (1.0 + self.retry_growth):
                     # Too little new knowledge since the last attempt: the answer would be the
@@ -635,7 +468,7 @@ class MapMergeTracker:
             del self._edges[(i, j)]
             self._edge_score.pop((i, j), None)
             self._paths = None
-            self._patches = {k: p for k, p in self._patches.items() if i not in k and j not in k}
+            self._px.forget_pair(i, j)
             return
         if out.result is None or out.T is None:
             return
@@ -643,7 +476,7 @@ class MapMergeTracker:
             self._edges[(i, j)] = out.T
             self._edge_score[(i, j)] = out.result.score
             self._paths = None
-            self._patches = {k: p for k, p in self._patches.items() if i not in k and j not in k}
+            self._px.forget_pair(i, j)
 
     def __getstate__(self) -> dict[str, Any]:
         """Pickle without the worker thread: jobs under way are waited for and kept as done."""
@@ -701,7 +534,7 @@ class MapMergeTracker:
 
     def map_version(self, i: int) -> int:
         """A counter that grows whenever robot i's map content changes (0 before any map)."""
-        return self._version[i]
+        return self._px.version(i)
 
     def group(self, i: int) -> set[int]:
         """Robots whose maps are merged with robot i's (including i)."""
@@ -712,139 +545,22 @@ class MapMergeTracker:
         return self._results.get((min(i, j), max(i, j)))
 
     def fused(self, i: int) -> Int8Grid:
-        """Robot i's fused map: int8, same shape and frame as its own map.
-
-        Composed incrementally: only the boxes that changed since the last call (in i's map or
-        in a teammate's warped patch) are recomputed in an internal buffer; the result is a
-        read-only view of that buffer, the same object until a map or transform changes. Like
-        an own map's ``to_int8()`` it reflects the next composition: copy it to keep it.
-        """
-        own = self._maps[i]
-        if own is None:
+        """Robot i's fused map: int8, same shape and frame as its own map, composed by the
+        :class:`~mrexplore.merge.compositor.MapCompositor` from the maps of the robots merged
+        with i (incrementally; a read-only view of its buffer, the same object until a map or
+        transform changes: copy it to keep it)."""
+        if not self._px.has_map(i):
             raise GridError("MapMergeTracker.fused: call update() first")
-        mates = sorted(self.group(i) - {i})
-        patches = {j: p for j in mates if (p := self._patch(i, j)) is not None}
-        key = (self._version[i], id(own), tuple((j, id(p), p.version) for j, p in patches.items()))
-        cached = self._fused[i]
-        if cached is not None and self._fused_key[i] == key:
-            return cached
-        buf, ver = self._fbuf[i], self._fbuf_ver[i]
-        regions: list[Box] | None = []
-        if buf is None or ver is None or buf.shape != own.shape or set(ver[1]) != set(patches):
-            regions = None
-        else:
-            if ver[0] != self._version[i]:
-                d = self._delta[i]
-                if ver[0] + 1 != self._version[i] or d is None:
-                    regions = None
-                elif regions is not None:
-                    regions.append(d)
-            for j, p in patches.items():
-                if regions is None or ver[1][j] == p.version:
-                    continue
-                if ver[1][j] + 1 != p.version or p.changed is None:
-                    regions = None
-                else:
-                    regions.append(p.changed)
-        changed: Box | None = None
-        if regions is None:  # rebuild the buffer
-            buf = own.copy()
-            for p in patches.values():
-                h, w = p.data.shape
-                win = buf[p.r0 : p.r0 + h, p.c0 : p.c0 + w]
-                np.maximum(win, p.data, out=win)
-        else:
-            assert buf is not None
-            for box in regions:
-                cl = _clip(box, own.shape)
-                if cl is None:
-                    continue
-                r0, r1, c0, c1 = cl
-                changed = cl if changed is None else _union(changed, cl)
-                buf[r0:r1, c0:c1] = own[r0:r1, c0:c1]
-                for p in patches.values():
-                    h, w = p.data.shape
-                    sub = _clip((r0 - p.r0, r1 - p.r0, c0 - p.c0, c1 - p.c0), (h, w))
-                    if sub is None:
-                        continue
-                    a0, a1, b0, b1 = sub
-                    win = buf[p.r0 + a0 : p.r0 + a1, p.c0 + b0 : p.c0 + b1]
-                    np.maximum(win, p.data[a0:a1, b0:b1], out=win)
-        self._fbuf[i] = buf
-        self._fbuf_ver[i] = (self._version[i], {j: p.version for j, p in patches.items()})
-        self._fcount[i] += 1
-        self._fchanged[i] = None if regions is None else (changed or (0, 0, 0, 0))
-        # A read-only view of the buffer, a new view object whenever the content changed (as
-        # the own maps' ``to_int8``): a fresh copy cost a memset of the canvas per changed step.
-        out = buf.view()
-        out.flags.writeable = False
-        self._fused[i], self._fused_key[i] = out, key
-        return out
+        mates = {}
+        for j in sorted(self.group(i) - {i}):
+            T = self.transform(i, j)
+            assert T is not None  # j is in i's group
+            mates[j] = T
+        return self._px.fused(i, mates, self._linked)
 
     def fused_change(self, i: int) -> tuple[int, Box | None]:
         """``(composition count, box)`` of robot i's fused map: the count grows by one with
         every :meth:`fused` that recomposed it, and ``box`` (half-open, i's cells; empty when
         nothing changed, None when rebuilt whole) bounds what that composition rewrote. A reader
         that saw count k - 1 need only look at the box to follow count k."""
-        return self._fcount[i], self._fchanged[i]
-
-    def _patch(self, i: int, j: int) -> _Patch | None:
-        """j's map warped into i's canvas (cached); stale copy when the link is down.
-
-        When j's map changed by one version inside a box, only the image of that box is
-        re-warped (from a crop of j's map covering its preimage); otherwise the patch is rebuilt
-        from j's known box.
-        """
-        old = self._patches.get((i, j))
-        if not self._linked(i, j) or (old is not None and old.version == self._version[j]):
-            return old
-        T = self.transform(i, j)
-        own, mj = self._maps[i], self._maps[j]
-        if T is None or own is None or mj is None:
-            return old
-        d = self._delta[j]
-        if (
-            old is not None
-            and d is not None
-            and old.version + 1 == self._version[j]
-            and np.array_equal(old.T, T)
-        ):
-            h, w = old.data.shape
-            dst = _clip(_map_box(T, d), own.shape)
-            win = (old.r0, old.r0 + h, old.c0, old.c0 + w)
-            if dst is None or (
-                dst[0] >= win[0] and dst[1] <= win[1] and dst[2] >= win[2] and dst[3] <= win[3]
-            ):
-                if dst is not None:
-                    # source crop = preimage of the destination box: every destination cell
-                    # finds its nearest source cell inside it (or outside j's map = unknown)
-                    src = _clip(_map_box(old.T_inv, dst), mj.shape)
-                    if src is not None:
-                        s0, s1, t0, t1 = src
-                        piece = _warp_nn(
-                            mj[s0:s1, t0:t1],
-                            T @ translation(t0, s0),
-                            (dst[1] - dst[0], dst[3] - dst[2]),
-                            dst_origin=(dst[2], dst[0]),
-                        )
-                    else:
-                        piece = np.full((dst[1] - dst[0], dst[3] - dst[2]), UNKNOWN, np.int8)
-                    old.data[
-                        dst[0] - old.r0 : dst[1] - old.r0, dst[2] - old.c0 : dst[3] - old.c0
-                    ] = piece
-                old.version = self._version[j]
-                old.changed = dst if dst is not None else (0, 0, 0, 0)
-                return old
-        cj = self._crop(j)
-        if cj is None:
-            return old
-        b, (cb, rb) = cj
-        T_crop = T @ translation(cb, rb)  # cropped j cells -> i cells
-        box = _clip(_map_box(T_crop, (0, b.shape[0], 0, b.shape[1])), own.shape)
-        if box is None:
-            return old  # j's known part falls outside i's canvas
-        r0, r1, c0, c1 = box
-        data = _warp_nn(b, T_crop, (r1 - r0, c1 - c0), dst_origin=(c0, r0))
-        p = _Patch(r0, c0, data, self._version[j], T.copy(), invert_transform(T), None)
-        self._patches[(i, j)] = p
-        return p
+        return self._px.fused_change(i)

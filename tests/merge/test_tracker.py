@@ -326,9 +326,9 @@ def test_tracker_fed_map_changes_equals_the_scanning_tracker() -> None:
                 tr._edges[(0, 1)] = T
                 tr._paths = None
         for i in range(2):
-            assert scan._bbox[i] == told._bbox[i]
-            assert scan._version[i] == told._version[i]
-            assert scan._delta[i] == told._delta[i]
+            assert scan._px.bbox(i) == told._px.bbox(i)
+            assert scan._px.version(i) == told._px.version(i)
+            assert scan._px._delta[i] == told._px._delta[i]
             np.testing.assert_array_equal(scan.fused(i), told.fused(i))
 
 
@@ -336,7 +336,7 @@ def test_patch_warp_equals_warp_into() -> None:
     """The tracker's patch warp (int8 viewed as uint8) gives warp_into's cells exactly."""
     from mrexplore.grid import make_transform
     from mrexplore.merge.common import warp_into
-    from mrexplore.merge.tracker import _warp_nn
+    from mrexplore.merge.compositor import _warp_nn
 
     rng = np.random.default_rng(6)
     src = rng.choice(np.array([UNKNOWN, 0, 30, 64, OCC], dtype=np.int8), (90, 70))

@@ -1,0 +1,53 @@
+"""MapCompositor: change detection, crops, and fused maps (occupied beats free beats unknown)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mrexplore.grid import OCCUPIED, UNKNOWN
+from mrexplore.merge.common import translation
+from mrexplore.merge.compositor import MapCompositor
+
+
+def _map() -> np.ndarray:
+    m = np.full((40, 50), UNKNOWN, dtype=np.int8)
+    m[10:20, 5:15] = 0
+    return m
+
+
+def test_version_and_known_box_follow_changes() -> None:
+    comp = MapCompositor(1)
+    m = _map()
+    comp.observe(0, m)
+    assert comp.version(0) == 1 and comp.bbox(0) == (10, 20, 5, 15)
+    comp.observe(0, m)  # same content: no new version
+    assert comp.version(0) == 1
+    m[12, 16] = OCCUPIED  # grows the known box
+    comp.observe(0, m)
+    assert comp.version(0) == 2 and comp.bbox(0) == (10, 20, 5, 17)
+    crop, (col, row) = comp.crop(0)  # type: ignore[misc]
+    assert (col, row) == (5, 10) and crop.shape == (10, 12)
+    assert comp.known_cells(0) == 101
+
+
+def test_fused_map_is_the_cellwise_max_through_the_transform_and_the_links() -> None:
+    comp = MapCompositor(2)
+    a, b = _map(), np.full((40, 50), UNKNOWN, dtype=np.int8)
+    b[10:20, 5:15] = OCCUPIED  # b's cells land 20 columns right of where they are in b
+    comp.observe(0, a)
+    comp.observe(1, b)
+    T = translation(20, 0)
+    fused = comp.fused(0, {1: T}, lambda i, j: True)
+    assert (fused[10:20, 25:35] == OCCUPIED).all() and (fused[10:20, 5:15] == 0).all()
+    assert not fused.flags.writeable
+    # the link goes down: b's change does not travel, the last patch received stays
+    b[30:35, 5:15] = OCCUPIED
+    comp.observe(1, b)
+    stale = comp.fused(0, {1: T}, lambda i, j: False)
+    assert (stale[30:35, 25:35] == UNKNOWN).all() and (stale[10:20, 25:35] == OCCUPIED).all()
+    linked = comp.fused(0, {1: T}, lambda i, j: True)
+    assert (linked[30:35, 25:35] == OCCUPIED).all()
+    # a new transform for the pair: forget its patches, the fused map follows the new one
+    comp.forget_pair(0, 1)
+    moved = comp.fused(0, {1: translation(30, 0)}, lambda i, j: True)
+    assert (moved[10:20, 35:45] == OCCUPIED).all() and (moved[10:20, 25:35] != OCCUPIED).all()

@@ -68,7 +68,8 @@ class _Hypothesis:
     T: Transform  # cropped-b cells -> cropped-a cells
     source: str
     agreement: Agreement | None = None
-    shared_bonus: float = 0.0  # the final ranking's credit for shared known space (see below)
+    shared_cells: int = 0  # cells known in both maps under T (counted for the ranking)
+    shared_bonus: float = 0.0  # the final ranking's credit for them (see below)
 
     @property
     def score(self) -> float:
@@ -702,8 +703,14 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
         for h in hyps[:n_polish]
         if h.agreement is not None and quick.overlap_ok(h.agreement, min_overlap, min_overlap_cells)
     ]
-    for h in ok:  # the shared-space credit of the final ranking (below), so the truth is kept
-        h.shared_bonus = shared_weight * shared(h.T)
+
+    def credit_shared_space(hs: list[_Hypothesis]) -> None:
+        for h in hs:
+            h.shared_cells = shared(h.T)
+            h.shared_bonus = shared_weight * h.shared_cells
+
+    if shared_weight > 0:  # the credit of the final ranking (below), so the truth is kept
+        credit_shared_space(ok)
     ok.sort(key=lambda h: -h.evidence)
     # keep distinct hypotheses only (ICP often pulls several peaks to the same pose)
     pts = verify.points_b
@@ -754,8 +761,7 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     # uncontradicted overlap (a corner on a corner) with the truth; ranking by walls alone
     # prefers a long wall laid on a's wall from outside (b's rooms over a's unknown) to the
     # true pose whose rooms coincide but whose walls a bent map blurs.
-    for h in chosen:
-        h.shared_bonus = shared_weight * shared(h.T)
+    credit_shared_space(chosen)  # their poses moved in the refinement: count again
     chosen.sort(key=lambda h: -h.evidence)
     info["hypotheses"] = [
         (translation(bba[2], bba[0]) @ h.T @ translation(-bbb[2], -bbb[0]), h.agreement)
@@ -810,7 +816,7 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
             score=best.score,
             **common,
         )
-    common_m2 = shared(best.T) * resolution_m**2
+    common_m2 = best.shared_cells * resolution_m**2
     info["common_known_m2"] = common_m2
     if common_m2 < min_common_m2:
         return refuse(

@@ -50,7 +50,7 @@ or the merger), two float keys present on every step:
   contradict the truth: a free cell on a true wall, or an occupied cell with no true wall within
   1 cell (:class:`mrexplore.truth.MapScorer`). About 0.005 for a correct map without odometry
   noise; a wrong merge raises it. -1.0 when the map makes no claim inside the world. Recomputed
-  only when the fused map changed (:meth:`mrexplore.fusion.FusionStage.fused_version`).
+  only when the fused map changed (:meth:`mrexplore.merge.fusion.FusionStage.fused_version`).
 - ``merged_wrongly_s``: simulated seconds since reset during which this agent held a transform
   to some teammate whose merge error (``translation_cells``, the mean displacement of the
   teammate's known cells) was >= ``WRONG_MERGE_CELLS`` (5) cells more than odometry drift
@@ -80,8 +80,8 @@ from mrexplore.environment.config import EnvConfig
 from mrexplore.environment.observations import ObservationBuilder, ObservationFormat
 from mrexplore.environment.view import RobotView
 from mrexplore.errors import ConfigError
-from mrexplore.fusion import FusionStage
 from mrexplore.grid import UNKNOWN, apply_transform, invert_transform, transform_angle
+from mrexplore.merge.fusion import FusionStage
 from mrexplore.robot import Action, RobotConfig
 from mrexplore.sensors import LidarConfig
 from mrexplore.sim import SimConfig, Simulation
@@ -422,6 +422,12 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         return float(self._last_coverage)
 
     # ------------------------------------------------------------------ map protocol
+    @property
+    def merges_maps(self) -> bool:
+        """True when this env fuses its robots' maps itself (a merger and >= 2 robots):
+        :class:`~mrexplore.wrappers.MapMergeWrapper` then refuses to wrap it."""
+        return bool(self.fusion.enabled)
+
     @property
     def map_resolution_m(self) -> float:
         """Metres per cell of every robot's map (the :mod:`mrexplore.wrappers` map protocol)."""

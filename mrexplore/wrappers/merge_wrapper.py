@@ -30,10 +30,11 @@ is detected once, at wrap time, instead of at the first step.
 
 One merging path
 ================
-Every step the wrapper feeds the agents' maps to a :class:`mrexplore.fusion.FusionStage`, the
+Every step the wrapper feeds the agents' maps to a :class:`mrexplore.merge.fusion.FusionStage`, the
 very object our own env uses for its built-in merging, so merging behaves identically on our env
-and on yours. (When you wrap our env, build it with ``merger=None`` so that it does not merge
-twice.)
+and on yours. An env whose ``merges_maps`` attribute is true (ours, unless built with
+``merger=None``) already fuses its maps: wrapping it is refused with a ``ConfigError``, as it
+would merge twice.
 
 Observations
 ============
@@ -74,8 +75,8 @@ from pettingzoo import ParallelEnv
 from pettingzoo.utils.wrappers import BaseParallelWrapper
 
 from mrexplore.errors import ConfigError
-from mrexplore.fusion import FusionStage
 from mrexplore.grid import UNKNOWN, apply_transform, free_mask, occupied_mask, validate_grid
+from mrexplore.merge.fusion import FusionStage
 
 MergeMode = Literal["replace", "augment"]
 LinksFn = Callable[[Any], "NDArray[np.bool_] | None"]
@@ -96,6 +97,11 @@ def check_map_protocol(env: Any) -> bool:
     """
     target = getattr(env, "unwrapped", env)
     name = type(target).__name__
+    if getattr(target, "merges_maps", False) is True:
+        raise ConfigError(
+            f"{name} already merges its maps (merges_maps is True): build it with merger=None "
+            "before wrapping it in MapMergeWrapper, or it would merge twice"
+        )
     missing: list[str] = []
     if not callable(getattr(target, "local_map", None)):
         missing.append("method local_map(agent) -> int8 (H, W) map in the agent's own frame")

@@ -331,3 +331,12 @@ def test_fused_map_image_window_and_padding() -> None:
     # Whole map (no centre): a 10x10 window centred on the grid; share averaging down to 5 px.
     img = fused_map_image(np.zeros((10, 10), np.int8), None, None, 5)
     assert (img[0] == 255).all()
+
+
+def test_wrapping_an_env_that_merges_itself_is_refused() -> None:
+    import mrexplore
+
+    with pytest.raises(ConfigError, match=r"already merges its maps.*merger=None"):
+        MapMergeWrapper(mrexplore.parallel_env(world="small_office", n_robots=2))
+    # one robot, or merger=None: nothing to merge twice
+    MapMergeWrapper(mrexplore.parallel_env(world="small_office", n_robots=2, merger=None))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mrexplore.fusion import FusionStage
+from mrexplore.merge.fusion import FusionStage
 
 
 def _maps() -> dict[str, np.ndarray]:

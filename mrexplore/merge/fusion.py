@@ -1,0 +1,201 @@
+"""The one merging path: local maps in, fused maps and merge facts out, every step.
+
+Both the built-in merging of :class:`mrexplore.environment.MultiRobotExplorationEnv` and the generic
+:class:`mrexplore.wrappers.MapMergeWrapper` run their maps through a :class:`FusionStage`, so
+merging behaves identically whether you use our env or wrap your own.
+
+A stage knows nothing of the ground truth: it sees each agent's own-frame int8 map, whether the
+agents can talk (``links``), and the step counter.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mrexplore.grid import MapChange, check_int8_map
+
+#: Known space (m^2) two maps must share before the every-step merger accepts a match: about a
+#: room, so a match confined to one room (which an identical room elsewhere would explain as
+#: well) waits for more; measurements in docs/merging.md.
+IN_LOOP_MIN_COMMON_M2 = 20.0
+
+
+class FusionStage:
+    """Runs a :class:`~mrexplore.merge.MapMergeTracker` over named agents.
+
+    Args:
+        agents: agent names, in a fixed order (index i = tracker robot i).
+        merger: a method name for :func:`mrexplore.merge.merge_maps`, an object with
+            ``merge(a, b)``, or ``None`` to never merge (each agent keeps its own map).
+        merge_every: steps between merge attempts of a pair before its first success.
+        recheck_every: steps between re-checks of an accepted transform.
+        merge_latency_steps: steps between the start of a merge attempt and its effect (0: the
+            same step; > 0: computed in a worker thread meanwhile).
+        merge_options: extra keyword options for the merge method.
+        resolution_m: metres per cell of the maps; passed to the ``"semantic"`` merger (its
+            minimum common area is in m^2) unless ``merge_options`` sets it.
+    """
+
+    def __init__(
+        self,
+        agents: Sequence[str],
+        merger: Any = "semantic",
+        merge_every: int = 10,
+        recheck_every: int = 100,
+        merge_latency_steps: int = 0,
+        merge_options: Mapping[str, Any] | None = None,
+        resolution_m: float | None = None,
+    ) -> None:
+        self.agents = list(agents)
+        self.index = {a: i for i, a in enumerate(self.agents)}
+        self.enabled = merger is not None and len(self.agents) > 1
+        self._maps: list[NDArray[np.int8]] = []
+        self._first_merge_step: dict[str, int | None] = dict.fromkeys(self.agents)
+        # fused_version: a counter that only grows (never reset, so a version never repeats),
+        # the version of the last update without a merger, and per agent (what the fused map
+        # was last seen as, its version)
+        self._counter = 0
+        self._update_version = 0
+        self._seen: dict[str, tuple[tuple[str, Any], int]] = {}
+        self.tracker: Any = None
+        if self.enabled:
+            from mrexplore.merge.tracker import MapMergeTracker
+
+            options = dict(merge_options or {})
+            if merger == "semantic":
+                # In the loop the maps grow, so asking for a room's worth of shared knowledge
+                # costs seconds, while a one-shot merge has no "later".
+                options.setdefault("min_common_m2", IN_LOOP_MIN_COMMON_M2)
+                if resolution_m is not None:
+                    options.setdefault("resolution_m", float(resolution_m))
+            self.tracker = MapMergeTracker(
+                len(self.agents),
+                merger=merger,
+                merge_every=merge_every,
+                recheck_every=recheck_every,
+                merge_latency_steps=merge_latency_steps,
+                **options,
+            )
+
+    def reset(self) -> None:
+        """Forget every transform (a new episode)."""
+        self._maps = []
+        self._first_merge_step = dict.fromkeys(self.agents)
+        self._seen = {}
+        if self.tracker is not None:
+            self.tracker.reset()
+
+    def update(
+        self,
+        local_maps: Mapping[str, NDArray[np.int8]],
+        step: int,
+        links: NDArray[np.bool_] | None = None,
+        attempt: bool = True,
+        changes: Mapping[str, MapChange] | None = None,
+    ) -> None:
+        """Feed this step's own-frame maps (one per agent, int8 -1/0/100).
+
+        ``links[i, j]`` False means agents i and j cannot exchange maps this step; ``attempt``
+        False records the maps without a merge attempt (at ``reset``: single-scan maps).
+        ``changes``: optionally, per agent, what the map's owner knows of its changes (known
+        and changed boxes, :class:`mrexplore.grid.MapChange`), which spares the tracker a scan
+        of every canvas.
+        """
+        missing = [a for a in self.agents if a not in local_maps]
+        if missing:
+            raise KeyError(f"no local map for agent(s) {missing}")
+        self._maps = [check_int8_map(local_maps[a], f"local map of {a}") for a in self.agents]
+        self._counter += 1
+        self._update_version = self._counter
+        if self.tracker is None:
+            return
+        hints = None if changes is None else [changes.get(a) for a in self.agents]
+        self.tracker.update(self._maps, step, links, attempt=attempt, changes=hints)
+        for a in self.agents:
+            if self._first_merge_step[a] is None and self.tracker.merged(self.index[a]):
+                self._first_merge_step[a] = step
+
+    def merged(self, agent: str) -> bool:
+        """True once ``agent``'s map is fused with at least one teammate's."""
+        return bool(self.tracker is not None and self.tracker.merged(self.index[agent]))
+
+    def first_merge_step(self, agent: str) -> int | None:
+        """The step at which ``agent`` was first merged, or None."""
+        return self._first_merge_step[agent]
+
+    def fused(self, agent: str) -> NDArray[np.int8]:
+        """The fused map in ``agent``'s frame (its own map when not merged), same shape."""
+        i = self.index[agent]
+        if self.tracker is not None and self.tracker.merged(i):
+            return np.asarray(self.tracker.fused(i))
+        return self._maps[i]
+
+    def fused_version(self, agent: str) -> int:
+        """A number that changes whenever :meth:`fused` of ``agent`` may have changed.
+
+        For caching per-map evaluations (the env's map-accuracy metrics). With a merger it
+        changes only when the fused map (or, unmerged, the own map) really changed: the tracker
+        returns the same fused array until a map or transform changes, and counts own-map
+        changes. Without a merger (``merger=None`` or one agent) there is no change detection:
+        it changes at every :meth:`update`. It never repeats across :meth:`reset`.
+        """
+        if self.tracker is None:
+            return self._update_version
+        i = self.index[agent]
+        key: tuple[str, Any]
+        if self.tracker.merged(i):
+            key = ("fused", self.tracker.fused(i))  # the same object until something changed
+        else:
+            key = ("own", self.tracker.map_version(i))
+        seen = self._seen.get(agent)
+        if seen is not None:
+            (kind, ref), version = seen
+            if kind == key[0] and (ref is key[1] if kind == "fused" else ref == key[1]):
+                return version
+        self._counter += 1
+        self._seen[agent] = (key, self._counter)
+        return self._counter
+
+    def fused_change(self, agent: str) -> tuple[int, tuple[int, int, int, int] | None] | None:
+        """For a merged ``agent``: ``(composition count, changed box)`` of its fused map (see
+        :meth:`mrexplore.merge.MapMergeTracker.fused_change`; call :meth:`fused` first); None
+        when it is not merged (its fused map is then its own map, which says what changed)."""
+        if self.tracker is None or not self.tracker.merged(self.index[agent]):
+            return None
+        count, box = self.tracker.fused_change(self.index[agent])
+        return int(count), box
+
+    def transforms(self, agent: str) -> dict[str, NDArray[np.float64]]:
+        """Estimated transforms from each merged teammate's cells into ``agent``'s cells."""
+        if self.tracker is None:
+            return {}
+        i = self.index[agent]
+        out: dict[str, NDArray[np.float64]] = {}
+        for other in self.agents:
+            j = self.index[other]
+            if j == i:
+                continue
+            T = self.tracker.transform(i, j)
+            if T is not None:
+                out[other] = np.asarray(T, dtype=np.float64)
+        return out
+
+    def score(self, agent: str) -> float | None:
+        """Agreement score of the best accepted merge involving ``agent`` (None if none)."""
+        if self.tracker is None:
+            return None
+        i = self.index[agent]
+        best: float | None = None
+        for other in self.agents:
+            j = self.index[other]
+            if j == i:
+                continue
+            res = self.tracker.last_result(i, j)
+            if res is not None and getattr(res, "matched", False):
+                s = float(res.score)
+                best = s if best is None else max(best, s)
+        return best

@@ -1,23 +1,26 @@
-"""Frames from state only (the viewer) and GIF/MP4 writing.
+"""The viewer: frames drawn from a :class:`FrameSnapshot`, a window for ``"human"`` mode, and
+GIF/MP4 writing.
 
-Rendering reads the env's state; it never computes or changes it.
+The viewer reads a snapshot the env hands it (as jumanji's ``Viewer.render(state)``), never
+the env itself: it cannot change the episode, and it can draw snapshots kept from earlier.
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from mrexplore.grid import apply_transform, free_mask, invert_transform, occupied_mask
-
-if TYPE_CHECKING:  # pragma: no cover
-    from mrexplore.environment.parallel_env import MultiRobotExplorationEnv
+from mrexplore.environment.view import RobotView
+from mrexplore.grid import Transform, apply_transform, free_mask, invert_transform, occupied_mask
+from mrexplore.sensors import Scan
+from mrexplore.world.world import World
 
 #: RGB colours of robots 0, 1, 2, ... (cycled).
 ROBOT_COLOURS: list[tuple[int, int, int]] = [
@@ -131,18 +134,54 @@ class FrameLayout:
         return self.resolution_m / self.px_per_cell
 
 
-def frame_layout(env: MultiRobotExplorationEnv) -> FrameLayout:
-    """The :class:`FrameLayout` of ``env``'s current episode (reads the env, changes nothing)."""
-    sim, world = env.sim, env.world
-    assert sim is not None and world is not None
+@dataclass(frozen=True, eq=False)
+class FrameSnapshot:
+    """What one frame shows, read from the env at one step (arrays are not copied: draw it
+    before the next step, or copy them).
+
+    Attributes:
+        agents: agent names, robot i = ``agents[i]``.
+        world: the true world.
+        seen: bool (H, W) world cells the team has observed.
+        true_poses: (n, 3) true poses (world metres, radians).
+        scan: the last lidar scan (beams), or None.
+        maps: each robot's own int8 map, in its own frame.
+        pose_cells: each robot's pose estimate (col, row, theta) in its own map cells.
+        trails: each robot's driven path, (T, 2) own map cells.
+        world_from_map: each robot's true 3x3 transform from its map cells to world cells.
+        fused: ``robot_0``'s :class:`~mrexplore.environment.view.RobotView` (its fused map and
+            teammates), None for one robot.
+        fused_error: ``robot_0``'s worst merge error against the truth, None when not merged.
+        time_s: simulated seconds since reset.
+        coverage: the team coverage the infos report.
+    """
+
+    agents: tuple[str, ...]
+    world: World
+    seen: NDArray[np.bool_]
+    true_poses: NDArray[np.float64]
+    scan: Scan | None
+    maps: tuple[NDArray[np.int8], ...]
+    pose_cells: tuple[tuple[float, float, float], ...]
+    trails: tuple[NDArray[np.float64], ...]
+    world_from_map: tuple[Transform, ...]
+    fused: RobotView | None
+    fused_error: dict[str, float] | None
+    time_s: float
+    coverage: float
+
+
+def frame_layout(snap: FrameSnapshot) -> FrameLayout:
+    """The :class:`FrameLayout` of ``snap``'s episode: the same for every step of it."""
+    world = snap.world
     h, w = world.walls.shape
     corners = np.array([[-0.5, -0.5], [w - 0.5, -0.5], [-0.5, h - 0.5], [w - 0.5, h - 0.5]])
     windows = []  # (centre col, centre row, side in cells, map rows)
-    for i in range(len(env.possible_agents)):
-        mc = apply_transform(invert_transform(sim.world_from_map(i)), corners)
+    for i in range(len(snap.agents)):
+        mc = apply_transform(invert_transform(snap.world_from_map[i]), corners)
         lo, hi = mc.min(axis=0), mc.max(axis=0)
         side = float(np.max(hi - lo)) + 2 * WINDOW_MARGIN_CELLS
-        windows.append(((lo + hi) / 2, side, sim.maps[i].to_int8().shape[0]))
+        windows.append(((lo + hi) / 2, side, snap.maps[i].shape[0]))
     side = max([float(max(h, w)) + 2.0] + [win[1] for win in windows])
     s = PANEL_PX / side
     return FrameLayout(
@@ -275,31 +314,28 @@ def legend(
     return strip, swatches
 
 
-def world_title(env: MultiRobotExplorationEnv) -> str:
+def world_title(snap: FrameSnapshot) -> str:
     """The true-world panel's title: simulated time and the env's coverage (``infos``' value)."""
-    assert env.sim is not None
-    return f"world (truth)  t={env.sim.time_s:.1f}s  coverage {format_coverage(env.coverage)}"
+    return f"world (truth)  t={snap.time_s:.1f}s  coverage {format_coverage(snap.coverage)}"
 
 
-def render_env_frame(env: MultiRobotExplorationEnv) -> NDArray[np.uint8]:
-    """The env's frame: true world | each robot's own map | fused map of robot_0, all at one
-    scale and with a fixed window per episode (the frame's shape depends on the number of
+def render_frame(snap: FrameSnapshot) -> NDArray[np.uint8]:
+    """The frame of ``snap``: true world | each robot's own map | fused map of robot_0, all at
+    one scale and with a fixed window per episode (the frame's shape depends on the number of
     robots only), with a legend strip below."""
-    sim, world = env.sim, env.world
-    assert sim is not None and world is not None
-    n = len(env.possible_agents)
-    layout = frame_layout(env)
+    world = snap.world
+    n = len(snap.agents)
+    layout = frame_layout(snap)
     wv = layout.world
     # --- the true world, what the team has observed, beams, trails, robots
-    seen = sim.observed.any(axis=0)
     img = np.full((*world.walls.shape, 3), WORLD_UNSEEN, dtype=np.uint8)
-    img[seen & ~world.walls] = WORLD_SEEN
+    img[snap.seen & ~world.walls] = WORLD_SEEN
     img[world.walls] = WORLD_WALL
     panel = wv.draw(np.ascontiguousarray(img[::-1]))
 
-    scan = sim.last_scan
+    scan = snap.scan
     for i in range(n):
-        pose = sim.true_poses[i]
+        pose = snap.true_poses[i]
         p = wv.px(world.cell_of(pose[None, :2]))[0]
         if scan is not None:
             ang = pose[2] + scan.angles[::8]
@@ -307,42 +343,95 @@ def render_env_frame(env: MultiRobotExplorationEnv) -> NDArray[np.uint8]:
             ends = pose[None, :2] + np.stack([np.cos(ang), np.sin(ang)], 1) * rng_m[:, None]
             for q in wv.px(world.cell_of(ends)):
                 cv2.line(panel, (int(p[0]), int(p[1])), (int(q[0]), int(q[1])), BEAM, 1)
-        trail = sim.trail_cells(i)
+        trail = snap.trails[i]
         if len(trail) > 1:
-            _trail(panel, wv, apply_transform(sim.world_from_map(i), trail), i)
+            _trail(panel, wv, apply_transform(snap.world_from_map[i], trail), i)
     for i in range(n):
-        pose = sim.true_poses[i]
+        pose = snap.true_poses[i]
         _draw_robot(panel, wv.px(world.cell_of(pose[None, :2]))[0], float(pose[2]), i, big=True)
-    panels = [_title(panel, world_title(env))]
+    panels = [_title(panel, world_title(snap))]
     # --- each robot's own map, in its own frame
-    for i, a in enumerate(env.possible_agents):
-        c, r, th = sim.pose_cell(i)
+    for i, a in enumerate(snap.agents):
+        c, r, th = snap.pose_cells[i]
         panels.append(
             map_panel(
-                sim.maps[i].to_int8(),
+                snap.maps[i],
                 f"{a}: own map (own frame)",
                 [(c, r, th, i)],
-                [(sim.trail_cells(i), i)],
+                [(snap.trails[i], i)],
                 view=layout.robots[i],
             )
         )
     # --- the fused map in robot_0's frame
-    if n > 1:
-        a0 = env.possible_agents[0]
-        view = env.robot_view(a0)
+    view = snap.fused
+    if view is not None:
         poses = [(*view.pose_cell, 0)] + [
-            (c, r, 0.0, env.possible_agents.index(o)) for o, (c, r) in view.teammates.items()
+            (c, r, 0.0, snap.agents.index(o)) for o, (c, r) in view.teammates.items()
         ]
-        err = env._merge_error(a0) if view.merged else None
+        err = snap.fused_error
         status = "MERGED" if view.merged else "not merged"
         if err is not None:
             status += f" err {err['translation_cells']:.1f}c {err['rotation_deg']:.1f}deg"
         panels.append(
-            map_panel(view.map, f"fused ({a0} frame): {status}", poses, view=layout.robots[0])
+            map_panel(
+                view.map, f"fused ({view.agent} frame): {status}", poses, view=layout.robots[0]
+            )
         )
     top = np.hstack(panels)
-    strip, _ = legend(env.possible_agents, layout, top.shape[1])
+    strip, _ = legend(snap.agents, layout, top.shape[1])
     return np.ascontiguousarray(np.vstack([top, strip]))
+
+
+class HumanWindow:
+    """``render_mode="human"``: frames shown in a matplotlib window at ``fps``. On a headless
+    machine (no interactive backend) it shows nothing and warns once. Pickles without its
+    window (re-opened on demand)."""
+
+    def __init__(self, fps: float) -> None:
+        self.fps = fps
+        self._figure: Any = None
+        self._warned = False
+
+    def show(self, frame: NDArray[np.uint8]) -> None:
+        """Show ``frame`` (H, W, 3 uint8), opening the window on the first call."""
+        try:
+            import matplotlib
+
+            if matplotlib.get_backend().lower() in ("agg", "pdf", "svg", "ps", "cairo", "template"):
+                raise RuntimeError("no interactive matplotlib backend (headless machine)")
+            import matplotlib.pyplot as plt
+        except Exception as exc:
+            if not self._warned:
+                warnings.warn(
+                    f"render_mode='human' shows nothing here ({exc}); use render_mode='rgb_array' "
+                    "and write frames with mrexplore.render.write_video",
+                    stacklevel=3,
+                )
+                self._warned = True
+            return
+        if self._figure is None:
+            fig, ax = plt.subplots()
+            ax.axis("off")
+            self._figure = (fig, ax.imshow(frame))
+        else:
+            self._figure[1].set_data(frame)
+        plt.pause(1.0 / self.fps)
+
+    def close(self) -> None:
+        """Close the window, if any."""
+        if self._figure is not None:
+            try:
+                import matplotlib.pyplot as plt
+
+                plt.close(self._figure[0])
+            except Exception:  # pragma: no cover - closing a window must never raise
+                pass
+            self._figure = None
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = dict(self.__dict__)
+        state["_figure"] = None
+        return state
 
 
 def write_video(frames: Sequence[NDArray[np.uint8]], path: str | Path, fps: float = 8.0) -> Path:

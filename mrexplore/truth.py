@@ -142,6 +142,43 @@ def transform_error(
     return float(disp.mean()), float(rot)
 
 
+def known_cells(
+    grid: Int8Grid,
+    box: tuple[int, int, int, int] | None = None,
+    max_points: int | None = None,
+) -> NDArray[np.float64]:
+    """The known cells of an int8 map as ``(N, 2)`` float64 ``(col, row)``, row-major; inside
+    ``box`` (``(row0, row1, col0, col1)`` inclusive, the map's known box spares a scan) if
+    given; an even sample of at most ``max_points`` (every k-th cell) if given.
+
+    >>> g = np.full((3, 4), UNKNOWN, dtype=np.int8); g[1, 2] = 0; g[2, 0] = 100
+    >>> known_cells(g).tolist()
+    [[2.0, 1.0], [0.0, 2.0]]
+    """
+    r0, c0 = (0, 0) if box is None else (box[0], box[2])
+    sub = grid if box is None else grid[box[0] : box[1] + 1, box[2] : box[3] + 1]
+    rows, cols = np.nonzero(sub != UNKNOWN)
+    step = 1 if max_points is None else max(1, len(rows) // max_points)
+    return np.stack([cols[::step] + c0, rows[::step] + r0], axis=1).astype(np.float64)
+
+
+def merge_error(
+    T_est: Transform,
+    T_true: Transform,
+    b: Int8Grid,
+    box: tuple[int, int, int, int] | None = None,
+    max_points: int | None = None,
+) -> tuple[float, float] | None:
+    """The error of a merge: :func:`transform_error` of the estimated ``T_ab`` measured on b's
+    known cells (:func:`known_cells` with ``box`` and ``max_points``), None when b knows
+    nothing. The one measure of the env's infos, the renderer and the merge benchmark (under 2
+    cells is a correct merge, 5 or more a wrong one)."""
+    pts = known_cells(b, box, max_points)
+    if len(pts) == 0:
+        return None
+    return transform_error(T_est, T_true, pts)
+
+
 def map_in_world(
     map_grid: Int8Grid, T_world_from_map: Transform, world_shape: tuple[int, int]
 ) -> Int8Grid:

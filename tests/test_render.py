@@ -30,7 +30,7 @@ def _step(penv: Any, k: int) -> None:
 def test_legend_is_drawn_below_the_panels() -> None:
     penv = _env()
     frame = penv.render()
-    layout = render.frame_layout(penv)
+    layout = render.frame_layout(penv.snapshot())
     strip, swatches = render.legend(penv.possible_agents, layout, frame.shape[1])
     top = render.TITLE_PX + render.PANEL_PX
     assert frame.shape[0] == top + strip.shape[0]
@@ -61,7 +61,7 @@ def test_legend_is_drawn_below_the_panels() -> None:
 
 def test_legend_fits_one_robot_frame() -> None:
     penv = _env(n_robots=1)
-    layout = render.frame_layout(penv)
+    layout = render.frame_layout(penv.snapshot())
     strip, swatches = render.legend(penv.possible_agents, layout, render.PANEL_PX * 2)
     assert all(x + w <= strip.shape[1] for x, _, w, _ in swatches.values())
     assert len(swatches) == 10  # one robot, trail, beams, scale, 3 world and 3 map classes
@@ -69,12 +69,12 @@ def test_legend_fits_one_robot_frame() -> None:
 
 def test_frames_keep_their_geometry_as_maps_grow() -> None:
     penv = _env()
-    layout0 = render.frame_layout(penv)
+    layout0 = render.frame_layout(penv.snapshot())
     f0 = penv.render()
     _step(penv, 40)
     f1 = penv.render()
     assert f0.shape == f1.shape
-    assert render.frame_layout(penv) == layout0  # same windows, same scale: a fixed zoom
+    assert render.frame_layout(penv.snapshot()) == layout0  # same windows, same scale: a fixed zoom
     # the world's walls (never changing) are drawn at the same pixels in both frames
     panel = (slice(render.TITLE_PX, render.TITLE_PX + render.PANEL_PX), slice(render.PANEL_PX))
     walls0 = np.all(f0[panel] == render.WORLD_WALL, axis=2)
@@ -88,7 +88,7 @@ def test_all_panels_share_one_scale(aligned: bool) -> None:
     """A wall segment of known length spans the same pixels in the world panel and, carried
     into each robot's frame with the true transform, in that robot's map panel."""
     penv = _env(aligned_headings=aligned)
-    layout = render.frame_layout(penv)
+    layout = render.frame_layout(penv.snapshot())
     h, w = penv.world.walls.shape
     seg_world = np.array([[0.0, 0.0], [w - 1.0, 0.0]])  # the bottom wall, (w - 1) cells long
     length_px = np.linalg.norm(np.diff(layout.world.px(seg_world).astype(float), axis=0))
@@ -111,7 +111,7 @@ def test_world_panel_shows_the_coverage_infos_report() -> None:
     _, _, _, _, infos = penv.step({a: 0 for a in penv.agents})
     cov = infos["robot_0"]["coverage"]
     assert penv.coverage == cov
-    assert render.format_coverage(cov) in render.world_title(penv)
+    assert render.format_coverage(cov) in render.world_title(penv.snapshot())
 
 
 def test_demo_figure_title_matches_console(

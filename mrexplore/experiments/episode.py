@@ -11,7 +11,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 import mrexplore
-from mrexplore.environment.parallel_env import is_wrong_merge, merge_error_of
+from mrexplore.environment.evaluation import is_wrong_merge
+from mrexplore.environment.infos import merge_error_of
 
 
 @dataclass

@@ -39,7 +39,7 @@ from mrexplore.experiments.merge_cases import (
 )
 from mrexplore.io_safety import check_outputs, write_text
 from mrexplore.merge import MapMergeTracker, merge_maps
-from mrexplore.merge.common import mean_displacement
+from mrexplore.truth import merge_error
 
 #: (method, detector, options) run by default; detector None = the method has none to choose.
 #: The orb baseline runs twice: with m-explore's default confidence threshold (1.0) and with
@@ -66,7 +66,8 @@ def classify(case: MergeCase, matched: bool, transform: np.ndarray | None) -> tu
     """
     if not matched or transform is None:
         return "refused", float("inf")
-    err = mean_displacement(np.asarray(transform), case.T_ab, case.b)
+    measured = merge_error(np.asarray(transform), case.T_ab, case.b)
+    err = float("inf") if measured is None else measured[0]
     drift = float(case.meta.get("drift_cells", 0.0))
     if err < CORRECT_CELLS + drift:
         return "correct", err

@@ -487,16 +487,3 @@ def compose(a: Int8Grid, b: Int8Grid, T_ab: Transform) -> tuple[Int8Grid, tuple[
     canvas[-rmin : -rmin + h, -cmin : -cmin + w] = a
     warped = warp_into(b, T_ab, shape, dst_origin=(cmin, rmin))
     return fuse(canvas, warped), (-cmin, -rmin)
-
-
-def mean_displacement(T_est: Transform, T_true: Transform, b: Int8Grid) -> float:
-    """Mean distance (cells) between b's known cells mapped by ``T_est`` and by ``T_true``.
-
-    The benchmark's error measure: under 2 cells is "correct", 5 or more "wrong".
-    """
-    rows, cols = np.nonzero(b != UNKNOWN)
-    if rows.size == 0:
-        return float("inf")
-    p = np.stack([cols, rows], axis=1).astype(np.float64)
-    d = (p @ T_est[:2, :2].T + T_est[:2, 2]) - (p @ T_true[:2, :2].T + T_true[:2, 2])
-    return float(np.mean(np.hypot(d[:, 0], d[:, 1])))

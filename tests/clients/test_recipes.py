@@ -87,7 +87,7 @@ def test_torchrl_recipe_checks_specs_and_trains_on_channels_first(recipe: Recipe
     assert ns["batch"].numel() == 128 and torch.isfinite(ns["total"])
     # every info key became a float tensor of one value per robot
     info = ns["batch"]["robot", "info"]
-    assert set(info.keys()) == set(mrexplore.environment.parallel_env.INFO_KEYS)
+    assert set(info.keys()) == set(mrexplore.environment.infos.INFO_KEYS)
 
 
 @pytest.mark.expensive

@@ -11,7 +11,7 @@ import pytest
 from pettingzoo.test import parallel_api_test
 
 import mrexplore
-from mrexplore.environment.parallel_env import INFO_KEYS, UNKNOWN_INFO
+from mrexplore.environment.infos import INFO_KEYS, UNKNOWN_INFO
 from mrexplore.errors import ConfigError
 
 SMALL: dict[str, Any] = {"world": "small_office", "max_time_s": 60.0}
@@ -123,7 +123,7 @@ def test_infos_have_the_same_flat_numeric_keys_on_every_step(task: str) -> None:
 
 
 def test_merge_error_fields_once_merged_and_extra_on_request() -> None:
-    from mrexplore.environment.parallel_env import merge_error_of
+    from mrexplore.environment.infos import merge_error_of
     from mrexplore.experiments.loop_study import OracleMerger
 
     oracle = OracleMerger()  # the true transform through the tracker: merged after 2.5 s
@@ -166,9 +166,11 @@ def test_plain_pickle_round_trips_a_running_env() -> None:
 
 def test_human_mode_env_pickles_without_its_window() -> None:
     penv = mrexplore.parallel_env(**SMALL, render_mode="human")
-    penv._renderer = (lambda: None, None)  # stands for a matplotlib window: not picklable
+    assert penv.window is not None
+    penv.window._figure = (lambda: None, None)  # stands for a matplotlib window: not picklable
     copy = pickle.loads(pickle.dumps(penv))
-    assert copy._renderer is None and penv._renderer is not None
+    assert copy.window is not None and copy.window._figure is None
+    assert penv.window._figure is not None
 
 
 def test_render_accepts_rllibs_positional_mode_and_nothing_else() -> None:

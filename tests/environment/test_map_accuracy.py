@@ -65,8 +65,8 @@ def test_contradiction_is_cached_on_the_fused_map_version(
     penv.reset(seed=0)
     penv.step({a: 3 for a in penv.agents})  # stay: the maps settle
     calls = []
-    warp = penv._scorer.warp
-    monkeypatch.setattr(penv._scorer, "warp", lambda *a: calls.append(1) or warp(*a))
+    warp = penv.episode.truth.scorer.warp
+    monkeypatch.setattr(penv.episode.truth.scorer, "warp", lambda *a: calls.append(1) or warp(*a))
     # the incremental scorer (when OpenCV's sampling could be pinned down) stands for the warp
     update = IncrementalScore.update
     monkeypatch.setattr(
@@ -141,18 +141,18 @@ def test_incremental_scores_equal_a_full_warp_every_step(coverage_mode: str) -> 
     merger.bind(penv)
     penv.reset(seed=0)
     rng = np.random.default_rng(7)
-    assert penv._scorer is not None and penv.sim is not None
+    assert penv.episode is not None and penv.sim is not None
     merged = False
     for _ in range(60):
         acts = {a: int(rng.choice(4, p=[0.7, 0.15, 0.15, 0.0])) for a in penv.agents}
         _, _, _, _, infos = penv.step(acts)
         for i, a in enumerate(penv.possible_agents):
-            assert penv._inc.get(i) is not None  # the sampling was pinned down
+            assert penv.episode.truth.incremental.get(i) is not None  # the sampling was pinned down
             merged = merged or infos[a]["merged"]
-            warped = penv._scorer.warp(penv.fusion.fused(a), penv.sim.world_from_map(i))
-            share, held = penv._scorer.scores(warped, held=coverage_mode == "held")
+            warped = penv.episode.truth.scorer.warp(penv.fusion.fused(a), penv.sim.world_from_map(i))
+            share, held = penv.episode.truth.scorer.scores(warped, held=coverage_mode == "held")
             got = infos[a]["fused_contradiction"]
             assert got == share or (math.isnan(got) and math.isnan(share))
             if held is not None:
-                assert penv._map_accuracy(i)[1] == held
+                assert penv.episode.truth.map_accuracy(i)[1] == held
     assert merged

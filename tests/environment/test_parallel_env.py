@@ -11,7 +11,7 @@ from pettingzoo.test.max_cycles_test import max_cycles_test
 from pettingzoo.test.state_test import state_test
 
 import mrexplore
-from mrexplore.environment.parallel_env import INFO_KEYS
+from mrexplore.environment.infos import INFO_KEYS
 from mrexplore.errors import ConfigError, WorldError
 
 SMALL = {"world": "small_office", "max_time_s": 60.0}
@@ -207,7 +207,7 @@ def test_out_of_range_teammates_are_where_they_were_last_heard() -> None:
     penv.step({a: 3 for a in penv.agents})
     heard = penv.robot_view("robot_0").teammates["robot_1"]
     assert penv.robot_view("robot_0").in_range == frozenset({"robot_1"})
-    penv.config = penv.config.__class__(**{**penv.config.to_dict(), "comm_range_m": 1e-3})
+    penv.radio.comm_range_m = 1e-3
     for _ in range(8):
         penv.step({"robot_0": 3, "robot_1": 0})
     view = penv.robot_view("robot_0")
@@ -296,7 +296,7 @@ def test_teammate_goal_is_near_robot_1_start_and_the_same_for_every_team_size() 
             world="symmetric_office", task="navigate", nav_goal="teammate", n_robots=n
         )
         penv.reset(seed=3)
-        goals.append(penv._goal_world.copy())  # type: ignore[union-attr]
+        goals.append(penv.task.goal.world_xy.copy())  # type: ignore[union-attr]
         if n == 2:
             assert penv.sim is not None
             d_mate = np.hypot(*(goals[-1] - penv.sim.start_poses[1, :2]))

@@ -11,8 +11,9 @@ import pytest
 from mrexplore.experiments.merge_cases import rotate_map
 from mrexplore.grid import OCCUPIED, UNKNOWN, invert_transform, transform_angle
 from mrexplore.merge import merge_maps
-from mrexplore.merge.common import mean_displacement, translation
+from mrexplore.merge.common import translation
 from mrexplore.merge.semantic import rotation_candidates
+from mrexplore.truth import merge_error
 
 
 def test_recovers_rotation_and_translation_on_real_crops(
@@ -22,7 +23,7 @@ def test_recovers_rotation_and_translation_on_real_crops(
     res = merge_maps(a, b)
     assert res.matched, res.reason
     assert res.transform is not None
-    assert mean_displacement(res.transform, T_true, b) < 1.0  # better than a cell
+    assert merge_error(res.transform, T_true, b)[0] < 1.0  # better than a cell
     d_deg = np.degrees(transform_angle(res.transform) - transform_angle(T_true))
     assert abs((d_deg + 180) % 360 - 180) < 1.0  # better than a degree
     assert res.score > 0.95
@@ -62,7 +63,7 @@ def test_accepts_once_b_sees_the_surroundings(
     res = merge_maps(world, b)
     assert res.matched, res.reason
     assert res.transform is not None
-    assert mean_displacement(res.transform, T_true, b) < 1.0
+    assert merge_error(res.transform, T_true, b)[0] < 1.0
 
 
 def test_partial_views_of_twin_room_with_unknown_rest(
@@ -115,7 +116,7 @@ def test_paper_candidates_option_runs(
     a, b, T_true = office_pair
     res = merge_maps(a, b, paper_candidates=True, detector="shi-tomasi")
     assert res.matched and res.transform is not None
-    assert mean_displacement(res.transform, T_true, b) < 1.0
+    assert merge_error(res.transform, T_true, b)[0] < 1.0
 
 
 @pytest.mark.parametrize(
@@ -136,7 +137,7 @@ def test_compiled_icp_equals_the_numpy_reference(
         np.testing.assert_allclose(fast, slow, atol=1e-6)
     # and it converges to the truth from a few cells and degrees off
     T = icp(icp(T0, 10, 6.0), 10, 3.0)
-    assert mean_displacement(T, T_ab, b) < 1.0
+    assert merge_error(T, T_ab, b)[0] < 1.0
 
 
 @pytest.mark.parametrize(("turn_deg", "rel_deg"), [(23.0, 71.0), (-41.0, 12.5), (8.0, -133.0)])

@@ -12,7 +12,8 @@ from mrexplore.experiments.merge_cases import rotate_map
 from mrexplore.grid import OCCUPIED as OCC
 from mrexplore.grid import UNKNOWN, invert_transform
 from mrexplore.merge import MapMergeTracker, MergeResult
-from mrexplore.merge.common import mean_displacement, translation
+from mrexplore.merge.common import translation
+from mrexplore.truth import merge_error
 
 
 def _canvas(
@@ -50,7 +51,7 @@ def test_merges_once_enough_is_known_and_keeps_the_transform(
     tr.update([ca, cb], step=5)
     assert tr.merged(0) and tr.merged(1) and tr.group(0) == {0, 1}
     T = tr.transform(0, 1)
-    assert T is not None and mean_displacement(T, T_true, cb) < 1.0
+    assert T is not None and merge_error(T, T_true, cb)[0] < 1.0
     T10 = tr.transform(1, 0)
     assert T10 is not None
     np.testing.assert_allclose(T10, invert_transform(T), atol=1e-9)
@@ -119,7 +120,7 @@ def test_transforms_chain_through_merged_pairs() -> None:
     r02 = tr.last_result(0, 2)
     assert r02 is not None and not r02.matched  # 0-2 share no cell: refused directly ...
     T = tr.transform(0, 2)  # ... yet known through robot 1
-    assert T is not None and mean_displacement(T, T_20_true, m2) < 1.5
+    assert T is not None and merge_error(T, T_20_true, m2)[0] < 1.5
 
 
 class _Scripted:
@@ -152,7 +153,7 @@ def test_recheck_replaces_only_a_clearly_better_transform(
         tr.update([ca, cb], step=step)
     assert scripted.calls >= 3  # re-checks happened
     T = tr.transform(0, 1)
-    assert T is not None and mean_displacement(T, T_true, cb) < 1e-6  # the wrong one never won
+    assert T is not None and merge_error(T, T_true, cb)[0] < 1e-6  # the wrong one never won
 
 
 def test_bad_configuration_and_input() -> None:

@@ -1,0 +1,184 @@
+"""The env's evaluation against the truth: merge errors, map accuracy, time held wrongly.
+
+For the infos, the renderer and the benchmarks only: nothing here reaches a robot, a policy or
+the merger. The measures are :mod:`mrexplore.truth`'s (:func:`~mrexplore.truth.merge_error`,
+:class:`~mrexplore.truth.MapScorer`); this module keeps what one episode needs to report them
+every step without redoing the work: caches keyed on what changed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mrexplore.merge.fusion import FusionStage
+from mrexplore.sim import Simulation
+from mrexplore.truth import (
+    IncrementalScore,
+    MapScorer,
+    known_cells,
+    nearest_sampling,
+    transform_error,
+)
+
+#: A merge error (mean displacement of the teammate's known cells) at least this large is a
+#: wrong merge (cells; the merge benchmark's threshold too).
+WRONG_MERGE_CELLS = 5.0
+#: Known cells of the teammate's map on which a merge error is measured (an even sample).
+ERROR_SAMPLE_POINTS = 4096
+#: Steps a merge error stays cached while its transform is unchanged (the known cells grow
+#: slowly; the error is asked for every step).
+ERROR_REFRESH_STEPS = 10
+
+MergeError = dict[str, float]
+
+
+def is_wrong_merge(err: Mapping[str, float]) -> bool:
+    """A merge error (``translation_cells``, ``rotation_deg``, ``drift_cells``) that drift
+    cannot explain: the mean displacement exceeds ``WRONG_MERGE_CELLS`` plus the odometry-drift
+    allowance.
+
+    >>> is_wrong_merge({"translation_cells": 6.0, "rotation_deg": 2.0, "drift_cells": 3.0})
+    False
+    >>> is_wrong_merge({"translation_cells": 310.0, "rotation_deg": 0.0, "drift_cells": 0.0})
+    True
+    """
+    return err["translation_cells"] >= WRONG_MERGE_CELLS + err.get("drift_cells", 0.0)
+
+
+class TruthMonitor:
+    """One episode's evaluation of ``agents``' maps and transforms against ``sim``'s truth.
+
+    Args:
+        agents: agent names in robot order.
+        sim: the episode's simulator (reset).
+        fusion: the env's fusion stage (whose fused maps are scored).
+        held: also count the reachable free cells each map holds at their true place (the
+            ``coverage_mode="held"`` coverage).
+    """
+
+    def __init__(
+        self, agents: Sequence[str], sim: Simulation, fusion: FusionStage, held: bool
+    ) -> None:
+        self.agents = list(agents)
+        self.sim = sim
+        self.fusion = fusion
+        self.held = held
+        self.scorer = MapScorer(sim.world.walls, sim.reachable)
+        #: seconds each robot has held a wrong transform
+        self.wrong_s = np.zeros(len(self.agents), dtype=np.float64)
+        # per robot: (fused-map version, contradiction share, held free cells or None)
+        self._accuracy: dict[int, tuple[int, float, int | None]] = {}
+        # per robot: the incremental scorer of its map (None: sampling not exact, warp whole)
+        # and the (source, version) it last scored
+        self.incremental: dict[int, IncrementalScore | None] = {}
+        self._inc_seen: dict[int, tuple[str, int]] = {}
+        self._errors: dict[tuple[int, int], tuple[int, NDArray[np.float64], MergeError]] = {}
+
+    # ------------------------------------------------------------------ merges
+    def merge_errors(
+        self, agent: str, transforms: Mapping[str, NDArray[np.float64]]
+    ) -> dict[str, MergeError]:
+        """The error of each of ``agent``'s estimated ``transforms`` (teammate -> 3x3, its cells
+        into ``agent``'s): teammate -> ``{translation_cells, rotation_deg, drift_cells}``."""
+        i = self.agents.index(agent)
+        out: dict[str, MergeError] = {}
+        for other, T in transforms.items():
+            err = self._pair_error(i, self.agents.index(other), T)
+            if err is not None:
+                out[other] = err
+        return out
+
+    def merge_error(
+        self, agent: str, transforms: Mapping[str, NDArray[np.float64]]
+    ) -> MergeError | None:
+        """The worst (largest displacement) of :meth:`merge_errors`, None when not merged."""
+        worst: MergeError | None = None
+        for err in self.merge_errors(agent, transforms).values():
+            if worst is None or err["translation_cells"] > worst["translation_cells"]:
+                worst = err
+        return worst
+
+    def count_wrong(
+        self, transforms: Mapping[str, Mapping[str, NDArray[np.float64]]], dt_s: float
+    ) -> None:
+        """Add ``dt_s`` to each robot that holds a wrong transform (:func:`is_wrong_merge`)."""
+        for i, agent in enumerate(self.agents):
+            err = self.merge_error(agent, transforms[agent])
+            if err is not None and is_wrong_merge(err):
+                self.wrong_s[i] += dt_s
+
+    def _pair_error(self, i: int, j: int, T: NDArray[np.float64]) -> MergeError | None:
+        """The error of ``T`` (j's cells -> i's) on an even sample of j's known cells, with the
+        drift allowance. Recomputed when ``T`` changes or every ``ERROR_REFRESH_STEPS``."""
+        sim = self.sim
+        cached = self._errors.get((i, j))
+        if (
+            cached is not None
+            and cached[0] + ERROR_REFRESH_STEPS > sim.steps
+            and np.array_equal(cached[1], T)
+        ):
+            return cached[2]
+        box = sim.maps[j].known_bbox()
+        if box is None:
+            return None
+        # truth.merge_error's measure, with the sample kept for the drift allowance
+        pts = known_cells(sim.maps[j].to_int8(), box, ERROR_SAMPLE_POINTS)
+        if len(pts) == 0:
+            return None
+        disp, rot = transform_error(T, sim.true_transform(i, j), pts)
+        err = {
+            "translation_cells": disp,
+            "rotation_deg": rot,
+            "drift_cells": sim.drift_allowance(i, j, pts),
+        }
+        self._errors[(i, j)] = (int(sim.steps), np.array(T, copy=True), err)
+        return err
+
+    # ------------------------------------------------------------------ maps
+    def map_accuracy(self, i: int) -> tuple[float, int | None]:
+        """Robot i's own-or-fused map against the truth: (contradiction share, NaN when the
+        map claims nothing inside the world; reachable free cells it marks free at the true
+        place when ``held``, else None). Cached on the fused-map version."""
+        agent = self.agents[i]
+        version = self.fusion.fused_version(agent)
+        cached = self._accuracy.get(i)
+        if cached is not None and cached[0] == version:
+            return cached[1], cached[2]
+        fused = self.fusion.fused(agent)
+        if i not in self.incremental:
+            T = self.sim.world_from_map(i)
+            sample = nearest_sampling(T, self.sim.canvas_shape, self.scorer.shape)
+            self.incremental[i] = (
+                None if sample is None else IncrementalScore(self.scorer, T, sample)
+            )
+        inc = self.incremental[i]
+        if inc is None:
+            warped = self.scorer.warp(fused, self.sim.world_from_map(i))
+            share, held = self.scorer.scores(warped, held=self.held)
+        else:
+            share, held = self._rescore(i, inc, fused)
+        self._accuracy[i] = (version, share, held)
+        return share, held
+
+    def _rescore(
+        self, i: int, inc: IncrementalScore, fused: NDArray[np.int8]
+    ) -> tuple[float, int | None]:
+        """Re-score only the world cells that sample the part of robot i's map that changed
+        since the version last scored (the same figures as warping the whole map)."""
+        fc = self.fusion.fused_change(self.agents[i])
+        if fc is None:
+            ch = self.sim.maps[i].change()
+            source, ver, box = "own", ch.version, ch.changed_box
+        else:
+            source, (ver, box) = "fused", fc
+        seen = self._inc_seen.get(i)
+        if seen is None or seen[0] != source or ver > seen[1] + 1 or ver < seen[1]:
+            box = None  # a new source or a skipped version: score it whole
+        elif ver == seen[1]:
+            box = (0, 0, 0, 0)
+        share, n_held = inc.update(fused, box)
+        self._inc_seen[i] = (source, ver)
+        return share, (n_held if self.held else None)

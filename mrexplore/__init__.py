@@ -15,14 +15,17 @@ package registers the Gymnasium id ``mrexplore/Explore-v0`` (one robot).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # pragma: no cover
+    from mrexplore.environment.parallel_env import MultiRobotExplorationEnv
 
 __version__ = "0.1.0"
 
 __all__ = ["__version__", "env", "parallel_env", "raw_env"]
 
 
-def parallel_env(render_mode: str | None = None, **options: Any) -> Any:
+def parallel_env(render_mode: str | None = None, **options: Any) -> MultiRobotExplorationEnv:
     """The multi-robot exploration env as a PettingZoo ``ParallelEnv``.
 
     Options: see :class:`mrexplore.environment.EnvConfig` (``world``, ``n_robots``, ``task``,

@@ -17,9 +17,9 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from mrexplore.environment.view import RobotView
 from mrexplore.grid import Transform, apply_transform, free_mask, invert_transform, occupied_mask
 from mrexplore.sensors import Scan
+from mrexplore.types import RobotView
 from mrexplore.world.world import World
 
 #: RGB colours of robots 0, 1, 2, ... (cycled).

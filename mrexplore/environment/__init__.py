@@ -21,7 +21,7 @@ def __getattr__(name: str) -> Any:
 
         return MultiRobotExplorationEnv
     if name == "RobotView":
-        from mrexplore.environment.view import RobotView
+        from mrexplore.types import RobotView
 
         return RobotView
     raise AttributeError(f"module 'mrexplore.environment' has no attribute {name!r}")

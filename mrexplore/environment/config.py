@@ -15,6 +15,7 @@ from typing import Any, Literal
 import numpy as np
 
 from mrexplore.errors import ConfigError
+from mrexplore.types import Merger
 
 RewardMode = Literal["time", "coverage"]
 Task = Literal["explore", "navigate"]
@@ -135,7 +136,7 @@ class EnvConfig:
     odom_noise_rot: float = 0.0
     odom_noise_rot_per_m: float = 0.0
     min_start_separation_m: float = 0.0
-    merger: Any = "semantic"
+    merger: str | Merger | None = "semantic"
     merge_every: int = 10
     recheck_every: int = 100
     merge_latency_steps: int = 8

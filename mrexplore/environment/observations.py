@@ -39,8 +39,8 @@ import gymnasium
 import numpy as np
 from numpy.typing import NDArray
 
-from mrexplore.environment.view import RobotView
 from mrexplore.grid import FREE, FREE_THRESHOLD, OCCUPIED_THRESHOLD, UNKNOWN
+from mrexplore.types import RobotView
 
 try:  # numba is a core dependency; without it every view is drawn by the OpenCV path below
     from mrexplore import _kernels
@@ -160,8 +160,13 @@ class ObservationBuilder:
         self._big = (np.zeros((big, big), np.uint8), np.zeros((big, big), np.uint8))
         self._acc = np.zeros(big, dtype=np.int32)
 
-    def build(self, view: RobotView, trail_cells: NDArray[np.float64]) -> NDArray[np.uint8]:
-        """Observation of one robot. ``trail_cells`` (T, 2): the robot's past (col, row) cells."""
+    def build(
+        self, view: RobotView, trail_cells: NDArray[np.float64] | None = None
+    ) -> NDArray[np.uint8]:
+        """Observation of one robot. ``trail_cells`` (T, 2): the robot's past (col, row) cells
+        (default: ``view.trail``)."""
+        if trail_cells is None:
+            trail_cells = view.trail
         s = self.size
         obs = np.zeros(self.shape, dtype=np.uint8)
         col, row, theta = view.pose_cell

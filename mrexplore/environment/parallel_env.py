@@ -58,16 +58,14 @@ from mrexplore.environment.observations import ObservationBuilder, ObservationFo
 from mrexplore.environment.radio import Radio
 from mrexplore.environment.state import EpisodeState
 from mrexplore.environment.task import make_task
-from mrexplore.environment.view import RobotView
 from mrexplore.errors import ConfigError
 from mrexplore.merge.fusion import FusionStage
 from mrexplore.render import FrameSnapshot, HumanWindow, render_frame
 from mrexplore.robot import Action, RobotConfig
 from mrexplore.sensors import LidarConfig
 from mrexplore.sim import SimConfig, Simulation
+from mrexplore.types import AgentID, RobotView
 from mrexplore.world import World, load_world
-
-AgentID = str
 
 Observations = dict[AgentID, NDArray[Any]]
 Infos = dict[AgentID, dict[str, Any]]
@@ -272,6 +270,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
             in_range=self.radio.in_range(agent),
             goal_cell=self.task.goal_cell(i, ep.sim),
             time_s=float(ep.sim.time_s),
+            trail=ep.sim.trail_cells(i),
         )
 
     @property
@@ -422,9 +421,8 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
 
     def _observe(self, ep: EpisodeState) -> Observations:
         out = {}
-        for i, a in enumerate(self.possible_agents):
-            obs = self._obs_builder.build(self.robot_view(a), ep.sim.trail_cells(i))
-            out[a] = self._obs_format.apply(obs)
+        for a in self.possible_agents:
+            out[a] = self._obs_format.apply(self._obs_builder.build(self.robot_view(a)))
         return out
 
     def _coverage_now(self, ep: EpisodeState) -> float:

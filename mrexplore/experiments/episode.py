@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 import mrexplore
 from mrexplore.environment.evaluation import is_wrong_merge
 from mrexplore.environment.infos import merge_error_of
+from mrexplore.render import render_frame
 
 
 @dataclass
@@ -106,8 +107,7 @@ def run_episode(
         prepare: called with the env once it is built, before ``reset`` (e.g. to bind a
             benchmark's oracle merger to the env's simulator).
     """
-    render_mode = "rgb_array" if record_every > 0 else None
-    penv = mrexplore.parallel_env(render_mode=render_mode, **env_options)
+    penv = mrexplore.parallel_env(**env_options)  # frames: drawn from snapshots
     if prepare is not None:
         prepare(penv)
     obs, infos = penv.reset(seed=seed)
@@ -122,7 +122,7 @@ def run_episode(
     merge_frame = None
     step = 0
     if record_every:
-        frames.append(penv.render())
+        frames.append(render_frame(penv.snapshot()))
     done = False
     terminated = False
     info0 = infos[a0]
@@ -141,9 +141,9 @@ def run_episode(
         done = terminated or bool(truncs[a0])
         if record_every:
             if merge_frame is None and info0["merged"]:
-                merge_frame = penv.render()
+                merge_frame = render_frame(penv.snapshot())
             if step % record_every == 0 or done:
-                frames.append(penv.render())
+                frames.append(render_frame(penv.snapshot()))
         if on_step is not None:
             on_step(step)
     collisions = sum(int(i["collisions"]) for i in infos.values())

@@ -21,10 +21,10 @@ import numpy as np
 from tqdm import tqdm
 
 import mrexplore
-from mrexplore.environment.view import RobotView
 from mrexplore.errors import ConfigError, OutputExistsError
 from mrexplore.experiments.episode import EpisodeResult, run_episode
 from mrexplore.io_safety import atomic_path, check_out_dir, check_outputs, write_text
+from mrexplore.types import RobotView
 
 #: The seed paper's figures (Durdu & Korkmaz 2019, section 4): seconds.
 PAPER = {"explore": {"single": 105.0, "multi": 65.0}, "navigate": {"single": 125.0, "multi": 85.0}}

@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.grid import MapChange, check_int8_map
+from mrexplore.types import Merger
 
 #: Known space (m^2) two maps must share before the every-step merger accepts a match: about a
 #: room, so a match confined to one room (which an identical room elsewhere would explain as
@@ -43,7 +44,7 @@ class FusionStage:
     def __init__(
         self,
         agents: Sequence[str],
-        merger: Any = "semantic",
+        merger: str | Merger | None = "semantic",
         merge_every: int = 10,
         recheck_every: int = 100,
         merge_latency_steps: int = 0,

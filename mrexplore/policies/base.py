@@ -30,9 +30,9 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from mrexplore.environment.view import RobotView
 from mrexplore.errors import ConfigError
 from mrexplore.robot import Action, RobotConfig
+from mrexplore.types import RobotView
 
 __all__ = [
     "DEFAULT_FORWARD_STEP_M",

@@ -14,7 +14,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from mrexplore.environment.view import RobotView
 from mrexplore.policies.frontier import (
     CoordinatedFrontierPolicy,
     CostFrontierPolicy,
@@ -22,6 +21,7 @@ from mrexplore.policies.frontier import (
     NearestFrontierPolicy,
 )
 from mrexplore.policies.planning import PlanningGrid, distance_field, distance_field_scan
+from mrexplore.types import RobotView
 
 
 def _view(sim: object, i: int) -> RobotView:

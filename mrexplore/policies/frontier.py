@@ -55,7 +55,6 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from mrexplore.environment.view import RobotView
 from mrexplore.errors import ConfigError, GridError
 from mrexplore.grid import apply_transform
 from mrexplore.policies.base import (
@@ -70,6 +69,7 @@ from mrexplore.policies.base import (
 from mrexplore.policies.frontiers import _frontier_mask_full, find_frontiers, known_bbox
 from mrexplore.policies.planning import PlanningGrid
 from mrexplore.robot import Action
+from mrexplore.types import RobotView
 
 __all__ = [
     "CoordinatedFrontierPolicy",

@@ -8,7 +8,6 @@ import time
 import numpy as np
 from numpy.typing import NDArray
 
-from mrexplore.environment.view import RobotView
 from mrexplore.errors import ConfigError, GridError
 from mrexplore.grid import OCCUPIED, occupied_mask
 from mrexplore.policies.base import (
@@ -21,6 +20,7 @@ from mrexplore.policies.base import (
 )
 from mrexplore.policies.planning import PlanningGrid
 from mrexplore.robot import Action
+from mrexplore.types import RobotView
 
 __all__ = ["GoalPolicy"]
 

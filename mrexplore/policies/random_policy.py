@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from mrexplore.environment.view import RobotView
 from mrexplore.errors import ConfigError
 from mrexplore.policies.base import Policy
 from mrexplore.robot import Action
+from mrexplore.types import RobotView
 
 __all__ = ["RandomPolicy"]
 

@@ -77,6 +77,7 @@ from pettingzoo.utils.wrappers import BaseParallelWrapper
 from mrexplore.errors import ConfigError
 from mrexplore.grid import UNKNOWN, apply_transform, free_mask, occupied_mask, validate_grid
 from mrexplore.merge.fusion import FusionStage
+from mrexplore.types import Merger
 
 MergeMode = Literal["replace", "augment"]
 LinksFn = Callable[[Any], "NDArray[np.bool_] | None"]
@@ -197,7 +198,7 @@ class MapMergeWrapper(BaseParallelWrapper):
     def __init__(
         self,
         parallel_env: ParallelEnv,
-        merger: Any = "semantic",
+        merger: str | Merger | None = "semantic",
         mode: MergeMode = "replace",
         merge_every: int = 10,
         recheck_every: int = 100,

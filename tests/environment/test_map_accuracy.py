@@ -147,9 +147,12 @@ def test_incremental_scores_equal_a_full_warp_every_step(coverage_mode: str) -> 
         acts = {a: int(rng.choice(4, p=[0.7, 0.15, 0.15, 0.0])) for a in penv.agents}
         _, _, _, _, infos = penv.step(acts)
         for i, a in enumerate(penv.possible_agents):
-            assert penv.episode.truth.incremental.get(i) is not None  # the sampling was pinned down
+            truth = penv.episode.truth
+            assert truth.incremental.get(i) is not None  # the sampling was pinned down
             merged = merged or infos[a]["merged"]
-            warped = penv.episode.truth.scorer.warp(penv.fusion.fused(a), penv.sim.world_from_map(i))
+            warped = penv.episode.truth.scorer.warp(
+                penv.fusion.fused(a), penv.sim.world_from_map(i)
+            )
             share, held = penv.episode.truth.scorer.scores(warped, held=coverage_mode == "held")
             got = infos[a]["fused_contradiction"]
             assert got == share or (math.isnan(got) and math.isnan(share))

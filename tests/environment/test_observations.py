@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from mrexplore.environment.observations import ObservationBuilder
-from mrexplore.environment.view import RobotView
 from mrexplore.grid import FREE, OCCUPIED, UNKNOWN
+from mrexplore.types import RobotView
 
 
 def _view(theta: float) -> RobotView:

@@ -7,7 +7,6 @@ import math
 import numpy as np
 import pytest
 
-from mrexplore.environment.view import RobotView
 from mrexplore.errors import ConfigError
 from mrexplore.grid import FREE
 from mrexplore.policies import (
@@ -21,6 +20,7 @@ from mrexplore.policies import (
 )
 from mrexplore.policies.base import densify_path
 from mrexplore.robot import Action
+from mrexplore.types import RobotView
 
 STEP = math.radians(22.5)
 EAST = np.stack([np.arange(21.0), np.zeros(21)], axis=1)  # a path along +col, one point per cell

@@ -11,11 +11,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from mrexplore.environment.view import RobotView
 from mrexplore.policies import CoordinatedFrontierPolicy, CostFrontierPolicy, NearestFrontierPolicy
 from mrexplore.policies.frontier import FrontierExplorer
 from mrexplore.policies.frontiers import find_frontiers
 from mrexplore.policies.planning import PlanningGrid
+from mrexplore.types import RobotView
 
 sim_mod = pytest.importorskip(
     "mrexplore.sim", reason="mrexplore.sim (the simulator) is not available"

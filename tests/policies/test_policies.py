@@ -7,7 +7,6 @@ import math
 import numpy as np
 import pytest
 
-from mrexplore.environment.view import RobotView
 from mrexplore.errors import ConfigError, GridError
 from mrexplore.grid import FREE, OCCUPIED, UNKNOWN
 from mrexplore.policies import (
@@ -17,6 +16,7 @@ from mrexplore.policies import (
     NearestFrontierPolicy,
 )
 from mrexplore.robot import Action
+from mrexplore.types import RobotView
 
 RES = 0.05
 

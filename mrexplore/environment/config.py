@@ -7,18 +7,29 @@ checked when the env is built, not deep inside a step.
 
 from __future__ import annotations
 
-import dataclasses
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Literal
 
-import numpy as np
-
 from mrexplore.errors import ConfigError
+from mrexplore.options import (
+    MERGE_EVERY_CHECK,
+    MERGE_LATENCY_CHECK,
+    Options,
+    anything,
+    boolean,
+    integer,
+    non_negative,
+    number,
+    one_of,
+    option,
+    optional,
+    positive,
+)
 from mrexplore.types import Merger
 
 RewardMode = Literal["time", "coverage"]
-Task = Literal["explore", "navigate"]
+TaskName = Literal["explore", "navigate"]
 CoverageMode = Literal["observed", "held"]
 ObsLayout = Literal["chw", "hwc"]
 ObsDtype = Literal["uint8", "float32"]
@@ -28,19 +39,20 @@ OBS_DTYPES = ("uint8", "float32")
 NavGoal = Literal["far", "teammate"]
 
 
-#: Options that take only ``True``/``False`` (or numpy bools).
-BOOL_OPTIONS = ("aligned_headings", "nav_return_to_start", "obs_heading_up", "info_extra")
-#: Upper limits of the noise options (name, limit, unit): beyond them the simulated robot is
-#: not a robot any more (a 100 % odometry error per step throws poses off the map).
-NOISE_LIMITS = (
-    ("odom_noise_trans", 0.5, "std of the translation error as a fraction of the distance moved"),
-    ("odom_noise_rot", 1.0, "std of the heading error, radians per radian turned"),
-    ("odom_noise_rot_per_m", 1.0, "std of the heading error, radians per metre driven"),
-)
+def _is_dict(v: Any) -> None:
+    if not isinstance(v, dict):
+        raise ValueError("a dict of the merge method's options")
+
+
+#: Upper limits of the odometry noise: beyond them the simulated robot is not a robot any more
+#: (a 100 % odometry error per step throws poses off the map).
+ODOM_TRANS_CHECK = number(0.0, 0.5, hint=" (std of the translation error / distance moved)")
+ODOM_ROT_CHECK = number(0.0, 1.0, hint=" (std of the heading error, rad per rad turned)")
+ODOM_ROT_PER_M_CHECK = number(0.0, 1.0, hint=" (std of the heading error, rad per m driven)")
 
 
 @dataclass(frozen=True)
-class EnvConfig:
+class EnvConfig(Options):
     """Options of :class:`mrexplore.environment.MultiRobotExplorationEnv` (units in the names).
 
     World and team:
@@ -120,201 +132,62 @@ class EnvConfig:
             tensors (TorchRL) need flat numbers. See ``docs/clients.md`` for the info keys.
     """
 
-    world: Any = "symmetric_office"
-    n_robots: int = 2
-    task: Task = "explore"
-    radius_m: float = 0.15
-    speed_mps: float = 0.5
-    turn_rate_rps: float = math.pi / 2
-    dt_s: float = 0.25
-    n_beams: int = 360
-    fov_deg: float = 360.0
-    max_range_m: float = 4.0
-    range_noise_m: float = 0.01
-    aligned_headings: bool = True
-    odom_noise_trans: float = 0.0
-    odom_noise_rot: float = 0.0
-    odom_noise_rot_per_m: float = 0.0
-    min_start_separation_m: float = 0.0
-    merger: str | Merger | None = "semantic"
-    merge_every: int = 10
-    recheck_every: int = 100
-    merge_latency_steps: int = 8
-    comm_range_m: float | None = None
-    target_coverage: float = 0.95
-    coverage_mode: CoverageMode = "observed"
-    max_time_s: float = 600.0
-    max_cycles: int | None = None
-    reward_mode: RewardMode = "time"
-    coverage_reward_per_m2: float = 0.1
-    time_penalty_per_s: float = 0.04
-    goal_min_distance_m: float = 10.0
-    goal_radius_m: float = 0.4
-    nav_goal: NavGoal = "far"
-    nav_teammate_radius_m: float = 3.0
-    nav_warmup_s: float = 0.0
-    nav_return_to_start: bool = True
-    global_view_m: float = 25.6
-    local_view_m: float = 6.4
-    obs_size_px: int = 64
-    obs_heading_up: bool = False
-    obs_layout: ObsLayout = "chw"
-    obs_dtype: ObsDtype = "uint8"
-    info_extra: bool = False
-    merge_options: dict[str, Any] = field(default_factory=dict)
+    world: Any = option("symmetric_office", anything)  # checked by load_world
+    n_robots: int = option(2, integer(1))
+    task: TaskName = option("explore", one_of("explore", "navigate"))
+    radius_m: float = option(0.15, positive)
+    speed_mps: float = option(0.5, positive)
+    turn_rate_rps: float = option(math.pi / 2, positive)
+    dt_s: float = option(0.25, positive)
+    n_beams: int = option(360, integer(1))
+    fov_deg: float = option(360.0, number(0.0, 360.0, low_open=True))
+    max_range_m: float = option(4.0, positive)
+    range_noise_m: float = option(0.01, non_negative)
+    aligned_headings: bool = option(True, boolean)
+    odom_noise_trans: float = option(0.0, ODOM_TRANS_CHECK)
+    odom_noise_rot: float = option(0.0, ODOM_ROT_CHECK)
+    odom_noise_rot_per_m: float = option(0.0, ODOM_ROT_PER_M_CHECK)
+    min_start_separation_m: float = option(0.0, non_negative)
+    merger: str | Merger | None = option("semantic", anything)  # checked by the tracker
+    merge_every: int = option(10, MERGE_EVERY_CHECK)
+    recheck_every: int = option(100, integer(1))
+    merge_latency_steps: int = option(8, MERGE_LATENCY_CHECK)
+    comm_range_m: float | None = option(None, optional(positive))
+    target_coverage: float = option(0.95, number(0.0, 1.0, low_open=True))
+    coverage_mode: CoverageMode = option("observed", one_of("observed", "held"))
+    max_time_s: float = option(600.0, positive)
+    max_cycles: int | None = option(None, optional(integer(1)))
+    reward_mode: RewardMode = option("time", one_of("time", "coverage"))
+    coverage_reward_per_m2: float = option(0.1, non_negative)
+    time_penalty_per_s: float = option(0.04, non_negative)
+    goal_min_distance_m: float = option(10.0, non_negative)
+    goal_radius_m: float = option(0.4, positive)
+    nav_goal: NavGoal = option("far", one_of("far", "teammate"))
+    nav_teammate_radius_m: float = option(3.0, positive)
+    nav_warmup_s: float = option(0.0, non_negative)
+    nav_return_to_start: bool = option(True, boolean)
+    global_view_m: float = option(25.6, positive)
+    local_view_m: float = option(6.4, positive)
+    # SB3's NatureCNN (CnnPolicy) needs at least 36x36 inputs.
+    obs_size_px: int = option(64, integer(36))
+    obs_heading_up: bool = option(False, boolean)
+    obs_layout: ObsLayout = option(
+        "chw", one_of(*OBS_LAYOUTS, hint=" (channels first: SB3, TorchRL; last: RLlib)")
+    )
+    obs_dtype: ObsDtype = option(
+        "uint8", one_of(*OBS_DTYPES, hint=" (0..255: SB3; [0, 1]: RLlib, TorchRL)")
+    )
+    info_extra: bool = option(False, boolean)
+    merge_options: dict[str, Any] = option(None, _is_dict, factory=dict)
 
-    def __post_init__(self) -> None:
-        self._normalise_types()
-
-        def positive(name: str) -> None:
-            v = getattr(self, name)
-            if (
-                not isinstance(v, (int, float))
-                or isinstance(v, bool)
-                or not v > 0
-                or not math.isfinite(v)
-            ):
-                raise ConfigError(f"option {name} must be a positive number, got {v!r}")
-
-        def non_negative(name: str) -> None:
-            v = getattr(self, name)
-            if (
-                not isinstance(v, (int, float))
-                or isinstance(v, bool)
-                or not v >= 0
-                or not math.isfinite(v)
-            ):
-                raise ConfigError(f"option {name} must be a non-negative number, got {v!r}")
-
-        if (
-            not isinstance(self.n_robots, int)
-            or isinstance(self.n_robots, bool)
-            or self.n_robots < 1
-        ):
-            raise ConfigError(f"option n_robots must be an integer >= 1, got {self.n_robots!r}")
-        if self.task not in ("explore", "navigate"):
-            raise ConfigError(f"option task must be 'explore' or 'navigate', got {self.task!r}")
-        if self.reward_mode not in ("time", "coverage"):
-            raise ConfigError(
-                f"option reward_mode must be 'time' or 'coverage', got {self.reward_mode!r}"
-            )
-        if self.obs_layout not in OBS_LAYOUTS:
-            raise ConfigError(
-                f"option obs_layout must be 'chw' (channels first: SB3, TorchRL) or 'hwc' "
-                f"(channels last: RLlib), got {self.obs_layout!r}"
-            )
-        if self.obs_dtype not in OBS_DTYPES:
-            raise ConfigError(
-                f"option obs_dtype must be 'uint8' (0..255: SB3) or 'float32' ([0, 1]: RLlib, "
-                f"TorchRL), got {self.obs_dtype!r}"
-            )
-        if self.nav_goal not in ("far", "teammate"):
-            raise ConfigError(f"option nav_goal must be 'far' or 'teammate', got {self.nav_goal!r}")
-        if self.coverage_mode not in ("observed", "held"):
-            raise ConfigError(
-                f"option coverage_mode must be 'observed' or 'held', got {self.coverage_mode!r}"
-            )
-        for name in (
-            "radius_m",
-            "speed_mps",
-            "turn_rate_rps",
-            "dt_s",
-            "fov_deg",
-            "max_range_m",
-            "max_time_s",
-            "goal_radius_m",
-            "nav_teammate_radius_m",
-            "global_view_m",
-            "local_view_m",
-        ):
-            positive(name)
-        for name in (
-            "range_noise_m",
-            "odom_noise_trans",
-            "odom_noise_rot",
-            "odom_noise_rot_per_m",
-            "min_start_separation_m",
-            "coverage_reward_per_m2",
-            "time_penalty_per_s",
-            "goal_min_distance_m",
-            "nav_warmup_s",
-        ):
-            non_negative(name)
-        if self.fov_deg > 360.0:
-            raise ConfigError(f"option fov_deg must be at most 360, got {self.fov_deg}")
-        for name in ("n_beams", "merge_every", "recheck_every", "obs_size_px"):
-            v = getattr(self, name)
-            if not isinstance(v, int) or isinstance(v, bool) or v < 1:
-                raise ConfigError(f"option {name} must be an integer >= 1, got {v!r}")
-        v = self.merge_latency_steps
-        if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v <= 10_000:
-            raise ConfigError(
-                f"option merge_latency_steps must be an integer in [0, 10000], got {v!r}"
-            )
-        if self.obs_size_px < 36:
-            # SB3's NatureCNN (CnnPolicy) needs at least 36x36 inputs.
-            raise ConfigError(
-                f"option obs_size_px must be at least 36 (CnnPolicy), got {self.obs_size_px}"
-            )
-        if not 0.0 < self.target_coverage <= 1.0:
-            raise ConfigError(
-                f"option target_coverage must be in (0, 1], got {self.target_coverage!r}"
-            )
-        if self.max_cycles is not None and (
-            not isinstance(self.max_cycles, int) or self.max_cycles < 1
-        ):
-            raise ConfigError(
-                f"option max_cycles must be an integer >= 1 or None, got {self.max_cycles!r}"
-            )
+    def check_together(self) -> None:
         if self.task == "navigate" and self.nav_warmup_s >= self.max_time_s:
             raise ConfigError(
                 f"option nav_warmup_s ({self.nav_warmup_s}) must be shorter than max_time_s "
                 f"({self.max_time_s}): the goal would never be given"
             )
-        for name, hi, unit in NOISE_LIMITS:
-            v = getattr(self, name)
-            if v > hi:
-                raise ConfigError(
-                    f"option {name}={v!r} is out of range: it must be in [0, {hi}] ({unit})"
-                )
         if self.range_noise_m >= self.max_range_m:
             raise ConfigError(
                 f"option range_noise_m={self.range_noise_m!r} must be below max_range_m "
                 f"({self.max_range_m} m)"
             )
-        if self.comm_range_m is not None:
-            positive("comm_range_m")
-        if not isinstance(self.merge_options, dict):
-            raise ConfigError(
-                f"option merge_options must be a dict, got {type(self.merge_options).__name__}"
-            )
-
-    def _normalise_types(self) -> None:
-        """Accept numpy scalars for numbers (``np.int64(2)``) and bools, refuse anything else for
-        a bool option (``"no"`` must not pass as True); store plain Python types."""
-        for name in BOOL_OPTIONS:
-            v = getattr(self, name)
-            if not isinstance(v, (bool, np.bool_)):
-                raise ConfigError(f"option {name} must be True or False, got {v!r}")
-            object.__setattr__(self, name, bool(v))
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            if isinstance(v, np.integer):
-                object.__setattr__(self, f.name, int(v))
-            elif isinstance(v, np.floating):
-                object.__setattr__(self, f.name, float(v))
-
-    @classmethod
-    def from_kwargs(cls, **kwargs: Any) -> EnvConfig:
-        """Build a config from keyword arguments; an unknown keyword is a :class:`ConfigError`."""
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(kwargs) - names)
-        if unknown:
-            raise ConfigError(
-                f"unknown option(s) {', '.join(unknown)}; known options: {', '.join(sorted(names))}"
-            )
-        return cls(**kwargs)
-
-    def to_dict(self) -> dict[str, Any]:
-        """Plain dict of the options (the world as given, e.g. its name)."""
-        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}

@@ -47,6 +47,14 @@ from mrexplore.grid import (
 from mrexplore.merge.api import METHODS, merge_maps
 from mrexplore.merge.common import MergeResult, Verifier, translation
 from mrexplore.merge.compositor import Box, MapCompositor
+from mrexplore.options import (
+    MERGE_EVERY_CHECK,
+    MERGE_LATENCY_CHECK,
+    integer,
+    number,
+    positive,
+    validate,
+)
 
 Merger = Callable[[Int8Grid, Int8Grid], MergeResult]
 
@@ -168,74 +176,28 @@ class MapMergeTracker:
         merge_latency_steps: int = 0,
         **merge_options: Any,
     ) -> None:
-        if (
-            isinstance(n_robots, bool)
-            or not isinstance(n_robots, (int, np.integer))
-            or n_robots < 1
+        for name, value, check in (
+            ("n_robots", n_robots, integer(1)),
+            ("merge_every", merge_every, MERGE_EVERY_CHECK),
+            ("recheck_every", recheck_every, integer(0)),
+            ("replace_margin", replace_margin, number(0.0, 1.0)),
+            ("confirmations", confirmations, integer(1)),
+            ("confirm_tol_cells", confirm_tol_cells, positive),
+            ("drop_below", drop_below, number(0.0, 1.0)),
+            ("retry_growth", retry_growth, number(0.0, 10.0)),
+            ("confirm_growth", confirm_growth, number(0.0, 10.0)),
+            ("merge_latency_steps", merge_latency_steps, MERGE_LATENCY_CHECK),
         ):
-            raise ConfigError(
-                f"MapMergeTracker: n_robots must be a positive integer, got {n_robots!r}"
-            )
-        if (
-            isinstance(merge_every, bool)
-            or not isinstance(merge_every, (int, np.integer))
-            or merge_every < 1
-        ):
-            raise ConfigError(
-                f"MapMergeTracker: merge_every must be an integer >= 1, got {merge_every!r}"
-            )
-        if (
-            isinstance(recheck_every, bool)
-            or not isinstance(recheck_every, (int, np.integer))
-            or recheck_every < 0
-        ):
-            raise ConfigError(
-                f"MapMergeTracker: recheck_every must be an integer >= 0, got {recheck_every!r}"
-            )
-        if not 0.0 <= float(replace_margin) <= 1.0:
-            raise ConfigError(
-                f"MapMergeTracker: replace_margin must be in [0, 1], got {replace_margin!r}"
-            )
+            validate("MapMergeTracker", name, value, check)
         self.n = int(n_robots)
         self.merge_every = int(merge_every)
         self.recheck_every = int(recheck_every)
         self.replace_margin = float(replace_margin)
-        if (
-            isinstance(confirmations, bool)
-            or not isinstance(confirmations, (int, np.integer))
-            or confirmations < 1
-        ):
-            raise ConfigError(
-                f"MapMergeTracker: confirmations must be an integer >= 1, got {confirmations!r}"
-            )
-        if not float(confirm_tol_cells) > 0.0:
-            raise ConfigError(
-                f"MapMergeTracker: confirm_tol_cells must be > 0, got {confirm_tol_cells!r}"
-            )
-        if not 0.0 <= float(drop_below) <= 1.0:
-            raise ConfigError(f"MapMergeTracker: drop_below must be in [0, 1], got {drop_below!r}")
         self.confirmations = int(confirmations)
         self.confirm_tol_cells = float(confirm_tol_cells)
         self.drop_below = float(drop_below)
-        if not 0.0 <= float(retry_growth) <= 10.0:
-            raise ConfigError(
-                f"MapMergeTracker: retry_growth must be in [0, 10], got {retry_growth!r}"
-            )
         self.retry_growth = float(retry_growth)
-        if not 0.0 <= float(confirm_growth) <= 10.0:
-            raise ConfigError(
-                f"MapMergeTracker: confirm_growth must be in [0, 10], got {confirm_growth!r}"
-            )
         self.confirm_growth = float(confirm_growth)
-        if (
-            isinstance(merge_latency_steps, bool)
-            or not isinstance(merge_latency_steps, (int, np.integer))
-            or not 0 <= merge_latency_steps <= 10_000
-        ):
-            raise ConfigError(
-                "MapMergeTracker: merge_latency_steps must be an integer in [0, 10000], "
-                f"got {merge_latency_steps!r}"
-            )
         self.merge_latency_steps = int(merge_latency_steps)
         self._pool: ThreadPoolExecutor | None = None  # made on first use (not pickled)
         self._jobs: list[_Job] = []

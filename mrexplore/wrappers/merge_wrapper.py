@@ -77,6 +77,7 @@ from pettingzoo.utils.wrappers import BaseParallelWrapper
 from mrexplore.errors import ConfigError
 from mrexplore.grid import UNKNOWN, apply_transform, free_mask, occupied_mask, validate_grid
 from mrexplore.merge.fusion import FusionStage
+from mrexplore.options import MERGE_EVERY_CHECK, integer, optional, positive, validate
 from mrexplore.types import Merger
 
 MergeMode = Literal["replace", "augment"]
@@ -209,19 +210,13 @@ class MapMergeWrapper(BaseParallelWrapper):
     ) -> None:
         if mode not in ("replace", "augment"):
             raise ConfigError(f"mode must be 'replace' or 'augment', got {mode!r}")
-        for name, value in (
-            ("merge_every", merge_every),
-            ("recheck_every", recheck_every),
-            ("obs_size_px", obs_size_px),
+        for name, value, check in (
+            ("merge_every", merge_every, MERGE_EVERY_CHECK),
+            ("recheck_every", recheck_every, integer(1)),
+            ("obs_size_px", obs_size_px, integer(1)),
+            ("view_m", view_m, optional(positive)),
         ):
-            if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < 1:
-                raise ConfigError(f"option {name} must be an integer >= 1, got {value!r}")
-        if view_m is not None and not (
-            isinstance(view_m, (int, float)) and math.isfinite(view_m) and view_m > 0
-        ):
-            raise ConfigError(
-                f"option view_m must be a positive number of metres or None, got {view_m!r}"
-            )
+            validate("MapMergeWrapper", name, value, check)
         if comm_range_fn is not None and not callable(comm_range_fn):
             raise ConfigError(
                 "comm_range_fn must be callable (unwrapped env -> (N, N) bool) or None"

@@ -240,9 +240,9 @@ def test_navigation_warmup_hides_the_goal_then_restarts_robot0() -> None:
         ({"aligned_headings": "no"}, "aligned_headings must be True or False"),
         ({"obs_heading_up": "yes"}, "obs_heading_up must be True or False"),
         ({"nav_return_to_start": 0}, "nav_return_to_start must be True or False"),
-        ({"odom_noise_trans": 100}, r"odom_noise_trans=100 is out of range.*\[0, 0.5\]"),
-        ({"odom_noise_rot": 5.0}, r"odom_noise_rot=5.0 is out of range"),
-        ({"odom_noise_rot_per_m": 2.0}, r"odom_noise_rot_per_m=2.0 is out of range"),
+        ({"odom_noise_trans": 100}, r"odom_noise_trans must be in \[0, 0.5\].*got 100"),
+        ({"odom_noise_rot": 5.0}, r"odom_noise_rot must be in \[0, 1\].*got 5.0"),
+        ({"odom_noise_rot_per_m": 2.0}, r"odom_noise_rot_per_m must be in \[0, 1\].*got 2.0"),
         ({"range_noise_m": 10.0}, "range_noise_m=10.0 must be below max_range_m"),
     ],
 )

@@ -1,0 +1,183 @@
+"""One way to declare options: frozen dataclasses whose fields carry their own check.
+
+    @dataclass(frozen=True)
+    class Knobs(Options):
+        owner = "Knobs"
+        steps: int = option(10, integer(1))
+        rate: float = option(0.5, number(0.0, 1.0))
+
+Each knob has one default and one check, side by side; :class:`Options` turns numpy scalars
+into Python ones, runs every check when an instance is made (a bad value is a
+:class:`~mrexplore.errors.ConfigError` that names the owner, the option and the valid range),
+then :meth:`Options.check_together` for rules that tie options together.
+:meth:`Options.from_kwargs` refuses unknown names. The checks are plain callables
+``(name, value) -> None``, so a knob that several objects expose shares one.
+
+>>> from dataclasses import dataclass
+>>> @dataclass(frozen=True)
+... class Knobs(Options):
+...     owner = "Knobs"
+...     steps: int = option(10, integer(1))
+>>> Knobs(steps=0)
+Traceback (most recent call last):
+...
+mrexplore.errors.ConfigError: Knobs: option steps must be an integer >= 1, got 0
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from typing import Any, ClassVar, TypeVar
+
+import numpy as np
+
+from mrexplore.errors import ConfigError
+
+#: A check: raises ``ValueError`` with what was expected (the message's tail) when ``value`` is
+#: bad; :class:`Options` turns it into a ``ConfigError`` naming the owner and the option.
+Check = Callable[[Any], None]
+_O = TypeVar("_O", bound="Options")
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _is_int(v: Any) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def positive(v: Any) -> None:
+    """A finite number > 0."""
+    if not (_is_number(v) and v > 0):
+        raise ValueError("a positive number")
+
+
+def non_negative(v: Any) -> None:
+    """A finite number >= 0."""
+    if not (_is_number(v) and v >= 0):
+        raise ValueError("a non-negative number")
+
+
+def integer(lo: int, hi: int | None = None) -> Check:
+    """An int in ``[lo, hi]`` (no upper bound when ``hi`` is None); bools are refused."""
+
+    def check(v: Any) -> None:
+        if not (_is_int(v) and v >= lo and (hi is None or v <= hi)):
+            raise ValueError(f"an integer >= {lo}" if hi is None else f"an integer in [{lo}, {hi}]")
+
+    return check
+
+
+def number(lo: float, hi: float, low_open: bool = False, hint: str = "") -> Check:
+    """A finite number in ``[lo, hi]`` (``(lo, hi]`` with ``low_open``); ``hint`` (what the
+    number means, its unit) is added to the message."""
+
+    def check(v: Any) -> None:
+        ok = _is_number(v) and (v > lo if low_open else v >= lo) and v <= hi
+        if not ok:
+            raise ValueError(f"in {'(' if low_open else '['}{lo:g}, {hi:g}]{hint}")
+
+    return check
+
+
+def one_of(*choices: Any, hint: str = "") -> Check:
+    """One of ``choices`` (``hint`` is added to the message, e.g. what each is for)."""
+
+    def check(v: Any) -> None:
+        if v not in choices:
+            listed = " or ".join(repr(c) for c in choices)
+            raise ValueError(f"{listed}{hint}")
+
+    return check
+
+
+def boolean(v: Any) -> None:
+    """True or False (``"no"`` must not pass as True)."""
+    if not isinstance(v, bool):
+        raise ValueError("True or False")
+
+
+def optional(check: Check) -> Check:
+    """``check``, or None."""
+
+    def opt(v: Any) -> None:
+        if v is None:
+            return
+        try:
+            check(v)
+        except ValueError as exc:
+            raise ValueError(f"{exc} or None") from None
+
+    return opt
+
+
+def anything(v: Any) -> None:
+    """No check here (the value is checked where it is used, e.g. a world name or a merger)."""
+
+
+# --- knobs that several objects expose, checked alike everywhere ---------------------------
+#: Steps between merge attempts of an unmerged pair (env, wrapper, tracker).
+MERGE_EVERY_CHECK = integer(1)
+#: Steps between the start of a merge attempt and its effect (0: in the step).
+MERGE_LATENCY_CHECK = integer(0, 10_000)
+
+
+def option(default: Any, check: Check, *, factory: Callable[[], Any] | None = None) -> Any:
+    """A dataclass field with ``default`` (or a ``factory`` for mutable defaults) and ``check``."""
+    if factory is not None:
+        return dataclasses.field(default_factory=factory, metadata={"check": check})
+    return dataclasses.field(default=default, metadata={"check": check})
+
+
+def validate(owner: str, name: str, value: Any, check: Check) -> None:
+    """Run ``check`` on ``value`` (a numpy scalar as its Python value); a failure is a
+    ``ConfigError`` naming ``owner`` and ``name``."""
+    try:
+        check(value.item() if isinstance(value, np.generic) else value)
+    except ValueError as exc:
+        prefix = f"{owner}: option" if owner else "option"
+        raise ConfigError(f"{prefix} {name} must be {exc}, got {value!r}") from None
+
+
+class Options:
+    """Base of the option dataclasses (declare them ``@dataclass(frozen=True)``)."""
+
+    #: Who the options belong to, as error messages name it ("" for the env's own options).
+    owner: ClassVar[str] = ""
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            v = getattr(self, f.name)
+            if isinstance(v, np.bool_):
+                object.__setattr__(self, f.name, bool(v))
+            elif isinstance(v, np.integer):
+                object.__setattr__(self, f.name, int(v))
+            elif isinstance(v, np.floating):
+                object.__setattr__(self, f.name, float(v))
+            check = f.metadata.get("check")
+            if check is not None:
+                validate(self.owner, f.name, getattr(self, f.name), check)
+        self.check_together()
+
+    def check_together(self) -> None:
+        """Rules that tie several options together (override; raise ``ConfigError``)."""
+
+    @classmethod
+    def from_kwargs(cls: type[_O], **kwargs: Any) -> _O:
+        """An instance from keyword arguments; an unknown keyword is a :class:`ConfigError`."""
+        names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+        unknown = sorted(set(kwargs) - names)
+        if unknown:
+            who = f"{cls.owner}: " if cls.owner else ""
+            raise ConfigError(
+                f"{who}unknown option(s) {', '.join(unknown)}; known options: "
+                f"{', '.join(sorted(names))}"
+            )
+        return cls(**kwargs)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The options as a plain dict."""
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}  # type: ignore[arg-type]

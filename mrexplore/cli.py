@@ -63,6 +63,10 @@ def _bench(argv: Sequence[str]) -> int:
         from mrexplore.experiments.env_bench import main as env_main
 
         return int(env_main(rest))
+    if what == "sensor":
+        from mrexplore.experiments.sensor_bench import main as sensor_main
+
+        return int(sensor_main(rest))
     if what == "policies":
         from mrexplore.policies.bench import main as policies_main
 
@@ -74,13 +78,14 @@ def _bench(argv: Sequence[str]) -> int:
         wrappers_main(rest)
         return 0
     usage = (
-        "usage: mrexplore bench {merge,loop,env,policies,wrappers} [options]  (each takes --help)\n"
+        "usage: mrexplore bench {merge,loop,env,sensor,policies,wrappers} [options]"
+        "  (each takes --help)\n"
         "  merge     the merge table: method x detector on symmetric worlds and real maps\n"
         "  loop      in-loop study: merges, task time against an oracle merger, wrong merges\n"
         "  env       environment steps per second with a per-stage breakdown\n"
+        "  sensor    lidar cast, own-map update and simulator step (numba or numpy path)\n"
         "  policies  planner speed and policy cost per step\n"
-        "  wrappers  merge wrapper, single-robot env and SB3 adapter throughput\n"
-        "(the sensor benchmark is scripts/bench_sensor.py)"
+        "  wrappers  merge wrapper, single-robot env and SB3 adapter throughput"
     )
     if what in ("-h", "--help"):
         print(usage)
@@ -176,7 +181,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     for name, helptext in (
         ("merge", "merge two map_server maps: mrexplore merge a.yaml b.yaml -o merged.yaml"),
-        ("bench", "benchmarks: mrexplore bench {merge,loop,env,policies,wrappers}"),
+        ("bench", "benchmarks: mrexplore bench {merge,loop,env,sensor,policies,wrappers}"),
         ("train", "train a shared policy with stable-baselines3"),
         ("evaluate", "evaluate a trained policy against the baselines"),
     ):

@@ -15,9 +15,9 @@ grid traversal the sensor uses.
 The int8 view (``-1/0/100``, :mod:`mrexplore.grid`) is kept up to date incrementally (only the
 cells a scan touched), so :meth:`OccupancyMap.to_int8` is O(1) even on 1500 x 1500 canvases.
 
-Two implementations of the update, chosen by :data:`mrexplore.sensors.USE_NUMBA` at call time: the
-compiled kernel :func:`mrexplore._kernels.map_update` (default; a per-scan stamp array dedupes the
-cells) and the vectorised numpy path below (fallback and test oracle). With
+Two implementations of the update, chosen by :func:`mrexplore.kernels.enabled` at call time:
+the compiled kernel :func:`mrexplore.kernels.sensing.map_update` (default; a per-scan stamp
+array dedupes the cells) and the vectorised numpy path below (fallback and test oracle). With
 :data:`NUMPY_TRAVERSE_DTYPE` = float64 the two give identical maps.
 """
 
@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from mrexplore import sensors
+from mrexplore import kernels, sensors
 from mrexplore.errors import ConfigError, GridError
 from mrexplore.grid import (
     FREE,
@@ -56,6 +56,9 @@ NUMPY_TRAVERSE_DTYPE: type[np.floating] = np.float32
 #: The per-scan stamps are uint16: scan ids wrap (and the stamps are cleared) before 2 id + 1
 #: overflows.
 _STAMP_WRAP: int = 32767
+
+# The compiled update (None without numba); used while mrexplore.kernels.enabled().
+_sensing = kernels.load("sensing")
 
 
 class OccupancyMap:
@@ -229,7 +232,7 @@ class OccupancyMap:
             )
         a = th + ang
         t_end = np.asarray(rng_m, dtype=np.float64) / res
-        if sensors.USE_NUMBA and sensors._kernels is not None:
+        if kernels.enabled():
             self._integrate_numba(ox, oy, np.cos(a), np.sin(a), t_end, hits)
             self._note_change()
             return
@@ -318,8 +321,8 @@ class OccupancyMap:
         t_end: NDArray[np.float64],
         hits: NDArray[np.bool_],
     ) -> None:
-        """The compiled update (see :func:`mrexplore._kernels.map_update`)."""
-        assert sensors._kernels is not None
+        """The compiled update (see :func:`mrexplore.kernels.sensing.map_update`)."""
+        assert _sensing is not None
         h, w = self.shape
         if self._stamp is None:
             self._stamp = np.zeros(h * w, dtype=np.uint16)
@@ -327,7 +330,7 @@ class OccupancyMap:
         if self._scan_id > _STAMP_WRAP:
             self._stamp[:] = 0
             self._scan_id = 1
-        sensors._kernels.map_update(
+        _sensing.map_update(
             self.logodds.reshape(-1),
             self._int8.reshape(-1),
             self._stamp,

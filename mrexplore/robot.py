@@ -21,10 +21,13 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from mrexplore import sensors
+from mrexplore import kernels, sensors
 from mrexplore.errors import ConfigError, WorldError
 from mrexplore.sensors import snap
 from mrexplore.world.world import World
+
+# The compiled motion (None without numba); used while mrexplore.kernels.enabled().
+_sensing = kernels.load("sensing")
 
 
 class Action(IntEnum):
@@ -190,13 +193,14 @@ class Motion:
         fwd = np.flatnonzero(a == _FORWARD)
         if fwd.size == 0:
             return p, collided
-        if sensors.USE_NUMBA and sensors._kernels is not None:
+        if kernels.enabled():
+            assert _sensing is not None
             # The same sub-steps and checks, compiled: numpy's per-call overhead on a handful
             # of robots was ~0.2 ms per step.
             th = p[fwd, 2]
             nx = np.empty(fwd.size)
             ny = np.empty(fwd.size)
-            last_ok = sensors._kernels.motion_forward(
+            last_ok = _sensing.motion_forward(
                 self._blocked,
                 p[fwd, 0],
                 p[fwd, 1],

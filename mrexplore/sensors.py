@@ -21,9 +21,10 @@ is used by :func:`cast_ray_reference`.
 
 Cells outside the grid count as walls: a beam leaving the grid stops at the border.
 
-Two implementations: the compiled per-beam kernels of :mod:`mrexplore._kernels` (used when
-:data:`USE_NUMBA`, the default) and the vectorised numpy traversal below (the fallback, and the
-oracle of the tests). They evaluate the same float64 formulas, so they agree to the bit with
+Two implementations: the compiled per-beam kernels of :mod:`mrexplore.kernels.sensing` (used
+while :func:`mrexplore.kernels.enabled`, the default) and the vectorised numpy traversal below
+(the path with the kernels off, and an oracle of the tests). They evaluate the same float64
+formulas, so they agree to the bit with
 ``Lidar.dtype = numpy.float64``.
 """
 
@@ -36,19 +37,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from mrexplore import kernels
 from mrexplore.errors import ConfigError, GridError
 
-try:  # numba is a core dependency; the numpy path stays as a fallback and a test oracle
-    from mrexplore import _kernels
-except ImportError:  # pragma: no cover - only without numba
-    _kernels = None  # type: ignore[assignment]
-
-#: numba imported: the compiled kernels of :mod:`mrexplore._kernels` are available.
-HAVE_NUMBA: bool = _kernels is not None
-#: Use the compiled kernels for :meth:`Lidar.cast`, :meth:`Lidar.cast_observe`,
-#: :meth:`mrexplore.mapping.OccupancyMap.update` and :meth:`mrexplore.robot.Motion.step` (read at
-#: call time: set it to False to run the vectorised numpy path, e.g. to compare the two).
-USE_NUMBA: bool = HAVE_NUMBA
+# The compiled cast (None without numba); used while mrexplore.kernels.enabled().
+_sensing = kernels.load("sensing")
 
 #: Rays passing within this many cells of a grid corner test both cells beside the corner.
 #: Larger than the float32 rounding of the per-slot positions (~2e-5 cells for beams of a few
@@ -58,7 +51,7 @@ CORNER_EPS: float = 1e-4
 
 #: Crossing slots (per line family) of the first slice of a cast. Beams are traversed in two
 #: slices: most indoor beams meet a wall within the first one and drop out, so the second
-#: (up to the maximum range) only runs on the long beams. See ``scripts/bench_sensor.py``.
+#: (up to the maximum range) only runs on the long beams. See ``mrexplore bench sensor``.
 FIRST_SLICE_SLOTS: int = 40
 
 
@@ -391,7 +384,7 @@ class Lidar:
             raise GridError(f"resolution_m must be a positive number, got {resolution_m}")
         corner, hd = self._check_origins(grid, origins_cells, headings)
         n_rob = corner.shape[0]
-        if USE_NUMBA:
+        if kernels.enabled():
             return self._cast_numba(grid, corner, hd, resolution_m, rng, want_visible)
         n_b = self.angles.shape[0]
         max_cells = self.config.max_range_m / resolution_m
@@ -503,8 +496,8 @@ class Lidar:
             newly = np.zeros(n_rob, dtype=np.int64)
         else:
             obs, flat, newly = _NO_OBS, _NO_FLAT, _NO_NEWLY
-        assert _kernels is not None
-        _kernels.cast_observe(
+        assert _sensing is not None
+        _sensing.cast_observe(
             grid.table,
             h + 2,
             w + 2,
@@ -570,15 +563,15 @@ class Lidar:
                 f"observed must be C-contiguous bool ({n_rob}, {h}, {w}) and reachable, "
                 f"team_observed bool ({h}, {w})"
             )
-        if not USE_NUMBA:
+        if not kernels.enabled():
             scan = self.cast(grid, origins_cells, headings, resolution_m, rng, want_visible=True)
             newly, covered = _observe_numpy(scan, observed, reachable, team_observed)
             return Scan(scan.ranges_m, scan.hit, scan.angles), newly, covered
         ranges = np.empty((n_rob, n_b), dtype=np.float32)
         hit = np.empty((n_rob, n_b), dtype=np.bool_)
         newly = np.zeros(n_rob, dtype=np.int64)
-        assert _kernels is not None
-        covered = _kernels.cast_observe(
+        assert _sensing is not None
+        covered = _sensing.cast_observe(
             grid.table,
             h + 2,
             w + 2,

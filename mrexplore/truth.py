@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from mrexplore import kernels
 from mrexplore.errors import ConfigError, GridError
 from mrexplore.grid import (
     FREE,
@@ -33,6 +34,9 @@ from mrexplore.grid import (
 )
 from mrexplore.robot import configuration_space, disc_kernel, largest_component
 from mrexplore.world.world import World
+
+# The compiled scoring (None without numba); used while mrexplore.kernels.enabled().
+_scoring = kernels.load("scoring")
 
 
 def T_world_from_map(
@@ -264,15 +268,16 @@ class MapScorer:
         """``(contradiction(in_world), held_free(in_world) if held else None)`` in one compiled
         pass over the world's cells (the env scores every robot's map every step it changed);
         the same integers, hence the same figures, as the two methods."""
-        from mrexplore import _kernels
-
         if held and self.reachable is None:
             raise GridError("MapScorer.held_free needs the reachable cells (reachable=...)")
         m = np.ascontiguousarray(in_world)
         if m.shape != self.shape or m.dtype != np.int8:
             raise GridError(f"in_world must be int8 {self.shape}, got {m.dtype} {m.shape}")
+        if not kernels.enabled():
+            return self.contradiction(m), (self.held_free(m) if held else None)
+        assert _scoring is not None
         reach = self.reachable if self.reachable is not None else self._near_wall
-        n, bad, n_held = _kernels.claim_counts(
+        n, bad, n_held = _scoring.claim_counts(
             m, self.walls, self._near_wall, reach, FREE_THRESHOLD, OCCUPIED_THRESHOLD, held
         )
         share = float("nan") if n == 0 else bad / n
@@ -357,8 +362,9 @@ class IncrementalScore:
     ) -> tuple[float, int]:
         """Re-score after ``map_grid`` changed inside ``box`` (map cells, half-open
         ``(r0, r1, c0, c1)``; None = anywhere). Returns ``(contradiction share or NaN, reachable
-        free claims)``, as :meth:`MapScorer.scores`."""
-        from mrexplore import _kernels
+        free claims)``, as :meth:`MapScorer.scores`. Compiled only: without the kernels the
+        env scores whole warps instead."""
+        assert _scoring is not None
 
         src = np.ascontiguousarray(map_grid).reshape(-1)
         H, W = self.scorer.shape
@@ -370,7 +376,7 @@ class IncrementalScore:
             region = self._world_box(box)
         if region is not None:
             r0, r1, c0, c1 = region
-            _kernels.score_region(
+            _scoring.score_region(
                 src,
                 self.sample,
                 self.cls,

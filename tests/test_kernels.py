@@ -1,4 +1,4 @@
-"""The compiled kernels (mrexplore._kernels) against the numpy path and the one-ray reference.
+"""The compiled kernels (mrexplore.kernels) against the numpy path and the one-ray reference.
 
 The numba path and the numpy path evaluate the same float64 formulas, so they must agree bit for
 bit: ranges, hits, observed cells, maps, motion, and whole simulator rollouts. The first test
@@ -13,7 +13,8 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 
-from mrexplore import _kernels, mapping, sensors
+from mrexplore import kernels, mapping, sensors
+from mrexplore.kernels import sensing
 from mrexplore.mapping import OccupancyMap
 from mrexplore.robot import Action, Motion, RobotConfig
 from mrexplore.sensors import Lidar, LidarConfig, cast_ray_reference
@@ -25,27 +26,27 @@ from tests.test_sensors import random_origins, random_world
 @pytest.fixture(scope="module", autouse=True)
 def compiled() -> None:
     """Compile (or load) the kernels once, before any test of this module."""
-    assert sensors.HAVE_NUMBA
-    _kernels.warm_up()
+    assert kernels.HAVE_NUMBA
+    kernels.warm_up()
 
 
 @pytest.fixture
 def numpy_path(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
     """Let a test switch paths with ``set_path`` (restored afterwards); the numpy map path in
     float64, which the kernel reproduces bit for bit."""
-    monkeypatch.setattr(sensors, "USE_NUMBA", True)
+    monkeypatch.setattr(kernels, "USE_NUMBA", True)
     monkeypatch.setattr(mapping, "NUMPY_TRAVERSE_DTYPE", np.float64)
     yield
 
 
 def set_path(use_numba: bool) -> None:
     """Select the compiled kernels (True) or the numpy path (only inside ``numpy_path``)."""
-    sensors.USE_NUMBA = use_numba
+    kernels.USE_NUMBA = use_numba
 
 
 def test_corner_eps_is_shared() -> None:
-    assert _kernels.CORNER_EPS == sensors.CORNER_EPS
-    assert _kernels.END_NUDGE_CELLS == mapping._END_NUDGE_CELLS
+    assert sensing.CORNER_EPS == sensors.CORNER_EPS
+    assert sensing.END_NUDGE_CELLS == mapping._END_NUDGE_CELLS
 
 
 def test_cast_equals_numpy_and_reference_on_random_worlds(numpy_path: None) -> None:

@@ -13,6 +13,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from mrexplore import kernels
 from mrexplore.merge.fusion import FusionStage
 from mrexplore.sim import Simulation
 from mrexplore.truth import (
@@ -150,7 +151,12 @@ class TruthMonitor:
         fused = self.fusion.fused(agent)
         if i not in self.incremental:
             T = self.sim.world_from_map(i)
-            sample = nearest_sampling(T, self.sim.canvas_shape, self.scorer.shape)
+            # the incremental scorer is compiled only; without the kernels, whole warps
+            sample = (
+                nearest_sampling(T, self.sim.canvas_shape, self.scorer.shape)
+                if kernels.enabled()
+                else None
+            )
             self.incremental[i] = (
                 None if sample is None else IncrementalScore(self.scorer, T, sample)
             )

@@ -39,13 +39,13 @@ import gymnasium
 import numpy as np
 from numpy.typing import NDArray
 
+from mrexplore import kernels
 from mrexplore.grid import FREE, FREE_THRESHOLD, OCCUPIED_THRESHOLD, UNKNOWN
 from mrexplore.types import RobotView
 
-try:  # numba is a core dependency; without it every view is drawn by the OpenCV path below
-    from mrexplore import _kernels
-except ImportError:  # pragma: no cover - only without numba
-    _kernels = None  # type: ignore[assignment]
+# The compiled shares and trail (None without numba); used while mrexplore.kernels.enabled(),
+# else every view is drawn by the OpenCV path below.
+_views = kernels.load("views")
 
 N_CHANNELS = 8
 
@@ -95,7 +95,7 @@ def _class_code() -> NDArray[np.int32]:
     v = np.arange(-128, 128)
     free = (v >= FREE) & (v <= FREE_THRESHOLD)
     occ = v >= OCCUPIED_THRESHOLD
-    bits = _kernels.SHARE_BITS if _kernels is not None else 5
+    bits = _views.SHARE_BITS if _views is not None else 5
     return (free.astype(np.int32) + (occ.astype(np.int32) << bits)).astype(np.int32)
 
 
@@ -176,10 +176,10 @@ class ObservationBuilder:
         phi = math.pi / 2 - theta if self.heading_up else 0.0
         self._shares_view(view.map, (col, row), self.global_cells, phi, obs[0], obs[1])
         scale_g = s / self.global_cells
-        if phi == 0.0 and _kernels is not None and len(trail_cells):
+        if phi == 0.0 and _views is not None and kernels.enabled() and len(trail_cells):
             # one compiled pass over the trail instead of ~10 numpy calls on it
             cells = np.ascontiguousarray(trail_cells, dtype=np.float64)
-            _kernels.trail_dots(obs[2], cells, float(col), float(row), scale_g)
+            _views.trail_dots(obs[2], cells, float(col), float(row), scale_g)
         else:
             self._dots(obs[2], trail_cells, (col, row), scale_g, phi, radius=0)
         if view.teammates:
@@ -246,9 +246,10 @@ class ObservationBuilder:
         factor = cells // size
         lut = None
         if (
-            _kernels is not None
+            _views is not None
+            and kernels.enabled()
             and factor >= 1
-            and factor * factor < 1 << _kernels.SHARE_BITS
+            and factor * factor < 1 << _views.SHARE_BITS
             and factor * size == cells
         ):
             key = (factor, size)
@@ -258,8 +259,9 @@ class ObservationBuilder:
         if lut is None:
             out_free[:], out_occ[:] = _shares(_window(grid, centre, side), size)
             return
+        assert _views is not None
         half = side // 2
-        _kernels.view_shares(
+        _views.view_shares(
             grid,
             round(centre[1]) - half,
             round(centre[0]) - half,

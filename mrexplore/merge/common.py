@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from mrexplore import kernels
 from mrexplore.errors import ConfigError
 from mrexplore.grid import (
     FREE_THRESHOLD,
@@ -24,7 +25,9 @@ from mrexplore.grid import (
     Int8Grid,
     Transform,
 )
-from mrexplore.merge.kernels import count_both_ways
+
+# The compiled verifier count (None without numba); used while mrexplore.kernels.enabled().
+_merging = kernels.load("merging")
 
 #: Detectors a method may use. ``sift`` stands in for the paper's SURF (non-free, absent from
 #: OpenCV's PyPI builds); ``akaze`` is named so that asking for it gives a clear error, because
@@ -416,9 +419,15 @@ class Verifier:
         det = float(T[0, 0] * T[1, 1] - T[0, 1] * T[1, 0])
         if not np.isfinite(T).all() or abs(det) < 1e-9:
             return Agreement(0, 0, 0.0)  # a degenerate transform agrees with nothing
-        ab, db, nb, aa, da = count_both_ways(
-            self.points_b, self.points_a, T, self.codes_a, self.codes_b
-        )
+        if kernels.enabled():
+            assert _merging is not None
+            ab, db, nb, aa, da = _merging.count_both_ways(
+                self.points_b, self.points_a, T, self.codes_a, self.codes_b
+            )
+        else:  # the numpy reference: the same counts (tests/merge/test_verifier_kernel.py)
+            ab, db, nb = Verifier._count(self.points_b, T, self.codes_a)
+            T_inv = np.asarray(np.linalg.inv(T), dtype=np.float64)
+            aa, da, _ = Verifier._count(self.points_a, T_inv, self.codes_b)
         share = nb / self.points_b.shape[0] if self.points_b.shape[0] else 0.0
         return Agreement(ab + aa, db + da, share)
 

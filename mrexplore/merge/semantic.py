@@ -39,7 +39,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from mrexplore import _kernels
+from mrexplore import kernels
 from mrexplore.errors import ConfigError
 from mrexplore.grid import (
     FREE_THRESHOLD,
@@ -61,6 +61,9 @@ from mrexplore.merge.common import (
 )
 
 F32 = NDArray[np.float32]
+
+# The compiled wall ICP (None without numba); used while mrexplore.kernels.enabled().
+_merging = kernels.load("merging")
 
 
 @dataclass
@@ -357,13 +360,17 @@ class _WallICP:
         """Refine ``T`` (b cells -> a cells); pairs farther than ``max_dist`` cells are ignored.
 
         ``n_points > 0`` uses only about that many of b's wall cells (a cheap first polish).
-        Runs the compiled :func:`mrexplore._kernels.wall_icp` (10x faster than
-        :meth:`reference`, the same formulas in numpy, kept as its test oracle).
+        Runs the compiled :func:`mrexplore.kernels.merging.wall_icp` (10x faster than
+        :meth:`reference`, the same formulas in numpy: its test oracle, and the path when the
+        kernels are off).
         """
         if not self.has_walls:
             return T
+        if not kernels.enabled():
+            return self.reference(T, iters, max_dist, n_points)
+        assert _merging is not None
         return np.asarray(
-            _kernels.wall_icp(
+            _merging.wall_icp(
                 np.ascontiguousarray(T, dtype=np.float64),
                 np.ascontiguousarray(self._points(n_points)),
                 self.labels_flat,

@@ -86,7 +86,7 @@ def test_compiled_shares_equal_the_opencv_path(
 
 
 def test_compiled_trail_equals_the_numpy_drawing() -> None:
-    from mrexplore import _kernels
+    from mrexplore.kernels import views
 
     rng = np.random.default_rng(2)
     b = ObservationBuilder(0.05, 25.6, 6.4, 64)
@@ -95,6 +95,6 @@ def test_compiled_trail_equals_the_numpy_drawing() -> None:
     for centre in [(400.0, 400.0), (412.5, 398.75), (0.0, 0.0)]:
         a = np.zeros((64, 64), np.uint8)
         ref = np.zeros((64, 64), np.uint8)
-        _kernels.trail_dots(a, cells, centre[0], centre[1], 64 / 512)
+        views.trail_dots(a, cells, centre[0], centre[1], 64 / 512)
         b._dots(ref, cells, centre, 64 / 512, 0.0, radius=0)
         np.testing.assert_array_equal(a, ref)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from mrexplore.kernels.merging import count_both_ways
 from mrexplore.merge.common import Verifier, translation
-from mrexplore.merge.kernels import count_both_ways
 
 
 def _rotation(theta: float) -> np.ndarray:

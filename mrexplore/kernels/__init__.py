@@ -1,0 +1,154 @@
+"""All numba kernels of the package, and the one switch that turns them on or off.
+
+=================  ===========================================================================
+``sensing``        lidar cast + coverage marking, own-map update, motion (the simulator)
+``views``          occupancy shares per view block and the trail channel (the observation)
+``scoring``        map accuracy against the truth (evaluation only)
+``merging``        the merger's verifier count and wall ICP
+=================  ===========================================================================
+
+The planner's Dijkstra is compiled lazily in :mod:`mrexplore.policies.planning` (a policy
+need not pay the compile of the simulator's kernels).
+
+The switch: :data:`USE_NUMBA` (read at call time) chooses the compiled kernels or the
+vectorised numpy paths of :mod:`mrexplore.sensors`, :mod:`mrexplore.mapping`,
+:mod:`mrexplore.robot`, the observation builder and :mod:`mrexplore.truth`, which compute the
+same figures (the tests hold the kernels to them and to the one-ray reference
+:func:`mrexplore.sensors.cast_ray_reference`). The environment variable ``MREXPLORE_NUMBA=0``
+turns the kernels off at import, and the package then runs without numba installed (the
+merger's verifier keeps its numpy path too); CI runs a rollout that way. Each kernel is
+``cache=True`` (compiled once per machine into ``__pycache__``) and ``nogil``.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import os
+from types import ModuleType
+
+import numpy as np
+
+
+def _numba_installed() -> bool:
+    try:
+        return importlib.util.find_spec("numba") is not None
+    except (ImportError, ValueError):  # blocked (sys.modules["numba"] = None) or broken
+        return False
+
+
+#: numba can be imported here.
+HAVE_NUMBA: bool = _numba_installed()
+#: Use the compiled kernels (read at call time; ``MREXPLORE_NUMBA=0`` sets it False at import).
+USE_NUMBA: bool = HAVE_NUMBA and os.environ.get("MREXPLORE_NUMBA", "1") != "0"
+
+
+def load(name: str) -> ModuleType | None:
+    """The kernel module ``name`` (``"sensing"``, ``"views"``, ``"scoring"``, ``"merging"``),
+    or None when numba is not installed (callers then take their numpy path)."""
+    if not HAVE_NUMBA:
+        return None
+    return importlib.import_module(f"mrexplore.kernels.{name}")
+
+
+def enabled() -> bool:
+    """Whether the compiled kernels are in use now (:data:`USE_NUMBA` and numba present)."""
+    return USE_NUMBA and HAVE_NUMBA
+
+
+def warm_up() -> None:
+    """Compile (or load from the cache) the simulator's, the views' and the scorer's kernels on
+    tiny inputs (the merger's compile on first use)."""
+    from mrexplore.kernels import scoring, sensing, views
+
+    table = np.zeros(3 * 4 * 4, dtype=np.bool_)
+    table[:16] = True
+    table[5] = table[6] = table[9] = table[10] = False
+    one = np.ones(1)
+    zero = np.zeros(1)
+    sensing.cast_observe(
+        table,
+        4,
+        4,
+        np.array([[1.0, 1.0]]),
+        one,
+        zero,
+        one,
+        zero,
+        1.0,
+        1.0,
+        1.0,
+        np.zeros((0, 0)),
+        np.zeros((1, 1), dtype=np.float32),
+        np.zeros((1, 1), dtype=np.bool_),
+        True,
+        np.zeros((1, 4), dtype=np.bool_),
+        np.zeros(4, dtype=np.bool_),
+        np.zeros(4, dtype=np.bool_),
+        np.zeros(1, dtype=np.int64),
+    )
+    sensing.map_update(
+        np.zeros(25, dtype=np.float32),
+        np.full(25, -1, dtype=np.int8),
+        np.zeros(25, dtype=np.uint16),
+        1,
+        5,
+        5,
+        2.5,
+        2.5,
+        one,
+        zero,
+        one,
+        np.ones(1, dtype=np.bool_),
+        24.0,
+        np.array([-1.0, 1.0, -5.0, 5.0], dtype=np.float32),
+        np.array([-1.0, 0.6], dtype=np.float32),
+        np.array([0, 100, 26, 64], dtype=np.int64),
+        np.array([0, -1, 0, -1], dtype=np.int64),
+        np.array([0, -1, 0, -1], dtype=np.int64),
+    )
+    views.view_shares(
+        np.zeros((4, 4), dtype=np.int8),
+        0,
+        0,
+        1,
+        2,
+        np.arange(5, dtype=np.uint8),
+        np.zeros(256, dtype=np.int32),
+        np.array([0, 25, 65], dtype=np.int8),
+        np.zeros(2, dtype=np.int32),
+        np.zeros((2, 2), dtype=np.uint8),
+        np.zeros((2, 2), dtype=np.uint8),
+    )
+    views.trail_dots(np.zeros((2, 2), dtype=np.uint8), np.zeros((1, 2)), 0.0, 0.0, 1.0)
+    no = np.zeros((1, 1), dtype=np.bool_)
+    scoring.claim_counts(np.zeros((1, 1), dtype=np.int8), no, no, no, 25, 65, True)
+    scoring.score_region(
+        np.zeros(1, dtype=np.int8),
+        np.zeros((1, 1), dtype=np.int32),
+        np.zeros((1, 1), dtype=np.uint8),
+        no,
+        no,
+        no,
+        0,
+        1,
+        0,
+        1,
+        25,
+        65,
+        np.zeros(3, dtype=np.int64),
+    )
+    sensing.motion_forward(
+        np.zeros((3, 3), dtype=np.bool_),
+        zero,
+        zero,
+        one,
+        zero,
+        np.array([0.0, 0.5]),
+        0.0,
+        0.0,
+        1.0,
+        1e-9,
+        np.zeros(1),
+        np.zeros(1),
+    )

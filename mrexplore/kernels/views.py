@@ -1,0 +1,141 @@
+"""Compiled kernels of the observation: occupancy shares per view block, the trail channel.
+
+Measured against OpenCV's INTER_AREA path and the numpy trail drawing, which the tests hold
+them to (see ``docs/speed.md``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+#: Bits of a block's free-cell count in the packed per-cell class code of :func:`view_shares`
+#: (a block holds at most 16 cells: factor 4).
+SHARE_BITS: int = 5
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _share_code(v: int, free_lo: int, free_hi: int, occ_lo: int) -> int:
+    """1 for a free value, ``1 << SHARE_BITS`` for an occupied one, else 0 (branch-free)."""
+    return ((v >= free_lo) & (v <= free_hi)) + ((v >= occ_lo) << SHARE_BITS)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _add_blocks(
+    row: NDArray[np.int8],
+    acc: NDArray[np.int32],
+    c0: int,
+    size: int,
+    stride: int,
+    factor: int,
+    free_lo: int,
+    free_hi: int,
+    occ_lo: int,
+) -> None:
+    """``acc[x] +=`` the packed class codes of ``row[c0 + stride * (factor * x + k)]``,
+    k < factor (called with literal ``stride`` and ``factor``)."""
+    for x in range(size):
+        b = c0 + factor * stride * x
+        t = 0
+        for k in range(factor):
+            t += _share_code(row[b + k * stride], free_lo, free_hi, occ_lo)
+        acc[x] += t
+
+
+@numba.njit(cache=True, nogil=True)
+def view_shares(
+    grid: NDArray[np.int8],
+    r0: int,
+    c0: int,
+    stride: int,
+    factor: int,
+    lut: NDArray[np.uint8],
+    code: NDArray[np.int32],
+    bounds: NDArray[np.int8],
+    acc: NDArray[np.int32],
+    out_free: NDArray[np.uint8],
+    out_occ: NDArray[np.uint8],
+) -> None:
+    """Free and occupied shares of a square window of an int8 map, in one pass.
+
+    Pixel ``(y, x)`` of the ``(S, S)`` outputs covers the ``factor x factor`` block of window
+    cells ``(r0 + stride * (factor * y + a), c0 + stride * (factor * x + b))``; cells outside
+    the grid are unknown. ``code[v + 128]`` is 1 for a free value ``v``, ``1 << SHARE_BITS`` for
+    an occupied one, else 0 (``bounds``: int8 ``free_lo, free_hi, occ_lo``, the same classes by
+    comparisons: free ``free_lo <= v <= free_hi``, occupied ``v >= occ_lo``), so one sum per
+    block counts both classes without a branch; a
+    pixel's value is ``lut[count]`` (``lut`` reproduces OpenCV's INTER_AREA of 0/255 masks, whose
+    output depends only on the count: checked when the lut is built). ``acc``: int32 (S,)
+    scratch. Requires ``factor * factor < 2 ** SHARE_BITS``.
+    """
+    h, w = grid.shape
+    size = out_free.shape[0]
+    mask = (1 << SHARE_BITS) - 1
+    span = stride * (factor * size - 1)
+    free_lo, free_hi, occ_lo = bounds[0], bounds[1], bounds[2]
+    if r0 >= 0 and r0 + span < h and c0 >= 0 and c0 + span < w:
+        # The window lies inside the grid (the usual case): no bounds tests, and the block
+        # sums of the usual (stride, factor) pairs with literal steps (measured: several times
+        # faster than the generic loop with runtime steps, which LLVM does not vectorise).
+        for y in range(size):
+            for x in range(size):
+                acc[x] = 0
+            for a in range(factor):
+                row = grid[r0 + stride * (factor * y + a)]
+                # literal strides and factors, so that LLVM unrolls and vectorises each case
+                if stride == 2 and factor == 4:
+                    _add_blocks(row, acc, c0, size, 2, 4, free_lo, free_hi, occ_lo)
+                elif stride == 1 and factor == 2:
+                    _add_blocks(row, acc, c0, size, 1, 2, free_lo, free_hi, occ_lo)
+                elif stride == 2 and factor == 2:
+                    _add_blocks(row, acc, c0, size, 2, 2, free_lo, free_hi, occ_lo)
+                elif stride == 1 and factor == 1:
+                    _add_blocks(row, acc, c0, size, 1, 1, free_lo, free_hi, occ_lo)
+                else:
+                    c = c0
+                    for x in range(size):
+                        t = 0
+                        for _ in range(factor):
+                            t += code[row[c] + 128]
+                            c += stride
+                        acc[x] += t
+            for x in range(size):
+                out_free[y, x] = lut[acc[x] & mask]
+                out_occ[y, x] = lut[acc[x] >> SHARE_BITS]
+        return
+    for y in range(size):
+        for x in range(size):
+            t = 0
+            for a in range(factor):
+                r = r0 + stride * (factor * y + a)
+                if r < 0 or r >= h:
+                    continue
+                for b in range(factor):
+                    c = c0 + stride * (factor * x + b)
+                    if c >= 0 and c < w:
+                        t += code[grid[r, c] + 128]
+            out_free[y, x] = lut[t & mask]
+            out_occ[y, x] = lut[t >> SHARE_BITS]
+
+
+@numba.njit(cache=True, nogil=True)
+def trail_dots(
+    channel: NDArray[np.uint8],
+    cells: NDArray[np.float64],
+    cx: float,
+    cy: float,
+    scale: float,
+) -> None:
+    """Set pixel ``floor((cell - centre) * scale + S / 2)`` of every trail cell (N, 2)
+    ``(col, row)`` inside the ``(S, S)`` channel to 255 (the same float64 operations, in the same
+    order, as the numpy drawing of an axis-aligned view)."""
+    s = channel.shape[0]
+    half = s / 2
+    for k in range(cells.shape[0]):
+        px = math.floor((cells[k, 0] - cx) * scale + half)
+        py = math.floor((cells[k, 1] - cy) * scale + half)
+        if px >= 0 and px < s and py >= 0 and py < s:
+            channel[py, px] = 255

@@ -12,6 +12,8 @@ Conventions (see README, "Conventions"):
   integer point ``(c, r)``.
 * A transform between two grids is a 3x3 float64 homogeneous matrix acting on ``(col, row, 1)``;
   ``T_ab`` maps cells of grid *b* into grid *a*.
+* A box of cells is ``(row0, row1, col0, col1)``, half-open (``grid[row0:row1, col0:col1]``):
+  :data:`mrexplore.types.Box`, the one convention of the package.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.errors import GridError
+from mrexplore.types import Box
 
 UNKNOWN: Final[int] = -1
 FREE: Final[int] = 0
@@ -34,6 +37,27 @@ FREE_THRESHOLD: Final[int] = 25
 
 Int8Grid = NDArray[np.int8]
 Transform = NDArray[np.float64]
+
+
+def known_bbox(grid: Int8Grid, margin: int = 0) -> Box | None:
+    """The box (half-open) of the known cells of ``grid``, grown by ``margin`` and clipped to
+    the grid, or None when nothing is known.
+
+    Uses row/column maxima of the int8 array (``UNKNOWN`` is the smallest value), which numpy
+    reduces with SIMD: much cheaper than a boolean mask of a whole canvas.
+
+    >>> g = np.full((4, 5), UNKNOWN, dtype=np.int8); g[1, 2] = FREE; g[2, 3] = OCCUPIED
+    >>> known_bbox(g), known_bbox(g, margin=1)
+    ((1, 3, 2, 4), (0, 4, 1, 5))
+    """
+    rows = np.flatnonzero(grid.max(axis=1) > UNKNOWN)
+    if rows.size == 0:
+        return None
+    r0, r1 = int(rows[0]), int(rows[-1]) + 1
+    cols = np.flatnonzero(grid[r0:r1].max(axis=0) > UNKNOWN)
+    c0, c1 = int(cols[0]), int(cols[-1]) + 1
+    h, w = grid.shape
+    return (max(0, r0 - margin), min(h, r1 + margin), max(0, c0 - margin), min(w, c1 + margin))
 
 
 class MapChange(NamedTuple):
@@ -49,8 +73,8 @@ class MapChange(NamedTuple):
     """
 
     version: int
-    known_box: tuple[int, int, int, int] | None
-    changed_box: tuple[int, int, int, int] | None
+    known_box: Box | None
+    changed_box: Box | None
 
 
 def validate_grid(grid: object, name: str = "grid") -> Int8Grid:

@@ -40,6 +40,7 @@ from mrexplore.grid import (
     MapChange,
 )
 from mrexplore.sensors import CORNER_EPS, traverse
+from mrexplore.types import Box
 
 #: Beams are traversed in two groups: those shorter than this many cells (most beams indoors)
 #: with this many crossing slots, the long ones with as many as the longest needs.
@@ -130,7 +131,7 @@ class OccupancyMap:
         # inclusive box of the int8 cells the last update changed (row1 < 0: none), and that of
         # the update that made ``version``
         self._changed_arr = np.array([0, -1, 0, -1], dtype=np.int64)
-        self._changed_box: tuple[int, int, int, int] | None = None
+        self._changed_box: Box | None = None
 
     # ------------------------------------------------------------------ queries
     def cell_of(self, x_m: float, y_m: float) -> tuple[float, float]:
@@ -151,27 +152,26 @@ class OccupancyMap:
         view.flags.writeable = False
         return view
 
-    def known_bbox(self) -> tuple[int, int, int, int] | None:
-        """``(row0, row1, col0, col1)`` inclusive bounds of the observed cells, None if none."""
+    def known_bbox(self) -> Box | None:
+        """The box (half-open, :data:`mrexplore.types.Box`) of the observed cells, None if none;
+        kept by the updates, no scan."""
+        # both paths keep inclusive bounds internally (the kernel's and the numpy path's)
         if self._bbox_arr[1] >= 0:  # the compiled path has updated it
             b = self._bbox_arr
             box = (int(b[0]), int(b[1]), int(b[2]), int(b[3]))
-            if self._bbox is None:
-                return box
-            o = self._bbox
-            return (min(o[0], box[0]), max(o[1], box[1]), min(o[2], box[2]), max(o[3], box[3]))
-        return (
-            None
-            if self._bbox is None
-            else (self._bbox[0], self._bbox[1], self._bbox[2], self._bbox[3])
-        )
+            if self._bbox is not None:
+                o = self._bbox
+                box = (min(o[0], box[0]), max(o[1], box[1]), min(o[2], box[2]), max(o[3], box[3]))
+        elif self._bbox is not None:
+            box = (self._bbox[0], self._bbox[1], self._bbox[2], self._bbox[3])
+        else:
+            return None
+        return (box[0], box[1] + 1, box[2], box[3] + 1)
 
     def change(self) -> MapChange:
         """The map's version, known box and last changed box (half-open boxes): what a reader
         of :meth:`to_int8` needs to follow the map without comparing canvases."""
-        box = self.known_bbox()
-        known = None if box is None else (box[0], box[1] + 1, box[2], box[3] + 1)
-        return MapChange(self.version, known, self._changed_box)
+        return MapChange(self.version, self.known_bbox(), self._changed_box)
 
     def _note_change(self) -> None:
         """Bump :attr:`version` when the last update changed an int8 cell (``_changed_arr``)."""

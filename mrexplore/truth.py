@@ -33,6 +33,7 @@ from mrexplore.grid import (
     transform_angle,
 )
 from mrexplore.robot import configuration_space, disc_kernel, largest_component
+from mrexplore.types import Box
 from mrexplore.world.world import World
 
 # The compiled scoring (None without numba); used while mrexplore.kernels.enabled().
@@ -148,11 +149,11 @@ def transform_error(
 
 def known_cells(
     grid: Int8Grid,
-    box: tuple[int, int, int, int] | None = None,
+    box: Box | None = None,
     max_points: int | None = None,
 ) -> NDArray[np.float64]:
     """The known cells of an int8 map as ``(N, 2)`` float64 ``(col, row)``, row-major; inside
-    ``box`` (``(row0, row1, col0, col1)`` inclusive, the map's known box spares a scan) if
+    ``box`` (half-open :data:`~mrexplore.types.Box`; the map's known box spares a scan) if
     given; an even sample of at most ``max_points`` (every k-th cell) if given.
 
     >>> g = np.full((3, 4), UNKNOWN, dtype=np.int8); g[1, 2] = 0; g[2, 0] = 100
@@ -160,7 +161,7 @@ def known_cells(
     [[2.0, 1.0], [0.0, 2.0]]
     """
     r0, c0 = (0, 0) if box is None else (box[0], box[2])
-    sub = grid if box is None else grid[box[0] : box[1] + 1, box[2] : box[3] + 1]
+    sub = grid if box is None else grid[box[0] : box[1], box[2] : box[3]]
     rows, cols = np.nonzero(sub != UNKNOWN)
     step = 1 if max_points is None else max(1, len(rows) // max_points)
     return np.stack([cols[::step] + c0, rows[::step] + r0], axis=1).astype(np.float64)
@@ -170,7 +171,7 @@ def merge_error(
     T_est: Transform,
     T_true: Transform,
     b: Int8Grid,
-    box: tuple[int, int, int, int] | None = None,
+    box: Box | None = None,
     max_points: int | None = None,
 ) -> tuple[float, float] | None:
     """The error of a merge: :func:`transform_error` of the estimated ``T_ab`` measured on b's
@@ -357,9 +358,7 @@ class IncrementalScore:
         self.counts = np.zeros(3, dtype=np.int64)
         self._reach = scorer.reachable if scorer.reachable is not None else scorer._near_wall
 
-    def update(
-        self, map_grid: Int8Grid, box: tuple[int, int, int, int] | None
-    ) -> tuple[float, int]:
+    def update(self, map_grid: Int8Grid, box: Box | None) -> tuple[float, int]:
         """Re-score after ``map_grid`` changed inside ``box`` (map cells, half-open
         ``(r0, r1, c0, c1)``; None = anywhere). Returns ``(contradiction share or NaN, reachable
         free claims)``, as :meth:`MapScorer.scores`. Compiled only: without the kernels the
@@ -369,7 +368,7 @@ class IncrementalScore:
         src = np.ascontiguousarray(map_grid).reshape(-1)
         H, W = self.scorer.shape
         if box is None:
-            region: tuple[int, int, int, int] | None = (0, H, 0, W)
+            region: Box | None = (0, H, 0, W)
         elif box[1] <= box[0] or box[3] <= box[2]:
             region = None  # nothing changed
         else:
@@ -394,7 +393,7 @@ class IncrementalScore:
         n, bad, held = (int(v) for v in self.counts)
         return (float("nan") if n == 0 else bad / n), held
 
-    def _world_box(self, box: tuple[int, int, int, int]) -> tuple[int, int, int, int] | None:
+    def _world_box(self, box: Box) -> Box | None:
         """World cells that may sample from map ``box``: the image of its cell centres with two
         cells of slack (nearest sampling moves a cell by at most ~0.71), clipped."""
         r0, r1, c0, c1 = box

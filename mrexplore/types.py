@@ -15,7 +15,8 @@ from numpy.typing import NDArray
 
 #: An agent's name: ``robot_0``, ``robot_1``, ...
 AgentID = str
-#: ``(row0, row1, col0, col1)``: inclusive bounds of a block of grid cells.
+#: ``(row0, row1, col0, col1)``, half-open (``grid[row0:row1, col0:col1]``): a block of grid
+#: cells. The one box convention of the package.
 Box = tuple[int, int, int, int]
 #: 3x3 float64 homogeneous transform on ``(col, row, 1)`` cells; ``T_ab`` maps b's cells into a's.
 Transform = NDArray[np.float64]

@@ -28,7 +28,7 @@ def test_one_beam_free_then_occupied() -> None:
     assert row.tolist() == [UNKNOWN] * 5 + [FREE] * 4 + [OCCUPIED] + [UNKNOWN]
     assert m.logodds[5, 6] == pytest.approx(m.l_free)
     assert m.logodds[5, 9] == pytest.approx(m.l_occ)
-    assert m.known_bbox() == (5, 5, 5, 9)
+    assert m.known_bbox() == (5, 6, 5, 10)  # half-open
 
 
 def test_no_hit_marks_free_up_to_the_range() -> None:

@@ -24,6 +24,7 @@ from mrexplore.grid import (
     UNKNOWN,
     Int8Grid,
     Transform,
+    known_bbox,
 )
 
 # The compiled verifier count (None without numba); used while mrexplore.kernels.enabled().
@@ -218,22 +219,6 @@ def cell_codes(grid: Int8Grid, tolerance: int = 1, slack: int = 0) -> NDArray[np
     codes[free & near] = CODE_FREE_NEAR_WALL
     codes[wall] = CODE_WALL
     return codes
-
-
-def known_bbox(grid: Int8Grid, margin: int = 0) -> tuple[int, int, int, int] | None:
-    """Bounding box ``(r0, r1, c0, c1)`` (half-open) of known cells grown by ``margin``, or None.
-
-    Uses row/column maxima of the int8 array (``UNKNOWN`` is the minimum value), which numpy
-    reduces with SIMD: much cheaper than building a boolean mask of the whole canvas.
-    """
-    rows = np.flatnonzero(grid.max(axis=1) > UNKNOWN)
-    if rows.size == 0:
-        return None
-    r0, r1 = int(rows[0]), int(rows[-1]) + 1
-    cols = np.flatnonzero(grid[r0:r1].max(axis=0) > UNKNOWN)
-    c0, c1 = int(cols[0]), int(cols[-1]) + 1
-    h, w = grid.shape
-    return (max(0, r0 - margin), min(h, r1 + margin), max(0, c0 - margin), min(w, c1 + margin))
 
 
 def translation(dc: float, dr: float) -> Transform:

@@ -28,8 +28,7 @@ import numpy as np
 from mrexplore.errors import GridError
 from mrexplore.grid import UNKNOWN, Int8Grid, MapChange, Transform, invert_transform
 from mrexplore.merge.common import known_bbox, translation
-
-Box = tuple[int, int, int, int]  # (r0, r1, c0, c1), half-open, in some robot's cells
+from mrexplore.types import Box
 
 
 @dataclass

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.grid import MapChange, check_int8_map
-from mrexplore.types import Merger
+from mrexplore.types import Box, Merger
 
 #: Known space (m^2) two maps must share before the every-step merger accepts a match: about a
 #: room, so a match confined to one room (which an identical room elsewhere would explain as
@@ -161,7 +161,7 @@ class FusionStage:
         self._seen[agent] = (key, self._counter)
         return self._counter
 
-    def fused_change(self, agent: str) -> tuple[int, tuple[int, int, int, int] | None] | None:
+    def fused_change(self, agent: str) -> tuple[int, Box | None] | None:
         """For a merged ``agent``: ``(composition count, changed box)`` of its fused map (see
         :meth:`mrexplore.merge.MapMergeTracker.fused_change`; call :meth:`fused` first); None
         when it is not merged (its fused map is then its own map, which says what changed)."""

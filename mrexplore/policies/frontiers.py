@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.errors import GridError
-from mrexplore.grid import Int8Grid, free_mask, known_mask
+from mrexplore.grid import Int8Grid, free_mask, known_bbox, known_mask
 
 __all__ = ["Frontier", "find_frontiers", "frontier_mask", "known_bbox"]
 
@@ -56,26 +56,6 @@ def _check_map(map_int8: object) -> Int8Grid:
             f"map must be an int8 occupancy grid (-1/0/100), got dtype {map_int8.dtype}"
         )
     return map_int8
-
-
-def known_bbox(map_int8: Int8Grid, margin: int = 0) -> tuple[int, int, int, int] | None:
-    """Bounding box of the known cells, ``(row0, row1, col0, col1)`` half-open, grown by ``margin``.
-
-    Clipped to the grid. ``None`` when nothing is known. Uses row/column ``any`` reductions, so the
-    cost is one pass over the grid.
-    """
-    known = known_mask(map_int8)
-    rows = np.flatnonzero(known.any(axis=1))
-    if rows.size == 0:
-        return None
-    cols = np.flatnonzero(known[rows[0] : rows[-1] + 1].any(axis=0))
-    h, w = map_int8.shape
-    return (
-        max(int(rows[0]) - margin, 0),
-        min(int(rows[-1]) + 1 + margin, h),
-        max(int(cols[0]) - margin, 0),
-        min(int(cols[-1]) + 1 + margin, w),
-    )
 
 
 def _frontier_mask_full(grid: Int8Grid) -> NDArray[np.bool_]:

@@ -47,7 +47,7 @@ __all__ = [
     "unreachable_free_cells",
 ]
 
-Box = tuple[int, int, int, int]  # (col, row, w, h) in cells
+Footprint = tuple[int, int, int, int]  # (col, row, w, h) in cells: where a room was stamped
 Rect = tuple[
     int, int, int, int
 ]  # (row0, col0, h, w) in a room's interior cells, row 0 at the door wall
@@ -283,7 +283,9 @@ def _room_template(plan: _RoomPlan, t: int) -> NDArray[np.bool_]:
     return tpl
 
 
-def _stamp(walls: NDArray[np.bool_], tpl: NDArray[np.bool_], col: int, row: int, flip: bool) -> Box:
+def _stamp(
+    walls: NDArray[np.bool_], tpl: NDArray[np.bool_], col: int, row: int, flip: bool
+) -> Footprint:
     """Write a room template at (col, row); ``flip`` rotates it by 180 degrees (door facing up)."""
     img = np.rot90(tpl, 2) if flip else tpl
     h, w = img.shape
@@ -335,16 +337,16 @@ def _band(
     p: _Params,
     plans: dict[int, _RoomPlan],
     skip: set[int] | None = None,
-) -> list[Box]:
+) -> list[Footprint]:
     """Stamp a row of rooms (interiors ``widths``, ``depth`` rows) whose boxes start at ``row``.
 
     ``plans`` gives ready plans for some slots (the twins); ``skip`` leaves slots for corridors.
     Returns the boxes (walls included) in slot order; skipped slots get their box too.
     """
-    boxes: list[Box] = []
+    boxes: list[Footprint] = []
     col = 0
     for i, w in enumerate(widths):
-        box: Box = (col, row, w + 2 * p.t, depth + 2 * p.t)
+        box: Footprint = (col, row, w + 2 * p.t, depth + 2 * p.t)
         if not (skip and i in skip):
             plan = plans.get(i) or _room_plan(rng, depth, w, p)
             box = _stamp(walls, _room_template(plan, p.t), col, row, doors_up[i])

@@ -36,8 +36,9 @@ import numpy as np
 from mrexplore.errors import ConfigError
 
 #: A check: raises ``ValueError`` with what was expected (the message's tail) when ``value`` is
-#: bad; :class:`Options` turns it into a ``ConfigError`` naming the owner and the option.
-Check = Callable[[Any], None]
+#: bad; :class:`Options` turns it into a ``ConfigError`` naming the owner and the option. A check
+#: may return a normalised value (e.g. a lower-cased name), which then replaces the given one.
+Check = Callable[[Any], Any]
 _O = TypeVar("_O", bound="Options")
 
 
@@ -132,11 +133,12 @@ def option(default: Any, check: Check, *, factory: Callable[[], Any] | None = No
     return dataclasses.field(default=default, metadata={"check": check})
 
 
-def validate(owner: str, name: str, value: Any, check: Check) -> None:
+def validate(owner: str, name: str, value: Any, check: Check) -> Any:
     """Run ``check`` on ``value`` (a numpy scalar as its Python value); a failure is a
-    ``ConfigError`` naming ``owner`` and ``name``."""
+    ``ConfigError`` naming ``owner`` and ``name``. Returns the check's normalised value, or
+    None when it returned none."""
     try:
-        check(value.item() if isinstance(value, np.generic) else value)
+        return check(value.item() if isinstance(value, np.generic) else value)
     except ValueError as exc:
         prefix = f"{owner}: option" if owner else "option"
         raise ConfigError(f"{prefix} {name} must be {exc}, got {value!r}") from None
@@ -159,7 +161,12 @@ class Options:
                 object.__setattr__(self, f.name, float(v))
             check = f.metadata.get("check")
             if check is not None:
-                validate(self.owner, f.name, getattr(self, f.name), check)
+                normalised = validate(self.owner, f.name, getattr(self, f.name), check)
+                if normalised is not None:
+                    object.__setattr__(self, f.name, normalised)
+            v = getattr(self, f.name)
+            if f.type == "float" and isinstance(v, int) and not isinstance(v, bool):
+                object.__setattr__(self, f.name, float(v))  # 1 means 1.0 where a float is due
         self.check_together()
 
     def check_together(self) -> None:

@@ -8,7 +8,6 @@ Conventions (see :mod:`mrexplore.grid`): maps are int8 ``(H, W)`` with ``UNKNOWN
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -17,7 +16,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore import kernels
-from mrexplore.errors import ConfigError
 from mrexplore.grid import (
     FREE_THRESHOLD,
     OCCUPIED_THRESHOLD,
@@ -26,6 +24,7 @@ from mrexplore.grid import (
     Transform,
     known_bbox,
 )
+from mrexplore.options import Check
 
 # The compiled verifier count (None without numba); used while mrexplore.kernels.enabled().
 _merging = kernels.load("merging")
@@ -89,81 +88,33 @@ class MergeResult:
     info: dict[str, Any] = field(default_factory=dict)
 
 
-class Options:
-    """Typed option reader that insists every keyword argument is consumed (the VMAS habit).
+def detector_check(allowed: tuple[str, ...]) -> Check:
+    """An :mod:`mrexplore.options` check of a ``detector`` option: None, or one of ``allowed``,
+    normalised (``"Shi_Tomasi"`` -> ``"shi-tomasi"``). AKAZE and SURF get their own messages:
+    OpenCV's PyPI builds lack them."""
 
-    ``get(name, default)`` pops an option, converting it to the default's type;
-    ``finish()`` raises :class:`ConfigError` naming any option nobody asked for.
-    """
+    def check(value: Any) -> str | None:
+        if value is None:
+            return None
+        if not isinstance(value, str):
+            raise ValueError(f"a detector name, one of {allowed}")
+        d = value.lower().replace("_", "-")
+        d = "shi-tomasi" if d == "shitomasi" else d
+        if d == "akaze":
+            raise ValueError(
+                f"one of {allowed}: this OpenCV build ({cv2.__version__}) has no AKAZE; "
+                "use 'orb' or 'sift'"
+            )
+        if d == "surf":
+            raise ValueError(
+                f"one of {allowed}: SURF is non-free, absent from OpenCV's PyPI builds; use "
+                "'sift', which stands in for it"
+            )
+        if d not in allowed:
+            raise ValueError(f"one of {allowed} (unknown detector)")
+        return d
 
-    def __init__(self, options: Mapping[str, Any], where: str) -> None:
-        self._left = dict(options)
-        self._where = where
-
-    def get_float(
-        self, name: str, default: float, lo: float | None = None, hi: float | None = None
-    ) -> float:
-        """Pop a float option, check ``lo <= value <= hi``."""
-        value = self._left.pop(name, default)
-        try:
-            out = float(value)
-        except (TypeError, ValueError):
-            raise ConfigError(f"{self._where}: option {name}={value!r} must be a number") from None
-        if not np.isfinite(out) or (lo is not None and out < lo) or (hi is not None and out > hi):
-            raise ConfigError(f"{self._where}: option {name}={value!r} must be in [{lo}, {hi}]")
-        return out
-
-    def get_int(self, name: str, default: int, lo: int | None = None, hi: int | None = None) -> int:
-        """Pop an integer option, check ``lo <= value <= hi``."""
-        value = self._left.pop(name, default)
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-            raise ConfigError(f"{self._where}: option {name}={value!r} must be an integer")
-        out = int(value)
-        if (lo is not None and out < lo) or (hi is not None and out > hi):
-            raise ConfigError(f"{self._where}: option {name}={value!r} must be in [{lo}, {hi}]")
-        return out
-
-    def get_bool(self, name: str, default: bool) -> bool:
-        """Pop a boolean option."""
-        value = self._left.pop(name, default)
-        if not isinstance(value, (bool, np.bool_)):
-            raise ConfigError(f"{self._where}: option {name}={value!r} must be True or False")
-        return bool(value)
-
-    def get_detector(self, default: str, allowed: tuple[str, ...]) -> str:
-        """Pop the ``detector`` option and validate it with :func:`check_detector`."""
-        value = self._left.pop("detector", None)
-        return check_detector(value, allowed, self._where) or default
-
-    def finish(self) -> None:
-        """Raise :class:`ConfigError` if an option was passed that no code read."""
-        if self._left:
-            names = ", ".join(sorted(self._left))
-            raise ConfigError(f"{self._where}: unknown option(s) {names}")
-
-
-def check_detector(detector: str | None, allowed: tuple[str, ...], where: str) -> str | None:
-    """Validate a detector name; AKAZE gets its own message since OpenCV 5.0 lacks it."""
-    if detector is None:
-        return None
-    if not isinstance(detector, str):
-        raise ConfigError(f"{where}: detector must be a string, got {detector!r}")
-    d = detector.lower().replace("_", "-")
-    if d == "shitomasi":
-        d = "shi-tomasi"
-    if d == "akaze":
-        raise ConfigError(
-            f"{where}: detector 'akaze' is not available: this OpenCV build ({cv2.__version__}) "
-            "has no AKAZE; use 'orb' or 'sift'"
-        )
-    if d == "surf":
-        raise ConfigError(
-            f"{where}: detector 'surf' is not available (non-free, absent from OpenCV's PyPI "
-            "builds); use 'sift', which stands in for it"
-        )
-    if d not in allowed:
-        raise ConfigError(f"{where}: unknown detector {detector!r}; choose one of {allowed}")
-    return d
+    return check
 
 
 # --------------------------------------------------------------------------------------------

@@ -2,7 +2,7 @@
 
 ``sift`` stands in for the paper's SURF: SURF is patented ("non-free") and absent from
 OpenCV's PyPI builds; SIFT is its closest available relative. ``akaze`` is refused by
-:func:`mrexplore.merge.common.check_detector` because the OpenCV 5.0 build has no AKAZE.
+:func:`mrexplore.merge.common.detector_check` because the OpenCV 5.0 build has no AKAZE.
 
 **Deterministic order.** OpenCV computes corner responses with CPU-specific SIMD code (SSE,
 AVX2, AVX-512) whose rounding differs in the last bits, and sorts them with an unstable sort:
@@ -128,7 +128,7 @@ def _keypoint_detector(detector: str) -> cv2.Feature2D:
         return _cv2.SIFT_create()
     if detector == "orb":
         return _cv2.ORB_create(nfeatures=2000)
-    raise ValueError(f"no keypoint detector {detector!r}")  # guarded by check_detector
+    raise ValueError(f"no keypoint detector {detector!r}")  # guarded by detector_check
 
 
 def detect_and_describe(

@@ -12,17 +12,32 @@ look-alike rooms.
 
 from __future__ import annotations
 
+import math
 import time
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import cv2
 import numpy as np
 
 from mrexplore.grid import Int8Grid
-from mrexplore.merge.common import MergeResult, Options, Verifier, compose, to_gray
+from mrexplore.merge.common import MergeResult, Verifier, compose, detector_check, to_gray
 from mrexplore.merge.features import detect_and_describe
+from mrexplore.options import Options, integer, number, option
 
 ORB_DETECTORS: tuple[str, ...] = ("orb", "sift", "harris", "shi-tomasi", "fast")
+
+
+@dataclass(frozen=True)
+class OrbOptions(Options):
+    """The options of :func:`merge_orb` (documented there)."""
+
+    owner: ClassVar[str] = "merge_maps(method='orb')"
+    detector: str | None = option(None, detector_check(ORB_DETECTORS))
+    n_features: int = option(1000, integer(2, 100_000))
+    ratio: float = option(0.8, number(0.0, 1.0))
+    ransac_px: float = option(3.0, number(0.0, math.inf))
+    min_confidence: float = option(1.0, number(0.0, math.inf))
 
 
 def merge_orb(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
@@ -36,13 +51,9 @@ def merge_orb(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     - ``min_confidence``: acceptance threshold on inliers / (8 + 0.3 matches) (default 1.0).
     """
     t0 = time.perf_counter()
-    opt = Options(options, "merge_maps(method='orb')")
-    detector = opt.get_detector("orb", ORB_DETECTORS)
-    n = opt.get_int("n_features", 1000, lo=2, hi=100000)
-    ratio = opt.get_float("ratio", 0.8, lo=0.0, hi=1.0)
-    ransac_px = opt.get_float("ransac_px", 3.0, lo=0.0)
-    min_conf = opt.get_float("min_confidence", 1.0, lo=0.0)
-    opt.finish()
+    o = OrbOptions.from_kwargs(**options)
+    detector, n, ratio = o.detector or "orb", o.n_features, o.ratio
+    ransac_px, min_conf = o.ransac_px, o.min_confidence
 
     def refuse(reason: str, **kw: Any) -> MergeResult:
         return MergeResult(

@@ -27,7 +27,8 @@ with C >= ``min_correlation`` agree with (within one cell); then to the smaller 
 from __future__ import annotations
 
 import time
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import cv2
 import numpy as np
@@ -37,13 +38,14 @@ from mrexplore.errors import ConfigError
 from mrexplore.grid import UNKNOWN, Int8Grid
 from mrexplore.merge.common import (
     MergeResult,
-    Options,
     Verifier,
     compose,
+    detector_check,
     to_gray,
     translation,
 )
 from mrexplore.merge.features import detect_points
+from mrexplore.options import Options, integer, number, option
 
 PAPER_DETECTORS: tuple[str, ...] = ("harris", "shi-tomasi", "fast", "sift", "orb")
 
@@ -168,6 +170,18 @@ def best_pair(
     return int(ti[k]), int(tj[k])
 
 
+@dataclass(frozen=True)
+class PaperOptions(Options):
+    """The options of :func:`merge_paper` (documented there)."""
+
+    owner: ClassVar[str] = "merge_maps(method='paper')"
+    detector: str | None = option(None, detector_check(PAPER_DETECTORS))
+    window: int = option(window_size(), integer(3, 1001))
+    n_features: int = option(200, integer(1, 100_000))
+    max_unknown: float = option(0.3, number(0.0, 1.0))
+    min_correlation: float = option(0.6, number(-1.0, 1.0))
+
+
 def merge_paper(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     """The paper's method (translation only). Options (all validated):
 
@@ -178,13 +192,9 @@ def merge_paper(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     - ``min_correlation``: "positively high" threshold on the best C (default 0.6).
     """
     t0 = time.perf_counter()
-    opt = Options(options, "merge_maps(method='paper')")
-    detector = opt.get_detector("harris", PAPER_DETECTORS)
-    f = opt.get_int("window", window_size(), lo=3, hi=1001)
-    n = opt.get_int("n_features", 200, lo=1, hi=100000)
-    max_unknown = opt.get_float("max_unknown", 0.3, lo=0.0, hi=1.0)
-    min_corr = opt.get_float("min_correlation", 0.6, lo=-1.0, hi=1.0)
-    opt.finish()
+    o = PaperOptions.from_kwargs(**options)
+    detector, f, n = o.detector or "harris", o.window, o.n_features
+    max_unknown, min_corr = o.max_unknown, o.min_correlation
 
     def refuse(reason: str, **kw: Any) -> MergeResult:
         return MergeResult(

@@ -31,9 +31,10 @@ Pipeline (all on the maps cropped to their known bounding boxes):
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import cv2
 import numpy as np
@@ -52,18 +53,22 @@ from mrexplore.grid import (
 from mrexplore.merge.common import (
     Agreement,
     MergeResult,
-    Options,
     Verifier,
     compose,
+    detector_check,
     known_bbox,
     translation,
     warp_into,
 )
+from mrexplore.options import Options, boolean, integer, number, option
 
 F32 = NDArray[np.float32]
 
 # The compiled wall ICP (None without numba); used while mrexplore.kernels.enabled().
 _merging = kernels.load("merging")
+
+#: Keypoint detectors of the seed paper's candidates (``paper_candidates=True``).
+SEMANTIC_DETECTORS = ("harris", "shi-tomasi", "fast", "sift", "orb")
 
 
 @dataclass
@@ -589,6 +594,43 @@ class _SharedSpace:
         return int(cv2.countNonZero(cv2.bitwise_and(warped, self.known_a)))
 
 
+@dataclass(frozen=True)
+class SemanticOptions(Options):
+    """The options of :func:`merge_semantic` (documented there, measured in
+    ``docs/merging.md``): one default and one range each."""
+
+    owner: ClassVar[str] = "merge_maps(method='semantic')"
+    detector: str | None = option(None, detector_check(SEMANTIC_DETECTORS))
+    min_score: float = option(0.97, number(0.0, 1.0))
+    min_margin: float = option(0.03, number(0.0, 1.0))
+    min_evidence_cells: int = option(20, integer(0))
+    far_cells: float = option(5.0, number(0.0, math.inf))
+    rival_support: float = option(0.5, number(0.0, 1.0))
+    slide_step: float = option(8.0, number(0.0, math.inf))
+    min_overlap: float = option(0.15, number(0.0, 1.0))
+    min_overlap_cells: int = option(80, integer(0))
+    scale: int = option(4, integer(1, 32))
+    peaks_per_rotation: int = option(12, integer(1, 1000))
+    max_rotation_peaks: int = option(2, integer(1, 45))
+    rotation_step_deg: float = option(0.0, number(0.0, 360.0))
+    n_refine: int = option(8, integer(1, 1000))
+    n_polish: int = option(24, integer(1, 10_000))
+    paper_candidates: bool = option(False, boolean)
+    max_samples: int = option(20_000, integer(0))
+    w_free: float = option(0.2, number(0.0, 10.0))
+    w_disagree: float = option(1.0, number(0.0, 100.0))
+    ratio_power: float = option(2.0, number(0.0, 20.0))
+    min_common_m2: float = option(10.0, number(0.0, math.inf))
+    shared_weight: float = option(0.04, number(0.0, 1.0))
+    resolution_m: float = option(0.05, number(1e-6, math.inf))
+    slack_cells: int = option(2, integer(0, 10))
+    min_run_cells: int = option(5, integer(1, 1000))
+
+    def check_together(self) -> None:
+        if self.detector is not None and not self.paper_candidates:
+            raise ConfigError(f"{self.owner}: detector= is used only with paper_candidates=True")
+
+
 def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     """Verified merge of b into a (int8 maps, any sizes). Options (validated; why each default
     is what it is, with the measurements: ``docs/merging.md``):
@@ -611,36 +653,16 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
       in 166 bench pairs).
     """
     t0 = time.perf_counter()
-    where = "merge_maps(method='semantic')"
-    opt = Options(options, where)
-    detector = opt.get_detector("harris", ("harris", "shi-tomasi", "fast", "sift", "orb"))
-    min_score = opt.get_float("min_score", 0.97, lo=0.0, hi=1.0)
-    min_margin = opt.get_float("min_margin", 0.03, lo=0.0, hi=1.0)
-    min_evidence = opt.get_int("min_evidence_cells", 20, lo=0)
-    far_cells = opt.get_float("far_cells", 5.0, lo=0.0)
-    rival_support = opt.get_float("rival_support", 0.5, lo=0.0, hi=1.0)
-    slide_step = opt.get_float("slide_step", 8.0, lo=0.0)
-    min_overlap = opt.get_float("min_overlap", 0.15, lo=0.0, hi=1.0)
-    min_overlap_cells = opt.get_int("min_overlap_cells", 80, lo=0)
-    scale = opt.get_int("scale", 4, lo=1, hi=32)
-    k_peaks = opt.get_int("peaks_per_rotation", 12, lo=1, hi=1000)
-    max_rot_peaks = opt.get_int("max_rotation_peaks", 2, lo=1, hi=45)
-    rot_step = opt.get_float("rotation_step_deg", 0.0, lo=0.0, hi=360.0)
-    n_refine = opt.get_int("n_refine", 8, lo=1, hi=1000)
-    n_polish = opt.get_int("n_polish", 24, lo=1, hi=10000)
-    use_paper = opt.get_bool("paper_candidates", False)
-    max_samples = opt.get_int("max_samples", 20000, lo=0)
-    w_free = opt.get_float("w_free", 0.2, lo=0.0, hi=10.0)
-    w_dis = opt.get_float("w_disagree", 1.0, lo=0.0, hi=100.0)
-    ratio_power = opt.get_float("ratio_power", 2.0, lo=0.0, hi=20.0)
-    min_common_m2 = opt.get_float("min_common_m2", 10.0, lo=0.0)
-    shared_weight = opt.get_float("shared_weight", 0.04, lo=0.0, hi=1.0)
-    resolution_m = opt.get_float("resolution_m", 0.05, lo=1e-6)
-    slack = opt.get_int("slack_cells", 2, lo=0, hi=10)
-    min_run = opt.get_int("min_run_cells", 5, lo=1, hi=1000)
-    opt.finish()
-    if options.get("detector") is not None and not use_paper:
-        raise ConfigError(f"{where}: detector= is used only with paper_candidates=True")
+    o = SemanticOptions.from_kwargs(**options)
+    detector, use_paper = o.detector or "harris", o.paper_candidates
+    min_score, min_margin, min_evidence = o.min_score, o.min_margin, o.min_evidence_cells
+    far_cells, rival_support, slide_step = o.far_cells, o.rival_support, o.slide_step
+    min_overlap, min_overlap_cells = o.min_overlap, o.min_overlap_cells
+    scale, k_peaks, max_rot_peaks = o.scale, o.peaks_per_rotation, o.max_rotation_peaks
+    rot_step, n_refine, n_polish = o.rotation_step_deg, o.n_refine, o.n_polish
+    max_samples, w_free, w_dis, ratio_power = o.max_samples, o.w_free, o.w_disagree, o.ratio_power
+    min_common_m2, shared_weight, resolution_m = o.min_common_m2, o.shared_weight, o.resolution_m
+    slack, min_run = o.slack_cells, o.min_run_cells
     info: dict[str, Any] = {}
 
     def refuse(reason: str, score: float = 0.0, **kw: Any) -> MergeResult:

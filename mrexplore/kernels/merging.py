@@ -89,7 +89,7 @@ def wall_icp(
     """Point-to-line ICP of the points ``pb`` (N, 2) ``(col, row)`` onto the wall cells of a map
     whose distance-transform labels are ``labels`` (H*W, flat) and label -> cell table ``lut``
     (L, 2): the same formulas, in the same order, as
-    :meth:`mrexplore.merge.semantic._WallICP.reference` (numpy), which the tests hold it to.
+    :meth:`mrexplore.merge.icp.WallICP.reference` (numpy), which the tests hold it to.
     Returns the refined 3x3 ``T`` (a new array)."""
     T = T.copy()
     n_pts = pb.shape[0]

@@ -27,6 +27,11 @@ Pipeline (all on the maps cropped to their known bounding boxes):
    pass the first and fail the second: refused, to be merged later once more is known.
    Enough shared knowledge (``min_overlap``, ``min_overlap_cells``, ``min_common_m2``) is asked
    for too. Measurements behind each default: ``docs/merging.md``.
+
+The steps' machinery lives beside this module (:mod:`~mrexplore.merge.rotation`,
+:mod:`~mrexplore.merge.coarse`, :mod:`~mrexplore.merge.icp`, the verifier in
+:mod:`~mrexplore.merge.common`); what stays here is the options and the pipeline that threads
+the cropped maps and verifiers through the five steps, read top to bottom.
 """
 
 from __future__ import annotations
@@ -43,13 +48,13 @@ from numpy.typing import NDArray
 from mrexplore import kernels
 from mrexplore.errors import ConfigError
 from mrexplore.grid import (
-    FREE_THRESHOLD,
     OCCUPIED_THRESHOLD,
     UNKNOWN,
     Int8Grid,
     Transform,
     make_transform,
 )
+from mrexplore.merge.coarse import CoarseMatcher
 from mrexplore.merge.common import (
     Agreement,
     MergeResult,
@@ -60,6 +65,8 @@ from mrexplore.merge.common import (
     translation,
     warp_into,
 )
+from mrexplore.merge.icp import WallICP
+from mrexplore.merge.rotation import orientation_histogram, rotation_candidates
 from mrexplore.options import Options, boolean, integer, number, option
 
 F32 = NDArray[np.float32]
@@ -91,357 +98,6 @@ class _Hypothesis:
         if ag is None:
             return -1e18
         return float(ag.agree - 10 * ag.disagree) + self.shared_bonus
-
-
-# --------------------------------------------------------------------------------------------
-# 1. rotation candidates
-# --------------------------------------------------------------------------------------------
-
-
-def orientation_histogram(
-    wall: NDArray[np.bool_], bins: int = 90, period_deg: float = 90.0, sigma: float = 2.5
-) -> NDArray[np.float64]:
-    """Histogram (bins,) of wall-normal directions modulo ``period_deg``, magnitude-weighted,
-    normalised to sum 1 (zeros when there is no wall).
-
-    Modulo 90 degrees, the two wall families of a Manhattan map fall in one peak, so the relative
-    rotation mod 90 shows even when the two maps happen to hold mostly different families
-    (a corridor along x in one, along y in the other). The walls are blurred first (``sigma``
-    cells): the staircase of a wall drawn at an angle on the grid pulls local gradients towards
-    the grid axes, and the wider the blur the less (sigma 1.5 left the peak 2-3 degrees off on
-    half of our lidar map pairs, 2.5 on a quarter; see docs/merging.md).
-    """
-    img = cv2.GaussianBlur(wall.astype(np.float32), (0, 0), sigma)
-    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3)
-    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3)
-    mag = np.hypot(gx, gy)
-    top = float(mag.max()) if mag.size else 0.0
-    keep = mag > 0.05 * top if top > 0 else mag > 0
-    ang = np.degrees(np.arctan2(gy[keep], gx[keep])) % period_deg
-    idx = (ang * bins / period_deg).astype(np.int64) % bins
-    hist = np.bincount(idx, weights=mag[keep], minlength=bins)
-    # A little circular smoothing so that a wall at 0.5 deg does not split between two bins.
-    hist = 0.25 * np.roll(hist, 1) + 0.5 * hist + 0.25 * np.roll(hist, -1)
-    s = hist.sum()
-    return np.asarray(hist / s if s > 0 else hist, dtype=np.float64)
-
-
-def segment_histogram(
-    wall: NDArray[np.bool_], bins: int = 90, period_deg: float = 90.0, min_length: int = 15
-) -> NDArray[np.float64]:
-    """Histogram (bins,) of the directions of straight wall segments modulo ``period_deg``,
-    each weighted by its length and spread over its angular uncertainty (one cell over its
-    length, at least a quarter degree), normalised to sum 1.
-
-    Segments come from a probabilistic Hough transform of the wall cells (at least
-    ``min_length`` cells long): the angle of a long segment, taken from its end points, does not
-    suffer the staircase bias of local gradients, so this histogram contains the relative
-    rotation of two lidar maps to within 2 degrees where the gradient one often misses by 2-3.
-    """
-    hist = np.zeros(bins)
-    lines = cv2.HoughLinesP(
-        wall.view(np.uint8) * np.uint8(255),
-        1,
-        np.pi / 720,
-        threshold=min_length,
-        minLineLength=min_length,
-        maxLineGap=2,
-    )
-    if lines is None:
-        return hist
-    seg = np.asarray(lines, dtype=np.float64).reshape(-1, 4)
-    dx, dy = seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1]
-    length = np.hypot(dx, dy)
-    ang = np.degrees(np.arctan2(dy, dx)) % period_deg
-    sd = np.maximum(np.degrees(np.arctan2(1.0, length)), 0.25)
-    centres = (np.arange(bins) + 0.5) * period_deg / bins
-    d = (centres[None, :] - ang[:, None] + period_deg / 2) % period_deg - period_deg / 2
-    hist = (length[:, None] * np.exp(-0.5 * (d / sd[:, None]) ** 2)).sum(axis=0)
-    s = hist.sum()
-    return np.asarray(hist / s if s > 0 else hist, dtype=np.float64)
-
-
-def _circular_peaks(
-    R: NDArray[np.float64], max_peaks: int, min_rel: float, sep: int
-) -> list[float]:
-    """Up to ``max_peaks`` local maxima of the circular signal R (bin units, parabola-refined),
-    each at least ``min_rel`` of the highest and ``sep`` bins from the others. Ties in R are
-    taken in bin order (a stable sort), so the answer does not depend on the platform."""
-    bins = R.size
-    order = np.argsort(-R, kind="stable")
-    peaks: list[float] = []
-    for d in order:
-        if len(peaks) >= max_peaks or R[d] <= 0 or R[d] < min_rel * R[order[0]]:
-            break
-        left, right = R[(d - 1) % bins], R[(d + 1) % bins]
-        if R[d] < left or R[d] < right:
-            continue
-        if any(min(abs(d - p) % bins, bins - abs(d - p) % bins) < sep for p in peaks):
-            continue
-        den = left - 2 * R[d] + right
-        frac = 0.5 * (left - right) / den if den < 0 else 0.0
-        peaks.append(float(d) + float(np.clip(frac, -0.5, 0.5)))
-    return peaks
-
-
-def _relative_peaks_deg(ha: NDArray[np.float64], hb: NDArray[np.float64], k: int) -> list[float]:
-    """Peaks (degrees, mod 90) of the circular cross-correlation of two mod-90 histograms."""
-    bins = ha.size
-    R = np.fft.irfft(np.fft.rfft(ha) * np.conj(np.fft.rfft(hb)), n=bins)  # sum ha(phi) hb(phi - d)
-    return [p * 90.0 / bins for p in _circular_peaks(R, k, 0.5, max(1, bins // 11))]
-
-
-def rotation_candidates(
-    wall_a: NDArray[np.bool_], wall_b: NDArray[np.bool_], max_peaks: int = 2, step_deg: float = 0.0
-) -> list[float]:
-    """Candidate rotations (radians, in (-pi, pi]) of b relative to a, best first.
-
-    Two rotation spectra (mod 90 degrees): wall-normal directions from blurred gradients
-    (:func:`orientation_histogram`) and directions of straight wall segments
-    (:func:`segment_histogram`). The peaks of each pair's circular cross-correlation, up to
-    ``max_peaks`` per spectrum and merged when within a degree, each yield d + k 90, k = 0..3:
-    the verifier decides which. ``step_deg > 0`` appends a uniform sweep (maps with no straight
-    walls; the ICP refinement then closes the remaining gap).
-    """
-    bins = 180  # half-degree bins
-    peaks = _relative_peaks_deg(
-        segment_histogram(wall_a, bins), segment_histogram(wall_b, bins), max_peaks
-    )
-    for p in _relative_peaks_deg(
-        orientation_histogram(wall_a, bins), orientation_histogram(wall_b, bins), max_peaks
-    ):
-        if all(min(abs(p - q) % 90.0, 90.0 - abs(p - q) % 90.0) > 1.0 for q in peaks):
-            peaks.append(p)
-    out: list[float] = []
-    for p in peaks:
-        out += [np.radians(p + 90.0 * k) for k in range(4)]
-    if step_deg > 0:
-        out += [float(x) for x in np.radians(np.arange(0.0, 360.0, step_deg))]
-    return [float(np.arctan2(np.sin(t), np.cos(t))) for t in out]
-
-
-# --------------------------------------------------------------------------------------------
-# 2. coarse translation candidates
-# --------------------------------------------------------------------------------------------
-
-
-def _pool(grid: Int8Grid, s: int) -> tuple[F32, F32]:
-    """(wall, free) block maps at 1/s: wall = block holds a wall; free = all known and free.
-
-    Block means by ``cv2.resize(INTER_AREA)`` on the padded masks (exact block averages since
-    the padded size is a multiple of s), far cheaper than numpy reductions over a 4-D view.
-    """
-    h, w = grid.shape
-    H, W = -(-h // s), -(-w // s)
-    wall = np.zeros((H * s, W * s), dtype=np.float32)
-    free = np.zeros((H * s, W * s), dtype=np.float32)
-    wall[:h, :w] = grid >= OCCUPIED_THRESHOLD
-    free[:h, :w] = (grid >= 0) & (grid <= FREE_THRESHOLD)
-    wm = cv2.resize(wall, (W, H), interpolation=cv2.INTER_AREA)
-    fm = cv2.resize(free, (W, H), interpolation=cv2.INTER_AREA)
-    return (wm > 1e-6).astype(np.float32), (fm > 1.0 - 1e-4).astype(np.float32)
-
-
-def _dilate(img: F32) -> F32:
-    return np.asarray(cv2.dilate(img, np.ones((3, 3), np.uint8)), dtype=np.float32)
-
-
-class _CoarseMatcher:
-    """FFT cross-correlation of a's pooled maps against any (rotated) b's pooled maps.
-
-    With ``ratio_power`` p > 0 (the default of the method): ``agree(t)`` = b's wall blocks on or
-    next to a's wall blocks, ``dis(t)`` = b's walls on a's free blocks plus b's free blocks on
-    a's walls, and ``S = agree * (agree / (agree + dis + 2))^p``. With p = 0 the linear score
-    ``S(t) = sum_x A1(x + t) B1(x) + A2(x + t) B2(x)`` with ``B1`` = b walls, ``B2`` = b free,
-    ``A1 = dil(a walls) - a free`` (wall agreement with one block of tolerance, minus wall-in-free
-    disagreement) and ``A2 = w_free * a free - a walls`` (a little free agreement, minus
-    free-on-wall disagreement). a's spectra are computed once.
-    """
-
-    def __init__(
-        self,
-        a: Int8Grid,
-        s: int,
-        max_b_shape: tuple[int, int],
-        w_free: float,
-        w_dis: float = 1.0,
-        ratio_power: float = 0.0,
-    ) -> None:
-        self.s = s
-        self.p = ratio_power
-        wa, fa = _pool(a, s)
-        self.ha, self.wa = wa.shape
-        hb = -(-max_b_shape[0] // s)
-        wb = -(-max_b_shape[1] // s)
-        self.H = cv2.getOptimalDFTSize(self.ha + hb)
-        self.W = cv2.getOptimalDFTSize(self.wa + wb)
-        a1 = _dilate(wa) - w_dis * fa
-        a2 = w_free * fa - w_dis * wa
-        self.FA1 = np.fft.rfft2(a1, (self.H, self.W))
-        self.FA2 = np.fft.rfft2(a2, (self.H, self.W))
-        if self.p > 0:
-            self.FAW = np.fft.rfft2(_dilate(wa), (self.H, self.W))
-            # free blocks next to a wall block do not count as disagreement: a translation
-            # that is not a multiple of the block size shifts every wall by up to one block
-            self.FAF = np.fft.rfft2(fa * (1.0 - _dilate(wa)), (self.H, self.W))
-            self.FAWW = np.fft.rfft2(wa, (self.H, self.W))
-
-    def peaks(self, b: Int8Grid, k: int, nms: int = 2) -> list[tuple[float, float, float]]:
-        """The ``k`` best separated translations ``(dc, dr, S)`` (cells, full resolution) that map
-        b's cells onto a's cells."""
-        s = self.s
-        wb, fb = _pool(b, s)
-        FB1 = np.conj(np.fft.rfft2(wb, (self.H, self.W)))
-        if self.p > 0:
-            FB2 = np.conj(np.fft.rfft2(fb * (1.0 - _dilate(wb)), (self.H, self.W)))
-            # agreement and disagreement apart: rank by agree * (agree / (agree + dis))^p, which
-            # favours clean alignments over large but contradicted overlaps (repetitive shelves)
-            ag = np.fft.irfft2(self.FAW * FB1, (self.H, self.W))
-            ds = np.fft.irfft2(self.FAF * FB1 + self.FAWW * FB2, (self.H, self.W))
-            ag = np.maximum(ag, 0.0)
-            ds = np.maximum(ds, 0.0)
-            S = (ag * (ag / (ag + ds + 2.0)) ** self.p).astype(np.float32)
-            return self._top(S, wb.shape, k, nms)
-        FB2 = np.conj(np.fft.rfft2(fb, (self.H, self.W)))
-        S = np.fft.irfft2(self.FA1 * FB1 + self.FA2 * FB2, (self.H, self.W)).astype(np.float32)
-        return self._top(S, wb.shape, k, nms)
-
-    def _top(
-        self, S: F32, b_shape: tuple[int, int], k: int, nms: int
-    ) -> list[tuple[float, float, float]]:
-        """The k best local maxima of a circular score map as full-resolution translations."""
-        s = self.s
-        # Only translations where the maps can overlap: t in (-hb, ha) x (-wb, wa), circular.
-        hb, wbw = b_shape
-        S = np.roll(S, (hb, wbw), axis=(0, 1))[: hb + self.ha, : wbw + self.wa]
-        mx = cv2.dilate(S, np.ones((2 * nms + 1, 2 * nms + 1), np.uint8))
-        cand = np.flatnonzero((mx <= S).ravel() & (S.ravel() > 0))
-        if cand.size == 0:
-            return []
-        vals = S.ravel()[cand]
-        top = cand[np.argsort(vals)[::-1][:k]]
-        rows, cols = np.unravel_index(top, S.shape)
-        # Block t -> cells: b's block j covers cells [s j, s j + s); same for a, so t * s.
-        return [
-            (float((c - wbw) * s), float((r - hb) * s), float(S[r, c]))
-            for r, c in zip(rows, cols, strict=True)
-        ]
-
-
-# --------------------------------------------------------------------------------------------
-# 3. ICP on wall cells
-# --------------------------------------------------------------------------------------------
-
-
-class _WallICP:
-    """Trimmed point-to-point ICP of b's wall cells onto a's nearest wall cells."""
-
-    def __init__(
-        self, wall_a: NDArray[np.bool_], wall_b: NDArray[np.bool_], max_points: int
-    ) -> None:
-        self.h, self.w = wall_a.shape
-        _, labels = cv2.distanceTransformWithLabels(
-            (~wall_a).astype(np.uint8), cv2.DIST_L2, 5, labelType=cv2.DIST_LABEL_PIXEL
-        )
-        # Labels number a's wall cells in row-major order starting at 1.
-        rr, cc = np.nonzero(wall_a)
-        self.lut = np.concatenate([[[0.0, 0.0]], np.stack([cc, rr], axis=1)]).astype(np.float64)
-        self.labels = labels
-        self.labels_flat = np.ascontiguousarray(labels.ravel(), dtype=np.int32)
-        rb, cb = np.nonzero(wall_b)
-        if max_points and rb.size > max_points:
-            stride = int(np.ceil(rb.size / max_points))
-            rb, cb = rb[::stride], cb[::stride]
-        self.pb = np.stack([cb, rb], axis=1).astype(np.float64)
-        self.has_walls = rr.size > 0 and rb.size > 0
-
-    def _points(self, n_points: int) -> NDArray[np.float64]:
-        p = self.pb
-        if n_points and p.shape[0] > n_points:
-            p = p[:: int(np.ceil(p.shape[0] / n_points))]
-        return p
-
-    def __call__(self, T: Transform, iters: int, max_dist: float, n_points: int = 0) -> Transform:
-        """Refine ``T`` (b cells -> a cells); pairs farther than ``max_dist`` cells are ignored.
-
-        ``n_points > 0`` uses only about that many of b's wall cells (a cheap first polish).
-        Runs the compiled :func:`mrexplore.kernels.merging.wall_icp` (10x faster than
-        :meth:`reference`, the same formulas in numpy: its test oracle, and the path when the
-        kernels are off).
-        """
-        if not self.has_walls:
-            return T
-        if not kernels.enabled():
-            return self.reference(T, iters, max_dist, n_points)
-        assert _merging is not None
-        return np.asarray(
-            _merging.wall_icp(
-                np.ascontiguousarray(T, dtype=np.float64),
-                np.ascontiguousarray(self._points(n_points)),
-                self.labels_flat,
-                self.lut,
-                self.w,
-                self.h,
-                int(iters),
-                float(max_dist),
-            ),
-            dtype=np.float64,
-        )
-
-    def reference(self, T: Transform, iters: int, max_dist: float, n_points: int = 0) -> Transform:
-        """:meth:`__call__` in numpy (the oracle of the compiled kernel's tests)."""
-        if not self.has_walls:
-            return T
-        p = self._points(n_points)
-        px, py = p[:, 0], p[:, 1]
-        labels = self.labels.ravel()
-        lut_c, lut_r = self.lut[:, 0], self.lut[:, 1]
-        w, h = self.w, self.h
-        md2 = max_dist * max_dist
-        for _ in range(iters):
-            qx = T[0, 0] * px + T[0, 1] * py + T[0, 2]
-            qy = T[1, 0] * px + T[1, 1] * py + T[1, 2]
-            c = np.rint(qx).astype(np.int64)
-            r = np.rint(qy).astype(np.int64)
-            inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
-            lab = labels[(r * w + c)[inside]]
-            mx, my = lut_c[lab], lut_r[lab]
-            keep = (qx[inside] - mx) ** 2 + (qy[inside] - my) ** 2 <= md2
-            n = int(np.count_nonzero(keep))
-            if n < 10:
-                return T
-            # Point-to-line step (Gauss-Newton on the distance to the nearest wall cell, i.e.
-            # on a's distance field): unlike point-to-point ICP it does not stall when walls
-            # slide along each other (a 2-cell offset across a long wall is fixed in one step).
-            qxk, qyk = qx[inside][keep], qy[inside][keep]
-            mx, my = mx[keep], my[keep]
-            ex, ey = qxk - mx, qyk - my
-            d = np.sqrt(ex * ex + ey * ey)
-            ok = d > 1e-6
-            if np.count_nonzero(ok) < 10:
-                return T
-            nx, ny, dd = ex[ok] / d[ok], ey[ok] / d[ok], d[ok]
-            ux, uy = qxk[ok], qyk[ok]
-            cx, cy = float(ux.mean()), float(uy.mean())
-            J = np.empty((dd.size, 3))
-            J[:, 0], J[:, 1] = nx, ny
-            J[:, 2] = ny * (ux - cx) - nx * (uy - cy)
-            # residual = distance to the nearest wall-cell centre, along the normal
-            dtx, dty, dth = (
-                float(x) for x in np.linalg.solve(J.T @ J + 1e-6 * np.eye(3), -(J.T @ dd))
-            )
-            step = (
-                translation(cx + dtx, cy + dty)
-                @ make_transform(dth, 0.0, 0.0)
-                @ translation(-cx, -cy)
-            )
-            T_new = step @ T
-            # nearest-cell residuals jitter at the sub-cell level: stop at 0.05 cell / 0.03 deg
-            done = abs(dtx) + abs(dty) < 0.05 and abs(dth) < 5e-4
-            T = T_new
-            if done:
-                break
-        return T
 
 
 # --------------------------------------------------------------------------------------------
@@ -502,7 +158,7 @@ def _slide_hypotheses(
     screen: Verifier,
     quick: Verifier,
     verify: Verifier,
-    icp: _WallICP,
+    icp: WallICP,
     min_overlap: float,
     min_overlap_cells: int,
     keep: int = 2,
@@ -550,7 +206,7 @@ def _slide_hypotheses(
 
 def _rotation_polish(
     hyp: _Hypothesis,
-    icp: _WallICP,
+    icp: WallICP,
     verify: Verifier,
     b_shape: tuple[int, int],
     offsets_deg: tuple[float, ...] = (-1.0, -0.5, 0.5, 1.0),
@@ -702,7 +358,7 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     # --- 2. coarse translations per rotation ---
     rots = [_rotation_about(t, bc.shape) for t in thetas]
     max_shape = (max(s[0] for _, s in rots), max(s[1] for _, s in rots))
-    coarse = _CoarseMatcher(ac, scale, max_shape, w_free, w_dis, ratio_power)
+    coarse = CoarseMatcher(ac, scale, max_shape, w_free, w_dis, ratio_power)
     hyps: list[_Hypothesis] = []
     for T_rot, shape in rots:
         b_rot = warp_into(bc, T_rot, shape)
@@ -723,7 +379,7 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     for hyp in hyps:
         hyp.agreement = screen(hyp.T)
     hyps.sort(key=lambda h: -(h.agreement.agree - h.agreement.disagree if h.agreement else 0))
-    icp = _WallICP(wall_a, wall_b, max_points=1500)
+    icp = WallICP(wall_a, wall_b, max_points=1500)
     for hyp in hyps[:n_polish]:
         hyp.T = icp(hyp.T, iters=4, max_dist=1.5 * scale, n_points=400)
         hyp.agreement = quick(hyp.T)

@@ -12,7 +12,7 @@ from mrexplore.experiments.merge_cases import rotate_map
 from mrexplore.grid import OCCUPIED, UNKNOWN, invert_transform, transform_angle
 from mrexplore.merge import merge_maps
 from mrexplore.merge.common import translation
-from mrexplore.merge.semantic import rotation_candidates
+from mrexplore.merge.rotation import rotation_candidates
 from mrexplore.truth import merge_error
 
 
@@ -126,10 +126,10 @@ def test_compiled_icp_equals_the_numpy_reference(
     office_pair: tuple[np.ndarray, np.ndarray, np.ndarray], dth_deg: float, dx: float, dy: float
 ) -> None:
     from mrexplore.grid import OCCUPIED_THRESHOLD, make_transform
-    from mrexplore.merge.semantic import _WallICP
+    from mrexplore.merge.icp import WallICP
 
     a, b, T_ab = office_pair
-    icp = _WallICP(a >= OCCUPIED_THRESHOLD, b >= OCCUPIED_THRESHOLD, max_points=1500)
+    icp = WallICP(a >= OCCUPIED_THRESHOLD, b >= OCCUPIED_THRESHOLD, max_points=1500)
     T0 = translation(dx, dy) @ make_transform(np.radians(dth_deg), 0.0, 0.0) @ T_ab
     for iters, max_dist, n_points in [(4, 6.0, 400), (10, 3.0, 0)]:
         fast = icp(T0, iters, max_dist, n_points)

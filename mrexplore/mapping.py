@@ -9,7 +9,7 @@ chooses a canvas large enough for any start (see :func:`mrexplore.sim.canvas_for
 Inverse sensor model (per scan): the cells a beam enters before its measured end are free
 (``l_free``), the cell holding the end point is occupied (``l_occ``) when the beam hit; log-odds
 are clamped to ``[l_min, l_max]``; every cell is updated at most once per scan, occupied winning
-over free. The beams are traversed with :func:`mrexplore.sensors.traverse`, the same vectorised
+over free. The beams are traversed with :func:`mrexplore.traversal.traverse`, the same vectorised
 grid traversal the sensor uses.
 
 The int8 view (``-1/0/100``, :mod:`mrexplore.grid`) is kept up to date incrementally (only the
@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from mrexplore import kernels, sensors
+from mrexplore import kernels
 from mrexplore.errors import ConfigError, GridError
 from mrexplore.grid import (
     FREE,
@@ -39,7 +39,7 @@ from mrexplore.grid import (
     UNKNOWN,
     MapChange,
 )
-from mrexplore.sensors import CORNER_EPS, traverse
+from mrexplore.traversal import CORNER_EPS, SNAP_CELLS, traverse
 from mrexplore.types import Box
 
 #: Beams are traversed in two groups: those shorter than this many cells (most beams indoors)
@@ -224,8 +224,8 @@ class OccupancyMap:
         res = self.resolution_m
         # Corner coordinates (col + 0.5, row + 0.5): cell = floor. (snap inlined: this runs
         # every step and numpy's scalar calls cost microseconds each.)
-        ox = round((self.origin_cell[0] + x / res + 0.5) / sensors.SNAP_CELLS) * sensors.SNAP_CELLS
-        oy = round((self.origin_cell[1] + y / res + 0.5) / sensors.SNAP_CELLS) * sensors.SNAP_CELLS
+        ox = round((self.origin_cell[0] + x / res + 0.5) / SNAP_CELLS) * SNAP_CELLS
+        oy = round((self.origin_cell[1] + y / res + 0.5) / SNAP_CELLS) * SNAP_CELLS
         if not (1.0 <= ox < w - 1 and 1.0 <= oy < h - 1):
             raise GridError(
                 f"pose ({x:.3f}, {y:.3f}) m is outside the {h}x{w} canvas: make the canvas larger"

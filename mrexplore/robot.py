@@ -21,9 +21,9 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from mrexplore import kernels, sensors
+from mrexplore import kernels
 from mrexplore.errors import ConfigError, WorldError
-from mrexplore.sensors import snap
+from mrexplore.traversal import SNAP_CELLS, snap
 from mrexplore.world.world import World
 
 # The compiled motion (None without numba); used while mrexplore.kernels.enabled().
@@ -210,7 +210,7 @@ class Motion:
                 float(self.world.origin_m[0]),
                 float(self.world.origin_m[1]),
                 float(self.world.resolution_m),
-                sensors.SNAP_CELLS,
+                SNAP_CELLS,
                 nx,
                 ny,
             )

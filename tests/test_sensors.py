@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from mrexplore.errors import ConfigError, GridError
-from mrexplore.sensors import Lidar, LidarConfig, cast_ray_reference, traverse
+from mrexplore.sensors import Lidar, LidarConfig, cast_ray_reference
+from mrexplore.traversal import traverse
 
 
 def random_world(rng: np.random.Generator) -> np.ndarray:

@@ -6,7 +6,7 @@ calls of ~5-30 us each) dominated: ~6 ms for the cast + map update of 2 robots. 
 loops compiled here do the same work in ~0.5 ms (``mrexplore bench sensor``).
 
 Bit-for-bit agreement with the numpy path. The kernels evaluate the *same floating-point
-formulas* as :func:`mrexplore.sensors.traverse` run in float64 (crossing ``k`` of a line family
+formulas* as :func:`mrexplore.traversal.traverse` run in float64 (crossing ``k`` of a line family
 is at ``t = t0 + k * dt``; the coordinate along the lines is ``k * s + a`` with the same ``a``,
 ``s`` and offset; the cell is its floor, biased by ``-CORNER_EPS``). So the numba cast equals the
 numpy cast with ``Lidar.dtype = float64`` exactly, and the numpy float32 default up to the float32
@@ -47,7 +47,7 @@ END_NUDGE_CELLS: float = 1e-3
 def _family(
     o: float, o_other: float, d: float, d_other: float, t_cap: float
 ) -> tuple[bool, float, float, float, float, int, int, int, int]:
-    """Setup of one line family of one ray, exactly as :func:`mrexplore.sensors.traverse`.
+    """Setup of one line family of one ray, exactly as :func:`mrexplore.traversal.traverse`.
 
     Returns ``(moving, t0, dt, a, s, fo, fo_other, sgn, offset)``: crossing k is at
     ``t0 + k dt``; the position along the lines (relative, offset) is ``k s + a``; the entered
@@ -92,7 +92,7 @@ def cast_observe(
     """Cast every beam of R robots on a padded wall grid; optionally mark the observed cells.
 
     Args:
-        table: bool flat, the :class:`mrexplore.sensors.PaddedGrid` table: three planes of
+        table: bool flat, the :class:`mrexplore.traversal.PaddedGrid` table: three planes of
             ``hp * wp`` cells (walls; walls of a cell or the one above; or the one to the right).
         hp, wp: rows and columns of the padded grid (H + 2, W + 2).
         corners: (R, 2) sensor positions in (unpadded) corner coordinates ``(col + .5, row + .5)``,
@@ -436,7 +436,7 @@ def motion_forward(
         px, py: (F,) start positions, world metres; cos_th, sin_th: (F,) of the headings.
         dist: (S + 1,) distance (metres) of each sub-step (``dist[0] = 0``, the start).
         org_x, org_y: world origin (metres); res: metres per cell; snap_cells: the lattice of
-            :func:`mrexplore.sensors.snap`.
+            :func:`mrexplore.traversal.snap`.
         out_x, out_y: (F,) out: the end positions (the start when it is blocked itself).
 
     Returns:

@@ -4,6 +4,9 @@ For each seed, the single-robot and the two-robot episode start ``robot_0`` at t
 (same world, same seed), for the exploration task and for the navigation task. Task times are
 simulated seconds. Writes ``task_time.json``, ``task_time.csv`` and ``task_time.png`` and prints a
 table like the paper's.
+
+Size: the experiment (serial or on Ray), its table, CSV, JSON and plot in one place, so the
+paper's figure regenerates from one command.
 """
 
 from __future__ import annotations

@@ -23,6 +23,10 @@ Each step the caller hands over the robots' own-frame maps. The tracker
 The decision rules are :meth:`MapMergeTracker._decide_attempt` and
 :meth:`MapMergeTracker._decide_recheck`; :meth:`MapMergeTracker._compute` is the only call of
 the merger.
+
+Size: the two decision rules, the transform graph and the fixed-latency job schedule that
+makes the rules deterministic; the pixels (change detection, fused maps) are in
+:mod:`~mrexplore.merge.compositor`.
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ agents can talk (``links``), and the step counter.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -55,6 +55,7 @@ class FusionStage:
         self.index = {a: i for i, a in enumerate(self.agents)}
         self.enabled = merger is not None and len(self.agents) > 1
         self._maps: list[NDArray[np.int8]] = []
+        self._memo: dict[tuple[str, str], Any] = {}  # answers of this update (see _memoised)
         self._first_merge_step: dict[str, int | None] = dict.fromkeys(self.agents)
         # fused_version: a counter that only grows (never reset, so a version never repeats),
         # the version of the last update without a merger, and per agent (what the fused map
@@ -85,6 +86,7 @@ class FusionStage:
     def reset(self) -> None:
         """Forget every transform (a new episode)."""
         self._maps = []
+        self._memo = {}
         self._first_merge_step = dict.fromkeys(self.agents)
         self._seen = {}
         if self.tracker is not None:
@@ -110,6 +112,7 @@ class FusionStage:
         if missing:
             raise KeyError(f"no local map for agent(s) {missing}")
         self._maps = [check_int8_map(local_maps[a], f"local map of {a}") for a in self.agents]
+        self._memo = {}
         self._counter += 1
         self._update_version = self._counter
         if self.tracker is None:
@@ -120,9 +123,20 @@ class FusionStage:
             if self._first_merge_step[a] is None and self.tracker.merged(self.index[a]):
                 self._first_merge_step[a] = step
 
+    def _memoised(self, what: str, agent: str, compute: Callable[[], Any]) -> Any:
+        """``compute()``, once per :meth:`update` for each (what, agent): the answers change
+        only when the tracker takes new maps, and the env asks each several times a step."""
+        key = (what, agent)
+        if key not in self._memo:
+            self._memo[key] = compute()
+        return self._memo[key]
+
     def merged(self, agent: str) -> bool:
         """True once ``agent``'s map is fused with at least one teammate's."""
-        return bool(self.tracker is not None and self.tracker.merged(self.index[agent]))
+        if self.tracker is None:
+            return False
+        tracker = self.tracker
+        return bool(self._memoised("merged", agent, lambda: tracker.merged(self.index[agent])))
 
     def first_merge_step(self, agent: str) -> int | None:
         """The step at which ``agent`` was first merged, or None."""
@@ -131,8 +145,9 @@ class FusionStage:
     def fused(self, agent: str) -> NDArray[np.int8]:
         """The fused map in ``agent``'s frame (its own map when not merged), same shape."""
         i = self.index[agent]
-        if self.tracker is not None and self.tracker.merged(i):
-            return np.asarray(self.tracker.fused(i))
+        tracker = self.tracker
+        if tracker is not None and self.merged(agent):
+            return self._memoised("fused", agent, lambda: np.asarray(tracker.fused(i)))
         return self._maps[i]
 
     def fused_version(self, agent: str) -> int:
@@ -149,7 +164,7 @@ class FusionStage:
         i = self.index[agent]
         key: tuple[str, Any]
         if self.tracker.merged(i):
-            key = ("fused", self.tracker.fused(i))  # the same object until something changed
+            key = ("fused", self.fused(agent))  # the same object until something changed
         else:
             key = ("own", self.tracker.map_version(i))
         seen = self._seen.get(agent)

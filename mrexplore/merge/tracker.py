@@ -226,6 +226,7 @@ class MapMergeTracker:
         self._last_attempt_known: dict[tuple[int, int], int] = {}
         self._results: dict[tuple[int, int], MergeResult] = {}
         self._paths: dict[tuple[int, int], Transform | None] | None = None
+        self._groups: dict[int, set[int]] = {}  # robot -> its merged group, kept with _paths
         self._links: NDArray[np.bool_] | None = None
 
     # ------------------------------------------------------------------ step
@@ -485,6 +486,7 @@ class MapMergeTracker:
                 if v != s:
                     paths[(s, v)] = T
         self._paths = paths
+        self._groups = {s: {s} | {v for (u, v) in paths if u == s} for s in range(self.n)}
         return paths
 
     def transform(self, i: int, j: int) -> Transform | None:
@@ -496,7 +498,8 @@ class MapMergeTracker:
 
     def merged(self, i: int) -> bool:
         """True once robot i's map is connected to at least one teammate's."""
-        return len(self.group(i)) > 1
+        self._all_paths()
+        return len(self._groups[i]) > 1
 
     def map_version(self, i: int) -> int:
         """A counter that grows whenever robot i's map content changes (0 before any map)."""
@@ -504,7 +507,8 @@ class MapMergeTracker:
 
     def group(self, i: int) -> set[int]:
         """Robots whose maps are merged with robot i's (including i)."""
-        return {i} | {v for (s, v) in self._all_paths() if s == i}
+        self._all_paths()  # (re)computes the groups with the paths
+        return set(self._groups[i])
 
     def last_result(self, i: int, j: int) -> MergeResult | None:
         """The last :class:`MergeResult` of merging j into i (or i into j), or None."""

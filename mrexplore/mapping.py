@@ -207,9 +207,9 @@ class OccupancyMap:
             )
         if not (np.isfinite(rng_m).all() and (rng_m >= 0.0).all()):
             raise GridError("ranges_m must be finite and non-negative")
-        self._integrate(x, y, th, ang, rng_m, hits)
+        self.integrate_trusted(x, y, th, ang, rng_m, hits)
 
-    def _integrate(
+    def integrate_trusted(
         self,
         x: float,
         y: float,

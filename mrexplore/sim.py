@@ -348,7 +348,7 @@ class Simulation:
         for i in range(self.n_robots):
             x, y, th = (float(v) for v in self.est_poses[i])
             m = self.maps[i]
-            m._integrate(x, y, th, angles, scan.ranges_m[i], scan.hit[i])
+            m.integrate_trusted(x, y, th, angles, scan.ranges_m[i], scan.hit[i])
             self._trails[i].append(*m.cell_of(x, y))
         return newly
 

@@ -240,7 +240,7 @@ class MapScorer:
         self.walls = w
         self.shape = (int(w.shape[0]), int(w.shape[1]))
         # cells with a true wall within 1 cell (8-neighbourhood); outside the grid counts as wall
-        self._near_wall = cv2.dilate(
+        self.near_wall = cv2.dilate(
             w.astype(np.uint8),
             np.ones((3, 3), np.uint8),
             borderType=cv2.BORDER_CONSTANT,
@@ -261,7 +261,7 @@ class MapScorer:
         if n == 0:
             return float("nan")
         bad = int(np.count_nonzero(free & self.walls)) + int(
-            np.count_nonzero(occ & ~self._near_wall)
+            np.count_nonzero(occ & ~self.near_wall)
         )
         return bad / n
 
@@ -277,9 +277,9 @@ class MapScorer:
         if not kernels.enabled():
             return self.contradiction(m), (self.held_free(m) if held else None)
         assert _scoring is not None
-        reach = self.reachable if self.reachable is not None else self._near_wall
+        reach = self.reachable if self.reachable is not None else self.near_wall
         n, bad, n_held = _scoring.claim_counts(
-            m, self.walls, self._near_wall, reach, FREE_THRESHOLD, OCCUPIED_THRESHOLD, held
+            m, self.walls, self.near_wall, reach, FREE_THRESHOLD, OCCUPIED_THRESHOLD, held
         )
         share = float("nan") if n == 0 else bad / n
         return share, (int(n_held) if held else None)
@@ -356,7 +356,7 @@ class IncrementalScore:
         self.sample = sample
         self.cls = np.zeros(scorer.shape, dtype=np.uint8)
         self.counts = np.zeros(3, dtype=np.int64)
-        self._reach = scorer.reachable if scorer.reachable is not None else scorer._near_wall
+        self._reach = scorer.reachable if scorer.reachable is not None else scorer.near_wall
 
     def update(self, map_grid: Int8Grid, box: Box | None) -> tuple[float, int]:
         """Re-score after ``map_grid`` changed inside ``box`` (map cells, half-open
@@ -380,7 +380,7 @@ class IncrementalScore:
                 self.sample,
                 self.cls,
                 self.scorer.walls,
-                self.scorer._near_wall,
+                self.scorer.near_wall,
                 self._reach,
                 r0,
                 r1,

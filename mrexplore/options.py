@@ -133,15 +133,22 @@ def option(default: Any, check: Check, *, factory: Callable[[], Any] | None = No
     return dataclasses.field(default=default, metadata={"check": check})
 
 
-def validate(owner: str, name: str, value: Any, check: Check) -> Any:
-    """Run ``check`` on ``value`` (a numpy scalar as its Python value); a failure is a
-    ``ConfigError`` naming ``owner`` and ``name``. Returns the check's normalised value, or
-    None when it returned none."""
+def validate(
+    owner: str,
+    name: str,
+    value: Any,
+    check: Check,
+    kind: str = "option",
+    error: type[Exception] = ConfigError,
+) -> Any:
+    """Run ``check`` on ``value`` (a numpy scalar as its Python value); a failure is an
+    ``error`` (``ConfigError``) naming ``owner`` and ``name``. Returns the check's normalised
+    value, or None when it returned none."""
     try:
         return check(value.item() if isinstance(value, np.generic) else value)
     except ValueError as exc:
-        prefix = f"{owner}: option" if owner else "option"
-        raise ConfigError(f"{prefix} {name} must be {exc}, got {value!r}") from None
+        prefix = f"{owner}: {kind}" if owner else kind
+        raise error(f"{prefix} {name} must be {exc}, got {value!r}") from None
 
 
 class Options:
@@ -149,6 +156,9 @@ class Options:
 
     #: Who the options belong to, as error messages name it ("" for the env's own options).
     owner: ClassVar[str] = ""
+    #: What error messages call one of them, and the error raised.
+    kind: ClassVar[str] = "option"
+    error: ClassVar[type[Exception]] = ConfigError
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):  # type: ignore[arg-type]
@@ -161,7 +171,9 @@ class Options:
                 object.__setattr__(self, f.name, float(v))
             check = f.metadata.get("check")
             if check is not None:
-                normalised = validate(self.owner, f.name, getattr(self, f.name), check)
+                normalised = validate(
+                    self.owner, f.name, getattr(self, f.name), check, self.kind, self.error
+                )
                 if normalised is not None:
                     object.__setattr__(self, f.name, normalised)
             v = getattr(self, f.name)
@@ -179,8 +191,8 @@ class Options:
         unknown = sorted(set(kwargs) - names)
         if unknown:
             who = f"{cls.owner}: " if cls.owner else ""
-            raise ConfigError(
-                f"{who}unknown option(s) {', '.join(unknown)}; known options: "
+            raise cls.error(
+                f"{who}unknown {cls.kind}(s) {', '.join(unknown)}; known {cls.kind}s: "
                 f"{', '.join(sorted(names))}"
             )
         return cls(**kwargs)

@@ -34,13 +34,14 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.errors import WorldError
+from mrexplore.options import Options, boolean, integer, number, option, optional, positive
 from mrexplore.world.world import World
 
 __all__ = [
@@ -67,14 +68,36 @@ ROOM_MIN_M = 1.8
 TWIN_WIDTH_GAP_M = 0.4
 _MAX_ATTEMPTS = 30
 
-_COMMON_OPTIONS = {
-    "corridor_width_m",
-    "door_width_m",
-    "wall_cells",
-    "robot_radius_m",
-    "clearance_m",
-    "furniture",
-}
+
+@dataclass(frozen=True)
+class GeneratorOptions(Options):
+    """The options both generators take (``**options`` of :func:`symmetric_office` and
+    :func:`twin_wings`): one default and one range each. None: drawn (widths) or derived from
+    the resolution and the robot (walls, clearance, rooms per side)."""
+
+    kind: ClassVar[str] = "generator option"
+    error: ClassVar[type[Exception]] = WorldError
+    corridor_width_m: float | None = option(
+        None, optional(number(CORRIDOR_MIN_M, CORRIDOR_MAX_M, hint=" m"))
+    )
+    door_width_m: float | None = option(None, optional(number(DOOR_MIN_M, DOOR_MAX_M, hint=" m")))
+    wall_cells: int | None = option(None, optional(integer(1)))
+    robot_radius_m: float = option(0.15, positive)
+    clearance_m: float | None = option(None, optional(positive))
+    furniture: bool = option(True, boolean)
+    rooms_per_side: int | None = option(None, optional(integer(2)))
+
+    def check_together(self) -> None:
+        if 2.0 * self.robot_radius_m + 0.1 > DOOR_MIN_M:
+            raise WorldError(
+                f"generator option robot_radius_m = {self.robot_radius_m} is too large for "
+                f"{DOOR_MIN_M} m doors"
+            )
+        if self.clearance_m is not None and self.clearance_m < 2.0 * self.robot_radius_m:
+            raise WorldError(
+                f"generator option clearance_m = {self.clearance_m} is below the robot "
+                f"diameter {2 * self.robot_radius_m}"
+            )
 
 
 @dataclass(frozen=True)
@@ -118,62 +141,35 @@ def _positive(name: str, value: Any) -> float:
     return out
 
 
-def _params(resolution_m: float, options: dict[str, Any], extra: set[str]) -> _Params:
-    """Check every option (a typo is an error, not silently ignored) and convert to cells."""
-    unknown = sorted(set(options) - _COMMON_OPTIONS - extra)
-    if unknown:
-        raise WorldError(
-            f"unknown generator option(s) {unknown}; known: {sorted(_COMMON_OPTIONS | extra)}"
-        )
+def _params(resolution_m: float, o: GeneratorOptions) -> _Params:
+    """The options in cells, for a grid of ``resolution_m`` metres per cell."""
     res = _positive("resolution_m", resolution_m)
     if res > 0.25:
         raise WorldError(f"option 'resolution_m' must be at most 0.25 m/cell, got {res}")
-    robot_r = _positive("robot_radius_m", options.get("robot_radius_m", 0.15))
-    if 2.0 * robot_r + 0.1 > DOOR_MIN_M:
-        raise WorldError(f"option 'robot_radius_m' = {robot_r} is too large for 0.9 m doors")
-    wall_cells = options.get("wall_cells")
-    if wall_cells is None:
-        # 2-3 cells, about 0.15 m: thick enough that a ray cast never slips through diagonally.
-        t = int(min(3, max(2, round(0.15 / res))))
-    else:
-        if isinstance(wall_cells, bool) or not isinstance(wall_cells, int) or wall_cells < 1:
-            raise WorldError(f"option 'wall_cells' must be a positive integer, got {wall_cells!r}")
-        t = wall_cells
-    clearance_m = _positive(
-        "clearance_m", options.get("clearance_m", max(0.5, 2.0 * robot_r + 0.2))
-    )
-    if clearance_m < 2.0 * robot_r:
-        raise WorldError(
-            f"option 'clearance_m' = {clearance_m} is below the robot diameter {2 * robot_r}"
-        )
+    # walls of 2-3 cells, about 0.15 m: thick enough that a ray never slips through diagonally
+    t = int(min(3, max(2, round(0.15 / res)))) if o.wall_cells is None else o.wall_cells
+    clearance_m = max(0.5, 2.0 * o.robot_radius_m + 0.2) if o.clearance_m is None else o.clearance_m
     clear = math.ceil(clearance_m / res - 1e-9)
 
-    def _range(name: str, lo_m: float, hi_m: float) -> tuple[int, int]:
-        value = options.get(name)
+    def _range(name: str, value: float | None, lo_m: float, hi_m: float) -> tuple[int, int]:
         if value is None:
             lo, hi = math.ceil(lo_m / res - 1e-9), math.floor(hi_m / res + 1e-9)
         else:
-            v = _positive(name, value)
-            if not (lo_m - 1e-9 <= v <= hi_m + 1e-9):
-                raise WorldError(f"option '{name}' must be within [{lo_m}, {hi_m}] m, got {v}")
-            lo = hi = max(math.ceil(lo_m / res - 1e-9), round(v / res))
+            lo = hi = max(math.ceil(lo_m / res - 1e-9), round(value / res))
         if hi < lo:
             raise WorldError(
                 f"resolution {res} m/cell is too coarse for '{name}' in [{lo_m}, {hi_m}] m"
             )
         return lo, hi
 
-    furniture = options.get("furniture", True)
-    if not isinstance(furniture, (bool, np.bool_)):
-        raise WorldError(f"option 'furniture' must be True or False, got {furniture!r}")
     return _Params(
         res=res,
         t=t,
-        robot_r_m=robot_r,
+        robot_r_m=o.robot_radius_m,
         clear=clear,
-        corridor=_range("corridor_width_m", CORRIDOR_MIN_M, CORRIDOR_MAX_M),
-        door=_range("door_width_m", DOOR_MIN_M, DOOR_MAX_M),
-        furniture=bool(furniture),
+        corridor=_range("corridor_width_m", o.corridor_width_m, CORRIDOR_MIN_M, CORRIDOR_MAX_M),
+        door=_range("door_width_m", o.door_width_m, DOOR_MIN_M, DOOR_MAX_M),
+        furniture=o.furniture,
     )
 
 
@@ -432,12 +428,13 @@ def symmetric_office(
     Raises:
         WorldError: a size or option is invalid or too small for the rooms (the message names it).
     """
-    p = _params(resolution_m, options, {"rooms_per_side"})
+    o = GeneratorOptions.from_kwargs(**options)
+    p = _params(resolution_m, o)
     t = p.t
     min_room = math.ceil(ROOM_MIN_M / p.res)
     min_h_m = (4 * t + 2 * min_room + p.corridor[0]) * p.res
     H = _size_cells("height_m", height_m, p, min_h_m)
-    n_opt = options.get("rooms_per_side")
+    n_opt = o.rooms_per_side
     if n_opt is not None and (isinstance(n_opt, bool) or not isinstance(n_opt, int) or n_opt < 3):
         raise WorldError(f"option 'rooms_per_side' must be an integer >= 3, got {n_opt!r}")
     n_min = 3 if n_opt is None else n_opt
@@ -530,12 +527,13 @@ def twin_wings(
     Raises:
         WorldError: a size or option is invalid or too small (the message names it).
     """
-    p = _params(resolution_m, options, {"rooms_per_side"})
+    o = GeneratorOptions.from_kwargs(**options)
+    p = _params(resolution_m, o)
     t = p.t
     min_room = math.ceil(ROOM_MIN_M / p.res)
     min_h_m = (6 * t + 3 * min_room + 2 * p.corridor[0]) * p.res
     H = _size_cells("height_m", height_m, p, min_h_m)
-    n_opt = options.get("rooms_per_side")
+    n_opt = o.rooms_per_side
     if n_opt is not None and (isinstance(n_opt, bool) or not isinstance(n_opt, int) or n_opt < 2):
         raise WorldError(f"option 'rooms_per_side' must be an integer >= 2, got {n_opt!r}")
     n_min = 3 if n_opt is None else max(n_opt, 3)

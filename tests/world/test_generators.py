@@ -208,7 +208,7 @@ def test_corridor_and_door_options() -> None:
         ({"wall_cells": 0}, "wall_cells"),  # no walls
         ({"width": 20.0}, "unknown generator option"),  # typo of width_m
         ({"rooms_per_side": 1}, "rooms_per_side"),  # too few rooms for two twins
-        ({"furniture": "maybe"}, "'furniture' must be True or False"),  # not a bool
+        ({"furniture": "maybe"}, "furniture must be True or False"),  # not a bool
     ],
 )
 def test_bad_options_raise_world_error_naming_them(

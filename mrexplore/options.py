@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import types
+import typing
 from collections.abc import Callable
 from typing import Any, ClassVar, TypeVar
 
@@ -119,10 +121,17 @@ def anything(v: Any) -> None:
     """No check here (the value is checked where it is used, e.g. a world name or a merger)."""
 
 
-# --- knobs that several objects expose, checked alike everywhere ---------------------------
-#: Steps between merge attempts of an unmerged pair (env, wrapper, tracker).
+# --- knobs that several objects expose (env, wrapper, fusion stage, tracker): one default and
+# one check each --------------------------------------------------------------------------
+#: Steps between merge attempts of an unmerged pair.
+MERGE_EVERY_DEFAULT = 10
 MERGE_EVERY_CHECK = integer(1)
-#: Steps between the start of a merge attempt and its effect (0: in the step).
+#: Steps between re-checks of an accepted transform (0: never).
+RECHECK_EVERY_DEFAULT = 100
+RECHECK_EVERY_CHECK = integer(0)
+#: Steps between the start of a merge attempt and its effect (0: in the step). The env runs
+#: attempts off the step path (8); the tracker, the fusion stage and the wrapper default to 0
+#: (one-shot users get the answer in the call).
 MERGE_LATENCY_CHECK = integer(0, 10_000)
 
 
@@ -151,6 +160,26 @@ def validate(
         raise error(f"{prefix} {name} must be {exc}, got {value!r}") from None
 
 
+_FLOAT_FIELDS: dict[type, frozenset[str]] = {}
+
+
+def _float_fields(cls: type) -> frozenset[str]:
+    """The fields of the options dataclass ``cls`` typed ``float`` or ``float | None`` (kept
+    per class: the type hints are resolved once)."""
+    if cls in _FLOAT_FIELDS:
+        return _FLOAT_FIELDS[cls]
+    hints = typing.get_type_hints(cls)
+    out = set()
+    for f in dataclasses.fields(cls):
+        t = hints.get(f.name)
+        if t is float or (
+            typing.get_origin(t) in (typing.Union, types.UnionType) and float in typing.get_args(t)
+        ):
+            out.add(f.name)
+    _FLOAT_FIELDS[cls] = frozenset(out)
+    return _FLOAT_FIELDS[cls]
+
+
 class Options:
     """Base of the option dataclasses (declare them ``@dataclass(frozen=True)``)."""
 
@@ -161,6 +190,7 @@ class Options:
     error: ClassVar[type[Exception]] = ConfigError
 
     def __post_init__(self) -> None:
+        floats = _float_fields(type(self))
         for f in dataclasses.fields(self):  # type: ignore[arg-type]
             v = getattr(self, f.name)
             if isinstance(v, np.bool_):
@@ -177,7 +207,7 @@ class Options:
                 if normalised is not None:
                     object.__setattr__(self, f.name, normalised)
             v = getattr(self, f.name)
-            if f.type == "float" and isinstance(v, int) and not isinstance(v, bool):
+            if f.name in floats and type(v) is int:
                 object.__setattr__(self, f.name, float(v))  # 1 means 1.0 where a float is due
         self.check_together()
 

@@ -2,7 +2,10 @@
 GIF/MP4 writing.
 
 The viewer reads a snapshot the env hands it (as jumanji's ``Viewer.render(state)``), never
-the env itself: it cannot change the episode, and it can draw snapshots kept from earlier.
+the env itself, so it cannot change the episode. A snapshot shares the env's arrays: draw it
+before the next step (or copy its maps to keep it).
+
+Size: frame geometry, panels, the legend and the window; one viewer, read top to bottom.
 """
 
 from __future__ import annotations
@@ -380,6 +383,11 @@ def render_frame(snap: FrameSnapshot) -> NDArray[np.uint8]:
     top = np.hstack(panels)
     strip, _ = legend(snap.agents, layout, top.shape[1])
     return np.ascontiguousarray(np.vstack([top, strip]))
+
+
+def render_env_frame(env: Any) -> NDArray[np.uint8]:
+    """The frame of an env's current step: ``render_frame(env.snapshot())`` (the old name)."""
+    return render_frame(env.snapshot())
 
 
 class HumanWindow:

@@ -8,12 +8,18 @@ while :func:`mrexplore.kernels.enabled`, the default) and the vectorised numpy t
 path with the kernels off, and an oracle of the tests). They evaluate the same float64
 formulas, so they agree to the bit with ``Lidar.dtype = numpy.float64``;
 :func:`cast_ray_reference` (one ray, cell by cell) is the slow, obvious oracle of both.
+
+Size: the lidar's two paths (compiled and numpy) and the one-ray reference stay side by
+side, since the tests hold each to the others.
 """
 
 from __future__ import annotations
 
 import itertools
 import math
+import sys
+import types
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -500,3 +506,26 @@ def cast_ray_reference(
             return float(max_range_cells), False
         if wall:
             return float(t), True
+
+
+class _Sensors(types.ModuleType):
+    """``sensors.USE_NUMBA`` / ``HAVE_NUMBA``: the switch's old home, forwarded (reading and
+    setting) to :mod:`mrexplore.kernels` with a deprecation warning, so old code that set
+    ``sensors.USE_NUMBA = False`` still switches the kernels off."""
+
+    @property
+    def USE_NUMBA(self) -> bool:
+        warnings.warn("use mrexplore.kernels.USE_NUMBA", DeprecationWarning, stacklevel=2)
+        return kernels.USE_NUMBA
+
+    @USE_NUMBA.setter
+    def USE_NUMBA(self, value: bool) -> None:
+        warnings.warn("use mrexplore.kernels.USE_NUMBA", DeprecationWarning, stacklevel=2)
+        kernels.USE_NUMBA = bool(value)
+
+    @property
+    def HAVE_NUMBA(self) -> bool:
+        return kernels.HAVE_NUMBA
+
+
+sys.modules[__name__].__class__ = _Sensors

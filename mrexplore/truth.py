@@ -154,7 +154,8 @@ def known_cells(
 ) -> NDArray[np.float64]:
     """The known cells of an int8 map as ``(N, 2)`` float64 ``(col, row)``, row-major; inside
     ``box`` (half-open :data:`~mrexplore.types.Box`; the map's known box spares a scan) if
-    given; an even sample of at most ``max_points`` (every k-th cell) if given.
+    given; with ``max_points``, an even sample: every k-th cell, ``k = n // max_points`` (so
+    between ``max_points`` and ``2 max_points - 1`` cells when there are more).
 
     >>> g = np.full((3, 4), UNKNOWN, dtype=np.int8); g[1, 2] = 0; g[2, 0] = 100
     >>> known_cells(g).tolist()

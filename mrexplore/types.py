@@ -62,7 +62,8 @@ class RobotView:
         teammates: teammate name -> (col, row) position in *this* robot's map cells, only for
             teammates whose maps are merged with this one (estimated, never the truth).
         transforms: teammate name -> 3x3 float64 estimated transform from that teammate's map
-            cells into this robot's map cells (same set of keys as ``teammates``).
+            cells into this robot's map cells, for every merged teammate (``teammates`` holds
+            those of them whose position was heard at least once).
         in_range: teammates this robot can talk to now (maps, positions and chosen targets are
             exchanged only with them; ``teammates`` holds where the others were last heard).
         goal_cell: (col, row) goal in this robot's map cells for the navigation task, else None.

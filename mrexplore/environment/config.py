@@ -14,7 +14,10 @@ from typing import Any, Literal
 from mrexplore.errors import ConfigError
 from mrexplore.options import (
     MERGE_EVERY_CHECK,
+    MERGE_EVERY_DEFAULT,
     MERGE_LATENCY_CHECK,
+    RECHECK_EVERY_CHECK,
+    RECHECK_EVERY_DEFAULT,
     Options,
     anything,
     boolean,
@@ -30,6 +33,7 @@ from mrexplore.types import Merger
 
 RewardMode = Literal["time", "coverage"]
 TaskName = Literal["explore", "navigate"]
+Task = TaskName  # the old name of the literal (the task object is environment.task.Task)
 CoverageMode = Literal["observed", "held"]
 ObsLayout = Literal["chw", "hwc"]
 ObsDtype = Literal["uint8", "float32"]
@@ -37,6 +41,16 @@ ObsDtype = Literal["uint8", "float32"]
 OBS_LAYOUTS = ("chw", "hwc")
 OBS_DTYPES = ("uint8", "float32")
 NavGoal = Literal["far", "teammate"]
+
+
+def _task_check(v: Any) -> None:
+    """``"explore"``, ``"navigate"``, or a task object (:class:`mrexplore.environment.task.Task`:
+    it has ``bind`` and ``terminated``)."""
+    if isinstance(v, str):
+        if v not in ("explore", "navigate"):
+            raise ValueError("'explore' or 'navigate' (or a Task object)")
+    elif not (callable(getattr(v, "bind", None)) and callable(getattr(v, "terminated", None))):
+        raise ValueError("'explore' or 'navigate' (or a Task object)")
 
 
 def _is_dict(v: Any) -> None:
@@ -62,7 +76,9 @@ class EnvConfig(Options):
         n_robots: team size; ``1`` is the single-robot baseline (same world, same start of
             ``robot_0`` as the team runs for the same seed).
         task: ``"explore"`` (cover ``target_coverage`` of the reachable free space) or
-            ``"navigate"`` (``robot_0`` must reach a goal given in its own frame).
+            ``"navigate"`` (``robot_0`` must reach a goal given in its own frame), or a
+            :class:`~mrexplore.environment.task.Task` object: your own task (goal, reward,
+            termination), bound to these options by the env.
     Robots and sensing:
         radius_m, speed_mps, turn_rate_rps, dt_s: robot body and motion (defaults: 0.15 m,
             0.5 m/s, pi/2 rad/s, 0.25 s per step: 0.125 m forward or 22.5 deg per step).
@@ -77,7 +93,7 @@ class EnvConfig(Options):
         merger: merge method name for :func:`mrexplore.merge.merge_maps` (``"semantic"``,
             ``"paper"``, ``"orb"``), an object with ``merge(a, b)``, or ``None`` (never merge).
         merge_every: steps between merge attempts before the first success.
-        recheck_every: steps between re-checks of an accepted transform.
+        recheck_every: steps between re-checks of an accepted transform (0: never).
         merge_latency_steps: a merge attempt started at step t takes effect at step t + this,
             computed meanwhile in a worker thread, so no step waits for the merger (default 8
             steps, 2 s at the default ``dt_s``: a radio exchange of maps and a merge take about
@@ -134,7 +150,7 @@ class EnvConfig(Options):
 
     world: Any = option("symmetric_office", anything)  # checked by load_world
     n_robots: int = option(2, integer(1))
-    task: TaskName = option("explore", one_of("explore", "navigate"))
+    task: TaskName | Any = option("explore", _task_check)
     radius_m: float = option(0.15, positive)
     speed_mps: float = option(0.5, positive)
     turn_rate_rps: float = option(math.pi / 2, positive)
@@ -149,8 +165,8 @@ class EnvConfig(Options):
     odom_noise_rot_per_m: float = option(0.0, ODOM_ROT_PER_M_CHECK)
     min_start_separation_m: float = option(0.0, non_negative)
     merger: str | Merger | None = option("semantic", anything)  # checked by the tracker
-    merge_every: int = option(10, MERGE_EVERY_CHECK)
-    recheck_every: int = option(100, integer(1))
+    merge_every: int = option(MERGE_EVERY_DEFAULT, MERGE_EVERY_CHECK)
+    recheck_every: int = option(RECHECK_EVERY_DEFAULT, RECHECK_EVERY_CHECK)
     merge_latency_steps: int = option(8, MERGE_LATENCY_CHECK)
     comm_range_m: float | None = option(None, optional(positive))
     target_coverage: float = option(0.95, number(0.0, 1.0, low_open=True))

@@ -27,7 +27,8 @@ from mrexplore.truth import (
 #: A merge error (mean displacement of the teammate's known cells) at least this large is a
 #: wrong merge (cells; the merge benchmark's threshold too).
 WRONG_MERGE_CELLS = 5.0
-#: Known cells of the teammate's map on which a merge error is measured (an even sample).
+#: Known cells of the teammate's map on which a merge error is measured: an even sample of
+#: this many to twice as many (every k-th cell, :func:`mrexplore.truth.known_cells`).
 ERROR_SAMPLE_POINTS = 4096
 #: Steps a merge error stays cached while its transform is unchanged (the known cells grow
 #: slowly; the error is asked for every step).

@@ -38,6 +38,9 @@ through :meth:`MultiRobotExplorationEnv.robot_view`; the viewer reads
 
 Version history: v0 (this): first release; infos flat and fixed (``merge_error`` became
 ``merge_error_cells``/``_deg``/``_drift_cells``, None became -1.0); ``obs_layout``/``obs_dtype``.
+
+Size: the PettingZoo face (spaces, reset, step, state, render, the map protocol) with the
+module's table of the env; each part it calls has its own module.
 """
 
 from __future__ import annotations
@@ -52,8 +55,18 @@ from numpy.typing import NDArray
 from pettingzoo import ParallelEnv
 
 from mrexplore.environment.config import EnvConfig
-from mrexplore.environment.evaluation import TruthMonitor
-from mrexplore.environment.infos import known_or_unknown, merge_error_infos
+from mrexplore.environment.evaluation import (
+    WRONG_MERGE_CELLS,
+    TruthMonitor,
+    is_wrong_merge,
+)
+from mrexplore.environment.infos import (
+    INFO_KEYS,
+    UNKNOWN_INFO,
+    known_or_unknown,
+    merge_error_infos,
+    merge_error_of,
+)
 from mrexplore.environment.observations import ObservationBuilder, ObservationFormat
 from mrexplore.environment.radio import Radio
 from mrexplore.environment.state import EpisodeState
@@ -65,6 +78,17 @@ from mrexplore.robot import Action, RobotConfig
 from mrexplore.sensors import LidarConfig
 from mrexplore.sim import SimConfig, Simulation
 from mrexplore.types import AgentID, RobotView
+
+# The info and merge-error helpers lived here before the infos and evaluation modules; their
+# old names stay importable from here (docs/clients.md named this home).
+__all__ = [
+    "INFO_KEYS",
+    "UNKNOWN_INFO",
+    "WRONG_MERGE_CELLS",
+    "MultiRobotExplorationEnv",
+    "is_wrong_merge",
+    "merge_error_of",
+]
 from mrexplore.world import World, load_world
 
 Observations = dict[AgentID, NDArray[Any]]
@@ -444,7 +468,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
             "task_time_s": self.task.time_s(ep.sim),
             "step": int(ep.sim.steps),
             "merged": bool(self.fusion.merged(agent)),
-            "score": known_or_unknown(self.fusion.score(agent)),
+            "score": UNKNOWN_INFO if (score := self.fusion.score(agent)) is None else float(score),
             "first_merge_time_s": known_or_unknown(
                 None if first is None else first * self.config.dt_s
             ),

@@ -36,15 +36,21 @@ class Task:
     """Explore: done when the coverage reaches ``target_coverage``; the clock starts at reset.
 
     The reward and the time limit are the same for both tasks (:meth:`reward`,
-    :meth:`truncated`). Subclass and pass an instance as the env's ``task`` option to define
-    another task.
+    :meth:`truncated`). To define another task, subclass it and pass an instance as the env's
+    ``task`` option (``parallel_env(task=MyTask())``); the env binds it to its options.
     """
 
     name = "explore"
 
-    def __init__(self, config: EnvConfig) -> None:
-        self.config = config
+    def __init__(self, config: EnvConfig | None = None) -> None:
+        if config is not None:
+            self.config = config
         self.goal: Goal | None = None
+
+    def bind(self, config: EnvConfig) -> Task:
+        """Use the env's options ``config`` (the env calls it once, at construction)."""
+        self.config = config
+        return self
 
     def reset(
         self,
@@ -175,5 +181,8 @@ class NavigateTask(Task):
 
 
 def make_task(config: EnvConfig) -> Task:
-    """The task ``config.task`` names."""
+    """The task ``config.task`` names, or the :class:`Task` object it holds (bound to
+    ``config``)."""
+    if isinstance(config.task, Task):
+        return config.task.bind(config)
     return NavigateTask(config) if config.task == "navigate" else Task(config)

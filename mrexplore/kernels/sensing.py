@@ -33,7 +33,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-#: Same value as :data:`mrexplore.sensors.CORNER_EPS` (kept here so this module imports nothing
+#: Same value as :data:`mrexplore.traversal.CORNER_EPS` (kept here so this module imports nothing
 #: from the package; a test checks they agree).
 CORNER_EPS: float = 1e-4
 

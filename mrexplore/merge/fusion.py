@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.grid import MapChange, check_int8_map
+from mrexplore.options import MERGE_EVERY_DEFAULT, RECHECK_EVERY_DEFAULT
 from mrexplore.types import Box, Merger
 
 #: Known space (m^2) two maps must share before the every-step merger accepts a match: about a
@@ -45,8 +46,8 @@ class FusionStage:
         self,
         agents: Sequence[str],
         merger: str | Merger | None = "semantic",
-        merge_every: int = 10,
-        recheck_every: int = 100,
+        merge_every: int = MERGE_EVERY_DEFAULT,
+        recheck_every: int = RECHECK_EVERY_DEFAULT,
         merge_latency_steps: int = 0,
         merge_options: Mapping[str, Any] | None = None,
         resolution_m: float | None = None,
@@ -68,7 +69,7 @@ class FusionStage:
             from mrexplore.merge.tracker import MapMergeTracker
 
             options = dict(merge_options or {})
-            if merger == "semantic":
+            if isinstance(merger, str) and merger.lower() == "semantic":
                 # In the loop the maps grow, so asking for a room's worth of shared knowledge
                 # costs seconds, while a one-shot merge has no "later".
                 options.setdefault("min_common_m2", IN_LOOP_MIN_COMMON_M2)

@@ -31,7 +31,8 @@ Pipeline (all on the maps cropped to their known bounding boxes):
 The steps' machinery lives beside this module (:mod:`~mrexplore.merge.rotation`,
 :mod:`~mrexplore.merge.coarse`, :mod:`~mrexplore.merge.icp`, the verifier in
 :mod:`~mrexplore.merge.common`); what stays here is the options and the pipeline that threads
-the cropped maps and verifiers through the five steps, read top to bottom.
+the cropped maps and verifiers through the five steps, read top to bottom (its size: the 25
+options and that one pipeline).
 """
 
 from __future__ import annotations

@@ -50,17 +50,22 @@ from mrexplore.grid import (
 )
 from mrexplore.merge.api import METHODS, merge_maps
 from mrexplore.merge.common import MergeResult, Verifier, translation
-from mrexplore.merge.compositor import Box, MapCompositor
+from mrexplore.merge.compositor import MapCompositor
 from mrexplore.options import (
     MERGE_EVERY_CHECK,
+    MERGE_EVERY_DEFAULT,
     MERGE_LATENCY_CHECK,
+    RECHECK_EVERY_CHECK,
+    RECHECK_EVERY_DEFAULT,
     integer,
     number,
     positive,
     validate,
 )
+from mrexplore.types import Box, Merger
 
-Merger = Callable[[Int8Grid, Int8Grid], MergeResult]
+#: A merge function ``(a, b) -> MergeResult`` (a named method, or a Merger's ``merge``).
+MergeFn = Callable[[Int8Grid, Int8Grid], MergeResult]
 
 
 @dataclass(frozen=True)
@@ -97,7 +102,7 @@ class NamedMerger:
         return merge_maps(a, b, method=self.method, **self.options)
 
 
-def _resolve_merger(merger: Any, options: dict[str, Any]) -> Merger:
+def _resolve_merger(merger: Any, options: dict[str, Any]) -> MergeFn:
     if isinstance(merger, str):
         if merger.lower() not in METHODS:
             raise ConfigError(
@@ -168,9 +173,9 @@ class MapMergeTracker:
     def __init__(
         self,
         n_robots: int,
-        merger: str | Merger | Any = "semantic",
-        merge_every: int = 10,
-        recheck_every: int = 50,
+        merger: str | Merger | MergeFn | Any = "semantic",
+        merge_every: int = MERGE_EVERY_DEFAULT,
+        recheck_every: int = RECHECK_EVERY_DEFAULT,
         replace_margin: float = 0.05,
         confirmations: int = 2,
         confirm_tol_cells: float = 2.0,
@@ -183,7 +188,7 @@ class MapMergeTracker:
         for name, value, check in (
             ("n_robots", n_robots, integer(1)),
             ("merge_every", merge_every, MERGE_EVERY_CHECK),
-            ("recheck_every", recheck_every, integer(0)),
+            ("recheck_every", recheck_every, RECHECK_EVERY_CHECK),
             ("replace_margin", replace_margin, number(0.0, 1.0)),
             ("confirmations", confirmations, integer(1)),
             ("confirm_tol_cells", confirm_tol_cells, positive),

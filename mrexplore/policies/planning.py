@@ -35,6 +35,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from mrexplore import kernels
 from mrexplore.errors import ConfigError, GridError
 from mrexplore.grid import Int8Grid, free_mask, known_mask, occupied_mask
 
@@ -205,13 +206,14 @@ def distance_field(
         sources: int (K, 2) ``(col, row)`` cells with distance 0 (non-free sources are ignored).
         method: ``"dijkstra"`` (compiled with numba: ~1-3 ms for 200 x 200 cells), ``"scan"``
             (pure numpy segmented scans, :func:`distance_field_scan`: ~10-30 ms), or ``"auto"``
-            (dijkstra when numba imports, else scan).
+            (dijkstra while :func:`mrexplore.kernels.enabled`, else scan).
 
     Returns:
         float64 (h, w): distance in cells, ``np.inf`` where unreachable or blocked.
     """
     if method == "auto":
-        method = "dijkstra" if _dijkstra_kernel() is not None else "scan"
+        use = kernels.enabled() and _dijkstra_kernel() is not None
+        method = "dijkstra" if use else "scan"
     if method == "scan":
         return distance_field_scan(free, sources)
     if method != "dijkstra":

@@ -85,7 +85,7 @@ class GeneratorOptions(Options):
     robot_radius_m: float = option(0.15, positive)
     clearance_m: float | None = option(None, optional(positive))
     furniture: bool = option(True, boolean)
-    rooms_per_side: int | None = option(None, optional(integer(2)))
+    rooms_per_side: int | None = option(None, optional(integer(3)))
 
     def check_together(self) -> None:
         if 2.0 * self.robot_radius_m + 0.1 > DOOR_MIN_M:
@@ -98,6 +98,14 @@ class GeneratorOptions(Options):
                 f"generator option clearance_m = {self.clearance_m} is below the robot "
                 f"diameter {2 * self.robot_radius_m}"
             )
+
+
+@dataclass(frozen=True)
+class TwinWingsOptions(GeneratorOptions):
+    """:func:`twin_wings`' options: as :class:`GeneratorOptions`, with ``rooms_per_side``
+    counting the north row, which needs 2 rooms (the connector takes a middle slot)."""
+
+    rooms_per_side: int | None = option(None, optional(integer(2)))
 
 
 @dataclass(frozen=True)
@@ -435,8 +443,6 @@ def symmetric_office(
     min_h_m = (4 * t + 2 * min_room + p.corridor[0]) * p.res
     H = _size_cells("height_m", height_m, p, min_h_m)
     n_opt = o.rooms_per_side
-    if n_opt is not None and (isinstance(n_opt, bool) or not isinstance(n_opt, int) or n_opt < 3):
-        raise WorldError(f"option 'rooms_per_side' must be an integer >= 3, got {n_opt!r}")
     n_min = 3 if n_opt is None else n_opt
     # Twins at least ROOM_MIN wide, the others wider by the twin gap: the narrowest floor.
     gap = math.ceil(TWIN_WIDTH_GAP_M / p.res)
@@ -527,15 +533,13 @@ def twin_wings(
     Raises:
         WorldError: a size or option is invalid or too small (the message names it).
     """
-    o = GeneratorOptions.from_kwargs(**options)
+    o = TwinWingsOptions.from_kwargs(**options)
     p = _params(resolution_m, o)
     t = p.t
     min_room = math.ceil(ROOM_MIN_M / p.res)
     min_h_m = (6 * t + 3 * min_room + 2 * p.corridor[0]) * p.res
     H = _size_cells("height_m", height_m, p, min_h_m)
     n_opt = o.rooms_per_side
-    if n_opt is not None and (isinstance(n_opt, bool) or not isinstance(n_opt, int) or n_opt < 2):
-        raise WorldError(f"option 'rooms_per_side' must be an integer >= 2, got {n_opt!r}")
     n_min = 3 if n_opt is None else max(n_opt, 3)
     gap = math.ceil(TWIN_WIDTH_GAP_M / p.res)
     min_w_m = (n_min * (min_room + gap) + p.corridor[0] + (n_min + 2) * t) * p.res

@@ -77,7 +77,16 @@ from pettingzoo.utils.wrappers import BaseParallelWrapper
 from mrexplore.errors import ConfigError
 from mrexplore.grid import UNKNOWN, apply_transform, free_mask, occupied_mask, validate_grid
 from mrexplore.merge.fusion import FusionStage
-from mrexplore.options import MERGE_EVERY_CHECK, integer, optional, positive, validate
+from mrexplore.options import (
+    MERGE_EVERY_CHECK,
+    MERGE_EVERY_DEFAULT,
+    RECHECK_EVERY_CHECK,
+    RECHECK_EVERY_DEFAULT,
+    integer,
+    optional,
+    positive,
+    validate,
+)
 from mrexplore.types import Merger
 
 MergeMode = Literal["replace", "augment"]
@@ -99,11 +108,6 @@ def check_map_protocol(env: Any) -> bool:
     """
     target = getattr(env, "unwrapped", env)
     name = type(target).__name__
-    if getattr(target, "merges_maps", False) is True:
-        raise ConfigError(
-            f"{name} already merges its maps (merges_maps is True): build it with merger=None "
-            "before wrapping it in MapMergeWrapper, or it would merge twice"
-        )
     missing: list[str] = []
     if not callable(getattr(target, "local_map", None)):
         missing.append("method local_map(agent) -> int8 (H, W) map in the agent's own frame")
@@ -184,7 +188,7 @@ class MapMergeWrapper(BaseParallelWrapper):
         mode: ``"replace"`` the observation by the fused-map image, or ``"augment"`` it
             (``{"obs": original, "fused_map": image}``).
         merge_every: steps between merge attempts of a pair before its first success.
-        recheck_every: steps between re-checks of an accepted transform.
+        recheck_every: steps between re-checks of an accepted transform (0: never).
         comm_range_fn: called each reset/step with the unwrapped env; returns an (N, N) bool
             array, ``links[i, j]`` True when agents ``possible_agents[i]`` and ``[j]`` can
             exchange maps now, or None for "all can". None (default): always connected.
@@ -201,8 +205,8 @@ class MapMergeWrapper(BaseParallelWrapper):
         parallel_env: ParallelEnv,
         merger: str | Merger | None = "semantic",
         mode: MergeMode = "replace",
-        merge_every: int = 10,
-        recheck_every: int = 100,
+        merge_every: int = MERGE_EVERY_DEFAULT,
+        recheck_every: int = RECHECK_EVERY_DEFAULT,
         comm_range_fn: LinksFn | None = None,
         obs_size_px: int = 64,
         view_m: float | None = None,
@@ -212,7 +216,7 @@ class MapMergeWrapper(BaseParallelWrapper):
             raise ConfigError(f"mode must be 'replace' or 'augment', got {mode!r}")
         for name, value, check in (
             ("merge_every", merge_every, MERGE_EVERY_CHECK),
-            ("recheck_every", recheck_every, integer(1)),
+            ("recheck_every", recheck_every, RECHECK_EVERY_CHECK),
             ("obs_size_px", obs_size_px, integer(1)),
             ("view_m", view_m, optional(positive)),
         ):
@@ -222,6 +226,13 @@ class MapMergeWrapper(BaseParallelWrapper):
                 "comm_range_fn must be callable (unwrapped env -> (N, N) bool) or None"
             )
         self._has_pose = check_map_protocol(parallel_env)
+        inner = getattr(parallel_env, "unwrapped", parallel_env)
+        if getattr(inner, "merges_maps", False) is True:
+            raise ConfigError(
+                f"{type(inner).__name__} already merges its maps (merges_maps is True): build "
+                "it with merger=None before wrapping it in MapMergeWrapper, or it would merge "
+                "twice"
+            )
         super().__init__(parallel_env)
         self.mode: MergeMode = mode
         self.obs_size_px = int(obs_size_px)

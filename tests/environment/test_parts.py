@@ -1,0 +1,73 @@
+"""The env's parts: an injected task, the old names that stay importable, option coercion."""
+
+from __future__ import annotations
+
+import warnings
+
+import pytest
+
+import mrexplore
+from mrexplore.environment.task import Task
+from mrexplore.errors import ConfigError
+from mrexplore.sim import Simulation
+
+SMALL = {"world": "small_office", "n_robots": 2, "merger": None}
+
+
+class QuickTask(Task):
+    """Done after three steps, one point per step: a task the env does not know."""
+
+    name = "quick"
+
+    def terminated(self, sim: Simulation, coverage: float) -> bool:
+        return sim.steps >= 3
+
+    def reward(self, gain: float, sim: Simulation, resolution_m: float) -> float:
+        return 1.0
+
+
+def test_an_injected_task_decides_reward_and_termination() -> None:
+    task = QuickTask()
+    penv = mrexplore.parallel_env(**SMALL, task=task)
+    assert penv.task is task and task.config is penv.config
+    penv.reset(seed=0)
+    for k in range(3):
+        _, rewards, terms, _, _ = penv.step({a: 3 for a in penv.agents})
+        assert rewards["robot_0"] == 1.0
+        assert terms["robot_0"] == (k == 2)
+    assert penv.agents == []
+
+
+def test_a_task_that_is_not_one_is_refused() -> None:
+    with pytest.raises(ConfigError, match="option task must be 'explore' or 'navigate'"):
+        mrexplore.parallel_env(**SMALL, task=object())
+
+
+def test_old_homes_of_moved_names_still_import() -> None:
+    from mrexplore.environment.config import Task as TaskLiteral  # noqa: F401
+    from mrexplore.environment.parallel_env import INFO_KEYS, is_wrong_merge, merge_error_of
+    from mrexplore.fusion import FusionStage  # noqa: F401
+    from mrexplore.render import render_env_frame
+
+    assert "coverage" in INFO_KEYS and merge_error_of({"merge_error_cells": -1.0}) is None
+    assert is_wrong_merge({"translation_cells": 9.0, "drift_cells": 0.0})
+    penv = mrexplore.parallel_env(**SMALL, render_mode="rgb_array")
+    penv.reset(seed=0)
+    assert render_env_frame(penv).shape == penv.render().shape
+
+
+def test_the_old_kernel_switch_still_switches(monkeypatch: pytest.MonkeyPatch) -> None:
+    from mrexplore import kernels, sensors
+
+    monkeypatch.setattr(kernels, "USE_NUMBA", kernels.USE_NUMBA)  # restored afterwards
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        sensors.USE_NUMBA = False
+    assert kernels.USE_NUMBA is False and not kernels.enabled()
+    assert any(issubclass(w.category, DeprecationWarning) for w in caught)
+
+
+def test_an_int_given_for_a_float_option_is_stored_as_a_float() -> None:
+    cfg = mrexplore.parallel_env(**SMALL, comm_range_m=5, max_range_m=4).config
+    assert type(cfg.comm_range_m) is float and type(cfg.max_range_m) is float
+    assert type(cfg.n_robots) is int

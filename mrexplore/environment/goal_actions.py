@@ -53,7 +53,7 @@ from numpy.typing import NDArray
 from pettingzoo import ParallelEnv
 
 from mrexplore.environment.view import RobotView
-from mrexplore.errors import ConfigError
+from mrexplore.errors import ConfigError, WorldError
 from mrexplore.policies.candidates import (
     FEATURE_MAX,
     FEATURE_NAMES,
@@ -64,6 +64,8 @@ from mrexplore.policies.candidates import (
 
 AgentID = str
 ACTION_MODES = ("low", "goal")
+#: Draws of a random world tried at ``reset`` before a generator's error is passed on.
+WORLD_RETRIES = 3
 #: The ``parallel_env`` options that belong to the goal level (the rest go to the low level).
 GOAL_OPTIONS = ("goal_candidates", "goal_max_steps", "goal_memory")
 
@@ -175,8 +177,21 @@ class GoalActionEnv(ParallelEnv[AgentID, dict[str, NDArray[Any]], int]):
     def reset(
         self, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[AgentID, dict[str, NDArray[Any]]], dict[AgentID, dict[str, Any]]]:
-        """Reset the low-level env (same seed, same world and starts) and propose goals."""
-        _, infos = self.low.reset(seed=seed, options=options)
+        """Reset the low-level env (same seed, same world and starts) and propose goals.
+
+        A world generator that finds no valid floor for this seed's stream (it happens about
+        once in a thousand draws at the smallest sizes, e.g. ``twin_wings`` 12 x 12 m) is asked
+        again with the env's next stream (``reset(seed=None)`` continues the same Generator),
+        up to :data:`WORLD_RETRIES` times, so one bad draw does not end a training run; the
+        result is still a function of the seed.
+        """
+        for attempt in range(WORLD_RETRIES + 1):
+            try:
+                _, infos = self.low.reset(seed=seed if attempt == 0 else None, options=options)
+                break
+            except WorldError:
+                if attempt == WORLD_RETRIES:
+                    raise
         self.executors = {a: GoalExecutor(**self._executor_options) for a in self.possible_agents}
         for ex in self.executors.values():
             ex.reset(np.random.default_rng(0))  # deterministic: the rng is unused

@@ -18,6 +18,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # pragma: no cover
+    from mrexplore.environment.goal_actions import GoalActionEnv
     from mrexplore.environment.parallel_env import MultiRobotExplorationEnv
 
 __version__ = "0.1.0"
@@ -25,16 +26,32 @@ __version__ = "0.1.0"
 __all__ = ["__version__", "env", "parallel_env", "raw_env"]
 
 
-def parallel_env(render_mode: str | None = None, **options: Any) -> MultiRobotExplorationEnv:
+#: Options of the goal level (``mrexplore.environment.goal_actions.GOAL_OPTIONS``, kept here so
+#: that the low-level path imports nothing more).
+_GOAL_KEYS = frozenset({"action_mode", "goal_candidates", "goal_max_steps", "goal_memory"})
+
+
+def parallel_env(
+    render_mode: str | None = None, **options: Any
+) -> MultiRobotExplorationEnv | GoalActionEnv:
     """The multi-robot exploration env as a PettingZoo ``ParallelEnv``.
 
     Options: see :class:`mrexplore.environment.EnvConfig` (``world``, ``n_robots``, ``task``,
     ``merger``, ``comm_range_m``, ``max_range_m``, ...). An unknown option raises
-    ``ConfigError``.
+    ``ConfigError``. ``action_mode="goal"`` (default ``"low"``) returns the goal-level env
+    (:mod:`mrexplore.environment.goal_actions`: one step = one choice among candidate goals),
+    with its own options ``goal_candidates`` and ``goal_max_steps``; the rest configure the
+    low-level env it drives.
     """
     from mrexplore.environment import MultiRobotExplorationEnv
 
-    return MultiRobotExplorationEnv(render_mode=render_mode, **options)
+    if not _GOAL_KEYS & options.keys():  # the low-level env, exactly as before
+        return MultiRobotExplorationEnv(render_mode=render_mode, **options)
+    from mrexplore.environment.goal_actions import GoalActionEnv, split_options
+
+    _, goal, low_options = split_options(options)
+    low = MultiRobotExplorationEnv(render_mode=render_mode, **low_options)
+    return low if goal is None else GoalActionEnv(low, goal)
 
 
 def env(render_mode: str | None = None, **options: Any) -> Any:

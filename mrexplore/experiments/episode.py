@@ -24,7 +24,8 @@ class EpisodeResult:
         task_time_s: simulated time at the end of the episode.
         success: the task was completed (coverage target or goal reached), not truncated.
         coverage: final team coverage.
-        times_s, coverages: the coverage curve, one entry per step (step 0 = after reset).
+        times_s, coverages: the coverage curve, one entry per simulator step (step 0 = after
+            reset; a goal-level env contributes every simulator step of its decisions).
         first_merge_time_s: when robot_0 was first merged (None if never, or single robot).
         merge_error: robot_0's merge error against the truth at the end (None if not merged).
         collisions: total collisions of the team.
@@ -135,8 +136,14 @@ def run_episode(
         step += 1
         info0 = infos[a0]
         quality.add(infos)
-        times.append(float(info0["task_time_s"]))
-        covs.append(float(info0["coverage"]))
+        # A goal-level env runs several simulator steps per step: take the curve of them all.
+        trace = getattr(penv, "step_trace", None)
+        if trace:
+            times.extend(t for t, _ in trace)
+            covs.extend(c for _, c in trace)
+        else:
+            times.append(float(info0["task_time_s"]))
+            covs.append(float(info0["coverage"]))
         terminated = bool(terms[a0])
         done = terminated or bool(truncs[a0])
         if record_every:

@@ -1,15 +1,22 @@
 """``mrexplore evaluate <policy folder>``: a trained policy side by side with the baselines.
 
-Runs the trained policy and ``random``, ``nearest-frontier`` and ``coordinated-frontier`` on the
-same held-out seeds (never used in training: training env copies are seeded from the training
-seed, evaluation from ``EVAL_SEED_BASE`` up), and reports task time (mean, spread, success rate)
-and team coverage at fixed times, as a table, JSON and a plot.
+Runs the trained policy and ``random``, ``nearest-frontier``, ``cost-frontier`` and
+``coordinated-frontier`` on the same held-out seeds (never used in training: training env copies
+are seeded from the training seed, evaluation from ``EVAL_SEED_BASE`` up), and reports task time
+(mean, spread, success rate), the simulated time to 90 % and 95 % team coverage (mean and 95 %
+confidence interval; an episode that never gets there counts with its end time, and the count
+that got there is printed), team coverage at fixed times, and a paired comparison of the
+trained policy with ``coordinated-frontier`` on the same worlds (mean difference of the time to
+95 % and its 95 % confidence interval), as a table, JSON and a plot. ``--worlds`` evaluates on
+several world families (generator specs or world files, e.g. ``tb3_office``), the same seeds on
+each; a goal-level policy (``action_mode: goal``) is run both greedily and sampling its actions.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import statistics
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -20,12 +27,82 @@ from tqdm import tqdm
 
 from mrexplore.errors import ConfigError
 from mrexplore.experiments.episode import EpisodeResult, run_episode
-from mrexplore.experiments.trained import RLLIB_MODULE, load_team_policy, read_config
+from mrexplore.experiments.trained import (
+    RLLIB_MODULE,
+    TrainedTeamPolicy,
+    load_team_policy,
+    read_config,
+)
 from mrexplore.io_safety import atomic_path, check_out_dir, write_text
 
 EVAL_SEED_BASE = 1_000_000
-BASELINES = ("random", "nearest-frontier", "coordinated-frontier")
+BASELINES = ("random", "nearest-frontier", "cost-frontier", "coordinated-frontier")
 COVERAGE_TIMES_S = (15.0, 30.0, 60.0, 90.0, 120.0)
+#: Coverage levels whose first-reaching times are reported (shares).
+COVERAGE_LEVELS = (0.90, 0.95)
+#: The baseline the paired comparison is made against.
+PAIRED_BASELINE = "coordinated-frontier"
+
+
+def t_quantile_975(df: int) -> float:
+    """The 97.5 % quantile of Student's t with ``df`` degrees of freedom (two-sided 95 %).
+
+    Exact table values up to 10 degrees of freedom, then the Cornish-Fisher expansion (error
+    below 1e-3 from there on), so no scipy is needed.
+
+    >>> round(t_quantile_975(1), 3), round(t_quantile_975(49), 3)
+    (12.706, 2.01)
+    """
+    table = (12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228)
+    if df < 1:
+        return math.inf
+    if df <= len(table):
+        return table[df - 1]
+    z = 1.959963984540054
+    return float(
+        z
+        + (z**3 + z) / (4 * df)
+        + (5 * z**5 + 16 * z**3 + 3 * z) / (96 * df**2)
+        + (3 * z**7 + 19 * z**5 + 17 * z**3 - 15 * z) / (384 * df**3)
+    )
+
+
+def mean_ci(values: Sequence[float]) -> dict[str, Any]:
+    """Mean and 95 % confidence interval (Student's t) of ``values``: ``mean``, ``ci_low``,
+    ``ci_high``, ``std`` (sample), ``n``. With fewer than two values the interval is unknown
+    (None).
+
+    >>> r = mean_ci([1.0, 2.0, 3.0])
+    >>> r["mean"], round(r["ci_low"], 3), round(r["ci_high"], 3)
+    (2.0, -0.484, 4.484)
+    """
+    v = [float(x) for x in values]
+    n = len(v)
+    mean = statistics.fmean(v) if v else math.nan
+    if n < 2:
+        return {"mean": mean, "ci_low": None, "ci_high": None, "std": 0.0, "n": n}
+    sd = statistics.stdev(v)
+    half = t_quantile_975(n - 1) * sd / math.sqrt(n)
+    return {"mean": mean, "ci_low": mean - half, "ci_high": mean + half, "std": sd, "n": n}
+
+
+def time_to_coverage(result: EpisodeResult, level: float) -> float | None:
+    """The first simulated time the team coverage reached ``level`` (None: never)."""
+    for t, c in zip(result.times_s, result.coverages, strict=True):
+        if c >= level - 1e-9:
+            return float(t)
+    return None
+
+
+def paired(a: Sequence[float], b: Sequence[float]) -> dict[str, Any]:
+    """Paired comparison of ``a`` and ``b`` (same worlds, same order): ``a - b`` with its mean
+    and 95 % CI, and how often ``a`` was lower (``a_lower``), equal or higher."""
+    d = [float(x) - float(y) for x, y in zip(a, b, strict=True)]
+    out = mean_ci(d)
+    out["a_lower"] = sum(x < 0 for x in d)
+    out["equal"] = sum(x == 0 for x in d)
+    out["a_higher"] = sum(x > 0 for x in d)
+    return out
 
 
 def coverage_at(result: EpisodeResult, t_s: float) -> float:
@@ -41,12 +118,22 @@ def summarise(results: Sequence[EpisodeResult], times_s: Sequence[float]) -> dic
         "success_rate": float(np.mean([r.success for r in results])),
         "final_coverage": {"mean": statistics.fmean(r.coverage for r in results)},
         "coverage_at": {},
+        "time_to": {},
     }
     for t in times_s:
         cov = [coverage_at(r, t) for r in results]
         out["coverage_at"][f"{t:g}"] = {
-            "mean": statistics.fmean(cov),
+            **mean_ci(cov),
             "std": statistics.pstdev(cov),
+        }
+    for level in COVERAGE_LEVELS:
+        # Censored at the episode's end when the level was never reached (counted apart).
+        reached = [time_to_coverage(r, level) for r in results]
+        values = [r.task_time_s if x is None else x for x, r in zip(reached, results, strict=True)]
+        out["time_to"][f"{level:g}"] = {
+            **mean_ci(values),
+            "reached": sum(x is not None for x in reached),
+            "values": values,
         }
     return out
 
@@ -92,6 +179,8 @@ def evaluate_folder(
     out: str | Path | None = None,
     progress: bool = True,
     force: bool = False,
+    worlds: Sequence[str] | None = None,
+    max_time_s: float | None = None,
 ) -> dict[str, Any]:
     """Evaluate ``folder`` (model.zip + config.yaml) against the baselines.
 
@@ -99,15 +188,25 @@ def evaluate_folder(
     policy folder, a file, or a non-empty folder without ``force``); with ``out=None`` it only
     returns the document. Everything is checked and the model loaded before any episode runs.
 
+    Args:
+        worlds: world specs to evaluate on, the same seeds on each (default: the config's
+            world); ``doc["results"]`` and ``doc["paired"]`` are the first world's,
+            ``doc["worlds"]`` has every world's.
+        max_time_s: the episodes' time limit (default: the config's), so times to 95 % are
+            measured rather than censored.
+
     Raises:
         ConfigError: not a policy folder, ``n_seeds < 1``, broken config.yaml or model.zip.
         OutputExistsError: ``out`` is refused (see above).
     """
+    from mrexplore.environment.goal_actions import split_options
     from mrexplore.policies import make_team_policy
 
     folder = Path(folder)
     if isinstance(n_seeds, bool) or not isinstance(n_seeds, (int, np.integer)) or n_seeds < 1:
         raise ConfigError(f"evaluate needs at least 1 seed, got {n_seeds!r}")
+    if max_time_s is not None and not max_time_s > 0:
+        raise ConfigError(f"evaluate: max_time_s must be > 0, got {max_time_s!r}")
     has_model = (folder / "model.zip").is_file() or (folder / RLLIB_MODULE).is_dir()
     if not (folder / "config.yaml").is_file() or not has_model:
         raise ConfigError(
@@ -121,27 +220,60 @@ def evaluate_folder(
     )
     config = read_config(folder)
     env_options = eval_env_options(config)
+    if max_time_s is not None:
+        env_options["max_time_s"] = float(max_time_s)
+    mode, _, low_options = split_options(env_options)  # the planners act on the low level
+    world_list = [str(w) for w in worlds] if worlds else [str(env_options.get("world"))]
     seeds = list(range(EVAL_SEED_BASE, EVAL_SEED_BASE + int(n_seeds)))
-    trained = load_team_policy(
-        folder, [f"robot_{i}" for i in range(int(env_options.get("n_robots", 2)))]
-    )
+    agents = [f"robot_{i}" for i in range(int(env_options.get("n_robots", 2)))]
+    trained = load_team_policy(folder, agents)
     rllib = " rllib" if config.get("backend") == "rllib" else ""
     name = f"trained ({config.get('algo', 'ppo')}{rllib})"
-    policies: dict[str, Any] = {name: lambda agents: trained}
-    for b in BASELINES:
-        policies[b] = lambda agents, b=b: make_team_policy(b, agents)
+    learned: dict[str, Any] = {}
+    if mode == "goal" and isinstance(trained, TrainedTeamPolicy):
+        # Goal-level policies choose among a few goals: both the arg-max and sampled choices.
+        greedy = TrainedTeamPolicy(trained.model, agents, deterministic=True)
+        learned[f"{name}, greedy"] = lambda agents: greedy
+        learned[f"{name}, sampled"] = lambda agents: trained
+    else:
+        learned[name] = lambda agents: trained
+    baselines = {b: (lambda agents, b=b: make_team_policy(b, agents)) for b in BASELINES}
     if progress:
+        n_eps = (len(learned) + len(baselines)) * len(seeds) * len(world_list)
         print(
             f"evaluating {folder} and {len(BASELINES)} baselines on {len(seeds)} held-out "
-            f"seed(s): {len(policies) * len(seeds)} episodes"
+            f"seed(s) x {len(world_list)} world(s): {n_eps} episodes"
         )
-    summaries = evaluate_policies(policies, env_options, seeds, progress=progress)
+    by_world: dict[str, Any] = {}
+    for w in world_list:
+        results = evaluate_policies(learned, {**env_options, "world": w}, seeds, progress=progress)
+        results.update(
+            evaluate_policies(baselines, {**low_options, "world": w}, seeds, progress=progress)
+        )
+        comparison = {}
+        for lname in learned:
+            comparison[lname] = {
+                f"time_to_{level:g}": paired(
+                    results[lname]["time_to"][f"{level:g}"]["values"],
+                    results[PAIRED_BASELINE]["time_to"][f"{level:g}"]["values"],
+                )
+                for level in COVERAGE_LEVELS
+            }
+        by_world[w] = {"results": results, "paired": comparison}
+    first = by_world[world_list[0]]
     doc: dict[str, Any] = {
         "policy_folder": str(folder),
         "env": env_options,
         "seeds": seeds,
-        "trained_actions": "deterministic" if trained.deterministic else "sampled",
-        "results": summaries,
+        "trained_actions": (
+            "greedy and sampled"
+            if len(learned) > 1
+            else ("deterministic" if trained.deterministic else "sampled")
+        ),
+        "paired_baseline": PAIRED_BASELINE,
+        "results": first["results"],
+        "paired": first["paired"],
+        "worlds": by_world,
     }
     if out_dir is not None:
         write_evaluation(doc, out_dir)
@@ -160,20 +292,40 @@ def write_evaluation(doc: Mapping[str, Any], out_dir: Path) -> None:
         print(f"(no plot: {exc}; pip install 'mrexplore[plot]')")
 
 
+def _ci(s: Mapping[str, Any]) -> str:
+    if s.get("ci_low") is None:
+        return f"{s['mean']:.1f}"
+    return f"{s['mean']:.1f} [{s['ci_low']:.1f}, {s['ci_high']:.1f}]"
+
+
 def format_evaluation(doc: Mapping[str, Any]) -> str:
-    """The evaluation as a text table."""
-    results = doc["results"]
-    times = list(next(iter(results.values()))["coverage_at"])
-    head = f"{'policy':<26} {'task time (s)':>16} {'success':>8} " + " ".join(
-        f"{'cov@' + t + 's':>9}" for t in times
-    )
-    lines = [f"evaluation on {len(doc['seeds'])} held-out seeds", head]
-    for name, s in results.items():
-        tt = s["task_time_s"]
-        covs = " ".join(f"{s['coverage_at'][t]['mean']:>9.1%}" for t in times)
-        lines.append(
-            f"{name:<26} {tt['mean']:>8.1f} +- {tt['std']:<5.1f} {s['success_rate']:>8.0%} {covs}"
+    """The evaluation as text tables: per world, every policy's success rate, times to 90 % and
+    95 % coverage (mean [95 % CI], how many reached it), coverage at fixed times; then the
+    paired comparison with the baseline."""
+    worlds = doc.get("worlds") or {str(doc.get("env", {}).get("world")): doc}
+    lines = [f"evaluation on {len(doc['seeds'])} held-out seeds per world"]
+    for w, block in worlds.items():
+        results = block["results"]
+        times = list(next(iter(results.values()))["coverage_at"])
+        levels = list(next(iter(results.values())).get("time_to", {}))
+        head = f"{'policy':<32} {'success':>7} " + " ".join(
+            f"{'t' + str(round(float(lv) * 100)) + '% (s) [95% CI] reached':>34}" for lv in levels
         )
+        head += " " + " ".join(f"{'cov@' + t + 's':>9}" for t in times)
+        lines += ["", f"world {w}", head]
+        for name, s in results.items():
+            n = len(s["task_time_s"]["values"])
+            cells = [f"{_ci(s['time_to'][lv])} {s['time_to'][lv]['reached']}/{n}" for lv in levels]
+            tt = " ".join(f"{c:>34}" for c in cells)
+            covs = " ".join(f"{s['coverage_at'][t]['mean']:>9.1%}" for t in times)
+            lines.append(f"{name:<32} {s['success_rate']:>7.0%} {tt} {covs}")
+        for lname, comp in block.get("paired", {}).items():
+            for key, p in comp.items():
+                lines.append(
+                    f"paired {lname} - {doc.get('paired_baseline', PAIRED_BASELINE)}, {key} (s): "
+                    f"mean {_ci(p)}, n {p['n']}; trained lower in {p['a_lower']}, equal in "
+                    f"{p['equal']}, higher in {p['a_higher']}"
+                )
     return "\n".join(lines)
 
 
@@ -212,8 +364,28 @@ def main(argv: Sequence[str] | None = None) -> int:
         "policy folder itself)",
     )
     p.add_argument("--force", action="store_true", help="replace the files of a non-empty --out")
+    p.add_argument(
+        "--worlds",
+        nargs="+",
+        default=None,
+        help="world specs to evaluate on, the same seeds on each (e.g. "
+        "'random:twin_wings?width_m=12&height_m=12' tb3_office; default: the training world)",
+    )
+    p.add_argument(
+        "--max-time-s",
+        type=float,
+        default=None,
+        help="episode time limit in simulated seconds (default: the policy's config)",
+    )
     args = p.parse_args(argv)
     out = args.out if args.out is not None else default_eval_dir(args.folder)
-    evaluate_folder(args.folder, args.seeds, out, force=args.force)
+    evaluate_folder(
+        args.folder,
+        args.seeds,
+        out,
+        force=args.force,
+        worlds=args.worlds,
+        max_time_s=args.max_time_s,
+    )
     print(f"wrote {Path(out) / 'eval.json'} and eval.png")
     return 0

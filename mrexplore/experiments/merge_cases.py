@@ -504,7 +504,7 @@ def lidar_cases(
     b's start), and :func:`mrexplore.experiments.merge_bench.classify` widens its thresholds by
     it. 0 without odometry noise.
     """
-    import mrexplore
+    from mrexplore.environment.parallel_env import MultiRobotExplorationEnv
     from mrexplore.policies import make_team_policy
 
     if n < 0:
@@ -517,7 +517,7 @@ def lidar_cases(
         ep_seed = seed * 1000 + episode
         episode += 1
         options: dict[str, Any] = {"aligned_headings": False, "merger": None, **kw}
-        env = mrexplore.parallel_env(
+        env = MultiRobotExplorationEnv(
             world=world, n_robots=2, max_time_s=max(times_s) + 1.0, target_coverage=1.0, **options
         )
         env.reset(seed=ep_seed)

@@ -264,6 +264,13 @@ def run_task_time(
 
         # A trained policy sees the observations it was trained on.
         base.update(observation_options(policy))
+        if "navigate" in tasks:
+            # Navigation drives robot_0 with the goal policy on RobotViews, which a policy
+            # acting on observations (and, goal-level, on its own env) cannot share a step with.
+            tasks = tuple(t for t in tasks if t != "navigate")
+            if not tasks:
+                raise ConfigError("task-time: a trained policy folder runs the explore task only")
+            print("task-time: a trained policy explores only; the navigate task is skipped")
     seed_list = list(range(first_seed, first_seed + seeds))
     jobs: list[Job] = []
     for task in tasks:

@@ -17,7 +17,7 @@ import importlib.util
 import json
 import platform
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -32,7 +32,7 @@ from mrexplore.experiments.evaluate import (
     evaluate_policies,
     write_evaluation,
 )
-from mrexplore.experiments.trained import ALGOS, TrainedTeamPolicy, algo_class
+from mrexplore.experiments.trained import ALGOS, CONTRIB_ALGOS, TrainedTeamPolicy, algo_class
 from mrexplore.io_safety import atomic_path, check_out_dir, write_text
 
 
@@ -154,14 +154,19 @@ def train(
     cfg = load_hyperparams(algo, hyperparams_file)
     env_opts = dict(cfg["env"])
     env_opts["world"] = training_world(world, env_opts.get("world", "random:symmetric_office"))
+    # ``worlds`` in the YAML: copy k trains on worlds[k % len] (several families per batch);
+    # --world replaces them all.
+    worlds = [str(w) for w in cfg.get("worlds") or []] if world is None else []
     if n_robots is not None:
         env_opts["n_robots"] = _check_int("n_robots", n_robots, 1)
     copies = _check_int("n_copies", n_copies if n_copies is not None else cfg.get("n_copies", 1), 1)
     use_subprocess = bool(cfg.get("use_subprocess", False))
     out = check_out_dir(out, force=force, what="mrexplore train")
     from mrexplore.environment.config import EnvConfig
+    from mrexplore.environment.goal_actions import split_options
 
-    EnvConfig.from_kwargs(**{k: v for k, v in env_opts.items() if k != "world"})  # options check
+    _, _, low_opts = split_options(env_opts)  # goal-level options apart (action_mode="goal")
+    EnvConfig.from_kwargs(**{k: v for k, v in low_opts.items() if k != "world"})  # options check
     out.mkdir(parents=True, exist_ok=True)
     config = {
         "algo": algo,
@@ -171,6 +176,7 @@ def train(
         "n_copies": copies,
         "use_subprocess": use_subprocess,
         "env": env_opts,
+        **({"worlds": worlds} if worlds else {}),
         "hyperparams": cfg["hyperparams"],
         "policy_kwargs": cfg.get("policy_kwargs", {}),
         "eval": {
@@ -187,9 +193,27 @@ def train(
 
     # One thread: on 2 cores, PyTorch's intra-op threads fight the env for the CPU.
     torch.set_num_threads(int(cfg.get("torch_threads", 1)))
-    venv = VecMonitor(
-        make_vec_env(n_copies=copies, use_subprocess=use_subprocess, seed=seed, **env_opts)
-    )
+    if worlds:
+        import functools
+
+        import mrexplore
+        from mrexplore.wrappers.sb3_vec import ParallelEnvVecEnv
+
+        fns: list[Callable[[], Any]] = [
+            functools.partial(
+                mrexplore.parallel_env, **{**env_opts, "world": worlds[k % len(worlds)]}
+            )
+            for k in range(copies)
+        ]
+        inner: Any = ParallelEnvVecEnv(fns, use_subprocess=use_subprocess)
+        inner.seed(seed)
+    else:
+        inner = make_vec_env(n_copies=copies, use_subprocess=use_subprocess, seed=seed, **env_opts)
+    if algo in CONTRIB_ALGOS:
+        from mrexplore.wrappers.action_masks import VecActionMasks
+
+        inner = VecActionMasks(inner)
+    venv = VecMonitor(inner)
     tb = str(out / "tb") if importlib.util.find_spec("tensorboard") is not None else None
     model = algo_class(algo)(
         cfg["policy"],
@@ -202,6 +226,7 @@ def train(
         **cfg["hyperparams"],
     )
     eval_env = {**env_opts, "task": "explore"}
+    baseline_env = split_options(eval_env)[2]  # the planners act on the low-level env
     periodic_seeds = list(range(EVAL_SEED_BASE, EVAL_SEED_BASE + eval_seeds))
     baseline: dict[str, Any] = {}
     if eval_every <= timesteps:  # periodic evaluations will happen: compare with the baselines
@@ -209,7 +234,7 @@ def train(
             print(f"evaluating the frontier baselines on {eval_seeds} held-out seed(s) first")
         baseline = evaluate_policies(
             {b: (lambda ag, b=b: make_team_policy(b, ag)) for b in BASELINES if b != "random"},
-            eval_env,
+            baseline_env,
             periodic_seeds,
             progress=False,
         )

@@ -17,8 +17,12 @@ from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError
 
-ALGOS = ("ppo", "a2c", "dqn")
-#: Env options that shape the observation: a trained policy must run with the ones it saw.
+ALGOS = ("ppo", "a2c", "dqn", "maskable_ppo")
+#: Algorithms from sb3-contrib (``pip install sb3-contrib``): ``maskable_ppo`` is its
+#: ``MaskablePPO``, for the goal-level env's action masks.
+CONTRIB_ALGOS = ("maskable_ppo",)
+#: Env options that shape the observation (and, for the goal level, the actions): a trained
+#: policy must run with the ones it saw.
 OBSERVATION_OPTIONS = (
     "obs_heading_up",
     "global_view_m",
@@ -26,6 +30,10 @@ OBSERVATION_OPTIONS = (
     "obs_size_px",
     "obs_layout",
     "obs_dtype",
+    "action_mode",
+    "goal_candidates",
+    "goal_max_steps",
+    "goal_memory",
 )
 
 
@@ -73,7 +81,8 @@ def model_algo(model_path: str | Path) -> str | None:
     if not isinstance(data, dict):
         raise ConfigError(f"{model_path} is not a stable-baselines3 model file (bad 'data')")
     if "clip_range" in data:
-        return "ppo"
+        policy_class = json.dumps(data.get("policy_class", "")).lower()
+        return "maskable_ppo" if "maskable" in policy_class else "ppo"
     if "target_update_interval" in data:
         return "dqn"
     if "n_steps" in data:
@@ -88,7 +97,14 @@ def observation_options(folder: str | Path) -> dict[str, Any]:
 
 
 def algo_class(algo: str) -> Any:
-    """The SB3 class for ``algo`` (``ppo``, ``a2c``, ``dqn``), with an install hint."""
+    """The SB3 class for ``algo`` (``ppo``, ``a2c``, ``dqn``; ``maskable_ppo`` from
+    sb3-contrib), with an install hint."""
+    if algo in CONTRIB_ALGOS:
+        try:
+            from sb3_contrib import MaskablePPO
+        except ImportError as exc:  # pragma: no cover - exercised only without the extra
+            raise ImportError(f"{algo} needs sb3-contrib: pip install 'mrexplore[train]'") from exc
+        return MaskablePPO
     try:
         import stable_baselines3 as sb3
     except ImportError as exc:  # pragma: no cover - exercised only without the extra
@@ -151,17 +167,35 @@ class TrainedTeamPolicy:
 
             torch.manual_seed(int(rng.integers(2**62)))
 
-    def act_obs(self, observations: Mapping[str, NDArray[np.uint8]]) -> dict[str, int]:
-        """Actions for all robots from their observations, in one batch."""
+    def act_obs(self, observations: Mapping[str, Any]) -> dict[str, int]:
+        """Actions for all robots from their observations, in one batch.
+
+        Dict observations (the goal-level env's) are stacked per key; their ``action_mask``
+        goes to models that take masks (sb3-contrib's ``MaskablePPO``).
+        """
         agents = [a for a in self.agents if a in observations]
         if not agents:
             return {}
-        batch = np.stack([observations[a] for a in agents])
-        actions, _ = self.model.predict(batch, deterministic=self.deterministic)
+        first = observations[agents[0]]
+        kwargs: dict[str, Any] = {}
+        if isinstance(first, Mapping):
+            batch: Any = {k: np.stack([observations[a][k] for a in agents]) for k in first}
+            if "action_mask" in batch and _takes_masks(self.model):
+                kwargs["action_masks"] = batch["action_mask"].astype(bool)
+        else:
+            batch = np.stack([observations[a] for a in agents])
+        actions, _ = self.model.predict(batch, deterministic=self.deterministic, **kwargs)
         return {a: int(x) for a, x in zip(agents, np.asarray(actions).reshape(-1), strict=False)}
 
     def act(self, views: Mapping[str, Any]) -> dict[str, int]:
         raise TypeError("TrainedTeamPolicy acts on observations: call act_obs(observations)")
+
+
+def _takes_masks(model: Any) -> bool:
+    """Whether ``model.predict`` accepts ``action_masks`` (sb3-contrib's maskable models)."""
+    import inspect
+
+    return "action_masks" in inspect.signature(model.predict).parameters
 
 
 #: Where ``mrexplore train --backend rllib`` leaves the shared policy inside its folder.

@@ -250,6 +250,7 @@ class FrontierExplorer(Policy):
         self._last_pose: tuple[float, float, float] | None = None
         self._last_action = int(Action.STAY)
         self._arrived = False
+        self._old_target: tuple[int, int] | None = None
         self.blacklist: list[tuple[float, float]] = []
         # Own-map cells the robot's centre has been on (its estimated trail), for the planner.
         self._trail: list[tuple[float, float]] = []
@@ -388,6 +389,17 @@ class FrontierExplorer(Policy):
         self, view: RobotView, pose: tuple[float, float, float], claims: NDArray[np.float64] | None
     ) -> None:
         t0 = time.perf_counter()
+        cands = self._propose(view, pose)
+        k = -1 if cands is None or len(cands) == 0 else self.choose(cands, view, claims)
+        self._commit(cands, k, view)
+        self.plan_time_s += time.perf_counter() - t0
+
+    def _propose(self, view: RobotView, pose: tuple[float, float, float]) -> _Round | None:
+        """First half of a plan: forget the current plan and list the candidates.
+
+        The goal-level env (:mod:`mrexplore.environment.goal_actions`) calls this and
+        :meth:`_commit` with a learned choice in between; :meth:`_plan` with :meth:`choose`.
+        """
         self.n_plans += 1
         self._since_plan = 0
         self._bumps = 0
@@ -398,17 +410,18 @@ class FrontierExplorer(Policy):
             # (the rest of a long frontier stays available).
             self.blacklist.append((float(self.target[0]), float(self.target[1])))
         self._arrived = False
-        old_target = self.target
+        self._old_target = self.target
         self.path = None
         self.target = None
         self._remaining = None
-        cands = self._candidates(view, pose)
-        if cands is None or len(cands) == 0:
+        return self._candidates(view, pose)
+
+    def _commit(self, cands: _Round | None, k: int, view: RobotView) -> None:
+        """Second half of a plan: follow candidate ``k`` of ``cands`` (none: ``done``)."""
+        if cands is None or len(cands) == 0 or k < 0:
             self.done = True
-            self.plan_time_s += time.perf_counter() - t0
             return
         self.done = False
-        k = self.choose(cands, view, claims)
         self._grid = cands.grid
         path = cands.grid.path_to((int(cands.goals[k, 0]), int(cands.goals[k, 1])))
         self.path = None if path is None else densify_path(path)
@@ -416,13 +429,13 @@ class FrontierExplorer(Policy):
         if self.path is not None:
             seg = np.hypot(*np.diff(self.path, axis=0).T)
             self._remaining = np.concatenate([np.cumsum(seg[::-1])[::-1], [0.0]])
+        old_target = self._old_target
         near_old = old_target is not None and math.hypot(
             old_target[0] - self.target[0], old_target[1] - self.target[1]
         ) <= self.blacklist_radius_m / float(view.resolution_m)
         if not near_old:
             self._best_left = math.inf
             self._stall = 0
-        self.plan_time_s += time.perf_counter() - t0
 
     def _candidates(self, view: RobotView, pose: tuple[float, float, float]) -> _Round | None:
         """Reachable, allowed frontiers with their path lengths (None: nothing to plan on).

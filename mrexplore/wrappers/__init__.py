@@ -7,6 +7,8 @@
 * :class:`ParallelEnvVecEnv`, :func:`make_vec_env` (:mod:`.sb3_vec`): a ``ParallelEnv`` as an SB3
   ``VecEnv``, one slot per robot, one shared policy. Needs stable-baselines3 (``pip install
   mrexplore[train]``).
+* :class:`VecActionMasks` (:mod:`.action_masks`): per-slot ``action_masks`` for sb3-contrib's
+  ``MaskablePPO`` from the goal-level env's ``action_mask`` observations.
 
 Imports are lazy so that ``import mrexplore.wrappers`` pulls in neither the simulator nor
 stable-baselines3/torch until a name is used.
@@ -20,6 +22,7 @@ __all__ = [
     "MapMergeWrapper",
     "ParallelEnvVecEnv",
     "SingleRobotExploreEnv",
+    "VecActionMasks",
     "check_map_protocol",
     "make_vec_env",
 ]
@@ -30,6 +33,7 @@ _WHERE = {
     "SingleRobotExploreEnv": "mrexplore.wrappers.single",
     "ParallelEnvVecEnv": "mrexplore.wrappers.sb3_vec",
     "make_vec_env": "mrexplore.wrappers.sb3_vec",
+    "VecActionMasks": "mrexplore.wrappers.action_masks",
 }
 
 

@@ -217,3 +217,68 @@ def test_evaluate_never_writes_into_the_policy_folder(tmp_path: Path, monkeypatc
     assert main(["evaluate", str(folder)]) == 2  # an earlier result: needs --force
     assert "not empty" in capsys.readouterr().err
     assert sorted(p.name for p in folder.iterdir()) == before
+
+
+GOAL_ENV = {**TINY_ENV, "action_mode": "goal", "goal_candidates": 4}
+
+
+@pytest.mark.expensive
+def test_goal_level_maskable_ppo_trains_loads_evaluates_and_runs_task_time(
+    tmp_path: Path,
+) -> None:
+    from sb3_contrib import MaskablePPO
+
+    hyper = tmp_path / "goal.yaml"
+    hyper.write_text(
+        yaml.safe_dump(
+            {
+                "policy": "MultiInputPolicy",
+                "n_copies": 2,
+                "env": GOAL_ENV,
+                "worlds": ["small_office", "random:symmetric_office?width_m=10&height_m=8"],
+                "hyperparams": {"n_steps": 8, "batch_size": 16, "n_epochs": 1},
+                "policy_kwargs": {"net_arch": [16]},
+            }
+        )
+    )
+    out = tmp_path / "policy"
+    config = train(
+        algo="maskable_ppo",
+        timesteps=32,
+        out=out,
+        seed=1,
+        hyperparams_file=hyper,
+        eval_every=10_000,
+        eval_seeds=1,
+        final_eval_seeds=0,
+        progress=False,
+    )
+    assert config["worlds"] == ["small_office", "random:symmetric_office?width_m=10&height_m=8"]
+    # SB3 + sb3-contrib alone load it and act on a goal-level observation with its mask
+    model = MaskablePPO.load(str(out / "model.zip"), device="cpu")
+    penv = mrexplore.parallel_env(**{**GOAL_ENV, "world": "small_office"})
+    obs, _ = penv.reset(seed=0)
+    o = obs["robot_0"]
+    action, _ = model.predict(o, action_masks=o["action_mask"].astype(bool), deterministic=True)
+    assert o["action_mask"][int(action)] == 1
+    team = TrainedTeamPolicy.load(out, penv.possible_agents, deterministic=True)
+    actions = team.act_obs(obs)
+    assert all(obs[a]["action_mask"][x] == 1 for a, x in actions.items())
+    doc = evaluate_folder(
+        out, n_seeds=2, out=tmp_path / "eval", progress=False, worlds=["small_office"]
+    )
+    names = set(doc["results"])
+    assert {"trained (maskable_ppo), greedy", "trained (maskable_ppo), sampled"} <= names
+    assert {"random", "nearest-frontier", "cost-frontier", "coordinated-frontier"} <= names
+    for comp in doc["paired"].values():
+        assert comp["time_to_0.95"]["n"] == 2
+    tt = run_task_time(  # default tasks: navigate is skipped for a trained policy
+        world="small_office",
+        seeds=1,
+        policy=str(out),
+        out=tmp_path / "tt",
+        env_options={"max_time_s": 10.0},
+        progress=False,
+    )
+    assert np.isfinite(tt["tasks"]["explore"]["multi"]["mean"])
+    assert "navigate" not in tt["tasks"]

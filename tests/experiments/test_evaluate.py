@@ -1,0 +1,82 @@
+"""Evaluation statistics: confidence intervals, times to a coverage level, paired comparison."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from mrexplore.experiments.episode import EpisodeResult
+from mrexplore.experiments.evaluate import (
+    format_evaluation,
+    mean_ci,
+    paired,
+    summarise,
+    t_quantile_975,
+    time_to_coverage,
+)
+
+
+def _ep(times: list[float], covs: list[float], success: bool = True) -> EpisodeResult:
+    return EpisodeResult(
+        task_time_s=times[-1],
+        success=success,
+        coverage=covs[-1],
+        times_s=times,
+        coverages=covs,
+        first_merge_time_s=None,
+        merge_error=None,
+        collisions=0,
+    )
+
+
+@pytest.mark.parametrize(
+    ("df", "t"),
+    [(1, 12.706), (5, 2.571), (10, 2.228), (11, 2.201), (20, 2.086), (30, 2.042), (100, 1.984)],
+)
+def test_t_quantile_matches_the_table(df: int, t: float) -> None:
+    assert t_quantile_975(df) == pytest.approx(t, abs=2e-3)
+
+
+def test_mean_ci() -> None:
+    r = mean_ci([2.0, 4.0])
+    assert r["mean"] == 3.0 and r["n"] == 2
+    half = 12.706 * math.sqrt(2.0) / math.sqrt(2)
+    assert r["ci_low"] == pytest.approx(3.0 - half) and r["ci_high"] == pytest.approx(3.0 + half)
+    assert mean_ci([1.0])["ci_low"] is None
+
+
+def test_time_to_coverage_and_censoring() -> None:
+    ep = _ep([0.0, 1.0, 2.0, 3.0], [0.5, 0.85, 0.91, 0.96])
+    assert time_to_coverage(ep, 0.9) == 2.0 and time_to_coverage(ep, 0.95) == 3.0
+    short = _ep([0.0, 1.0, 5.0], [0.5, 0.92, 0.93], success=False)
+    assert time_to_coverage(short, 0.95) is None
+    s = summarise([ep, short], times_s=(1.0,))
+    # never reached: counted with the episode's end time, and apart
+    assert s["time_to"]["0.95"]["values"] == [3.0, 5.0]
+    assert s["time_to"]["0.95"]["reached"] == 1
+    assert s["time_to"]["0.9"]["values"] == [2.0, 1.0]
+
+
+def test_paired_comparison() -> None:
+    p = paired([10.0, 12.0, 9.0], [11.0, 12.0, 12.0])
+    assert p["mean"] == pytest.approx(-4.0 / 3.0)
+    assert (p["a_lower"], p["equal"], p["a_higher"]) == (2, 1, 0)
+    assert p["ci_low"] < p["mean"] < p["ci_high"]
+
+
+def test_format_prints_what_was_measured() -> None:
+    ep = _ep([0.0, 1.0, 2.0], [0.5, 0.91, 0.96])
+    s = summarise([ep, ep], times_s=(1.0,))
+    doc = {
+        "seeds": [1, 2],
+        "paired_baseline": "coordinated-frontier",
+        "worlds": {
+            "w": {
+                "results": {"trained": s, "coordinated-frontier": s},
+                "paired": {"trained": {"time_to_0.95": paired([2.0, 2.0], [2.0, 2.0])}},
+            }
+        },
+    }
+    text = format_evaluation(doc)
+    assert "world w" in text and "2/2" in text and "paired trained - coordinated-frontier" in text

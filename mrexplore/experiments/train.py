@@ -32,6 +32,7 @@ from mrexplore.experiments.evaluate import (
     evaluate_policies,
     write_evaluation,
 )
+from mrexplore.experiments.train_setup import final_eval_seed_count, training_world
 from mrexplore.experiments.trained import ALGOS, CONTRIB_ALGOS, TrainedTeamPolicy, algo_class
 from mrexplore.io_safety import atomic_path, check_out_dir, write_text
 
@@ -64,17 +65,6 @@ def save_for_inference(model: Any, path: str | Path) -> Path:
     return Path(path)
 
 
-def training_world(world: str | None, default: str) -> str:
-    """A generator name becomes ``random:<name>`` (a new world per episode); other specs stay."""
-    if world is None:
-        return default
-    from mrexplore.world import GENERATORS
-
-    if world in GENERATORS:
-        return f"random:{world}"
-    return world
-
-
 def _versions() -> dict[str, str]:
     import gymnasium
     import numpy
@@ -95,12 +85,6 @@ def _versions() -> dict[str, str]:
     }
     # Some versions are str subclasses (torch's TorchVersion) that YAML cannot represent.
     return {k: str(v) for k, v in versions.items()}
-
-
-def final_eval_seed_count(timesteps: int) -> int:
-    """Held-out seeds of the final evaluation, scaled to the run: 2 for a smoke test, one per
-    15,000 steps, at most 20 (a 2,000-step run used to spend 9 of its 10 minutes on 20 seeds)."""
-    return max(2, min(20, int(timesteps) // 15_000))
 
 
 def _check_int(name: str, value: Any, lo: int) -> int:

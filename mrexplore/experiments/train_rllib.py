@@ -127,7 +127,7 @@ def train_rllib(
         OutputExistsError: ``out`` is refused.
     """
     from mrexplore.environment.config import EnvConfig
-    from mrexplore.experiments.train import final_eval_seed_count, training_world
+    from mrexplore.experiments.train_setup import final_eval_seed_count, training_world
 
     timesteps = _check_int("timesteps", timesteps, 1)
     final_seeds = (

@@ -20,13 +20,13 @@ from collections.abc import Callable, Sequence
 
 from mrexplore.errors import ConfigError
 from mrexplore.policies.base import IndependentTeam, Policy, TeamPolicy, follow_path
-from mrexplore.policies.frontier import (
+from mrexplore.policies.explorers import (
     CoordinatedFrontierPolicy,
     CostFrontierPolicy,
     FrontierExplorer,
     NearestFrontierPolicy,
 )
-from mrexplore.policies.frontiers import Frontier, find_frontiers, frontier_mask
+from mrexplore.policies.frontier_cells import Frontier, find_frontiers, frontier_mask
 from mrexplore.policies.goal import GoalPolicy
 from mrexplore.policies.planning import PlanningGrid, distance_field, inflate_obstacles
 from mrexplore.policies.random_policy import RandomPolicy

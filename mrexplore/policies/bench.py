@@ -14,7 +14,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from mrexplore.policies.frontier import (
+from mrexplore.policies.explorers import (
     CoordinatedFrontierPolicy,
     CostFrontierPolicy,
     FrontierExplorer,
@@ -116,7 +116,7 @@ def _field_timing(world_name: str, seed: int, steps: int) -> str:
         out.append(f"{name} {1e3 * (time.process_time() - t0) / 10:.2f} ms")
     t0 = time.process_time()
     for _ in range(10):
-        pol._plan(v, v.pose_cell, None)
+        pol.replan(v)
     plan_ms = 1e3 * (time.process_time() - t0) / 10
     h, w = grid.shape
     return (

@@ -1,6 +1,6 @@
 """Candidate goals for goal-level decisions: what a robot can choose, and how each looks.
 
-A :class:`GoalExecutor` is one robot's frontier machine (:class:`~mrexplore.policies.frontier.
+A :class:`GoalExecutor` is one robot's frontier machine (:class:`~mrexplore.policies.explorers.
 FrontierExplorer`: candidates, planner, path follower, stuck detection, blacklist) with the
 *choice* taken out: :meth:`GoalExecutor.propose` lists the reachable frontiers of the robot's
 own-or-fused map, an outside decision-maker (a learned policy) picks one, and
@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 
 from mrexplore.environment.view import RobotView
 from mrexplore.grid import apply_transform
-from mrexplore.policies.frontier import FrontierCandidates, FrontierExplorer, _Round
+from mrexplore.policies.explorers import FrontierCandidates, FrontierExplorer, PlanRound
 from mrexplore.robot import Action
 
 __all__ = [
@@ -79,11 +79,11 @@ class GoalExecutor(FrontierExplorer):
 
     def reset(self, rng: np.random.Generator) -> None:
         super().reset(rng)
-        self.proposal: _Round | None = None
+        self.proposal: PlanRound | None = None
         self._hit = False  # set by _update_progress, read by _follow
         self.needs_decision = True
 
-    def propose(self, view: RobotView) -> _Round | None:
+    def propose(self, view: RobotView) -> PlanRound | None:
         """Forget the current plan and list the reachable candidates (None or empty: none)."""
         pose = _pose(view)
         self.proposal = self._propose(view, pose)
@@ -144,7 +144,7 @@ def teammate_claims(
     """Teammates' announced targets (``targets[b]`` in b's own cells) in ``view``'s cells.
 
     Only teammates this robot is merged with (it has an estimated transform) and can talk to now
-    (``view.in_range``) contribute, as in :class:`~mrexplore.policies.frontier.
+    (``view.in_range``) contribute, as in :class:`~mrexplore.policies.explorers.
     CoordinatedFrontierPolicy`. None when there are none.
     """
     pts = []

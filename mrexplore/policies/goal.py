@@ -42,7 +42,7 @@ class GoalPolicy(Policy):
         plan_factor: fine cells per planning cell.
         margin_m: room around the known area and the goal a path may use, metres.
         replan_every, stuck_steps, bump_steps, lookahead_m, turn_step_rad, forward_step_m: as in
-            :class:`~mrexplore.policies.frontier.FrontierExplorer`.
+            :class:`~mrexplore.policies.explorers.FrontierExplorer`.
     """
 
     def __init__(

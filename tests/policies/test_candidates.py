@@ -14,7 +14,7 @@ from mrexplore.policies.candidates import (
     candidate_features,
     teammate_claims,
 )
-from mrexplore.policies.frontier import FrontierCandidates
+from mrexplore.policies.explorers import FrontierCandidates
 
 COL = {n: i for i, n in enumerate(FEATURE_NAMES)}
 

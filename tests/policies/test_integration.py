@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from mrexplore.policies import CoordinatedFrontierPolicy, CostFrontierPolicy, NearestFrontierPolicy
-from mrexplore.policies.frontier import FrontierExplorer
-from mrexplore.policies.frontiers import find_frontiers
+from mrexplore.policies.explorers import FrontierExplorer
+from mrexplore.policies.frontier_cells import find_frontiers
 from mrexplore.policies.planning import PlanningGrid
 from mrexplore.types import RobotView
 

@@ -7,7 +7,7 @@ import pytest
 
 from mrexplore.errors import GridError
 from mrexplore.grid import FREE, OCCUPIED, UNKNOWN
-from mrexplore.policies.frontiers import find_frontiers, frontier_mask, known_bbox
+from mrexplore.policies.frontier_cells import find_frontiers, frontier_mask, known_bbox
 
 
 def _room(h: int = 12, w: int = 14) -> np.ndarray:

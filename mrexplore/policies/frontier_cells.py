@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from mrexplore.errors import GridError
 from mrexplore.grid import Int8Grid, free_mask, known_bbox, known_mask
 
-__all__ = ["Frontier", "find_frontiers", "frontier_mask", "known_bbox"]
+__all__ = ["Frontier", "find_frontiers", "frontier_mask", "known_bbox", "window_frontier_mask"]
 
 #: 4-connectivity cross: a frontier cell needs an unknown cell up, down, left or right.
 _CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=np.uint8)
@@ -58,8 +58,9 @@ def _check_map(map_int8: object) -> Int8Grid:
     return map_int8
 
 
-def _frontier_mask_full(grid: Int8Grid) -> NDArray[np.bool_]:
-    """Frontier mask of a (cropped) grid; cells outside the grid count as *not* unknown."""
+def window_frontier_mask(grid: Int8Grid) -> NDArray[np.bool_]:
+    """Frontier mask of a window of a grid (a crop); cells outside the window count as *not*
+    unknown."""
     unknown = (~known_mask(grid)).view(np.uint8)
     # Dilating "unknown" with a cross marks every cell that has an unknown 4-neighbour (or is
     # unknown). OpenCV's default dilate border never adds values, so the canvas edge is not a
@@ -83,7 +84,7 @@ def frontier_mask(map_int8: Int8Grid) -> NDArray[np.bool_]:
     if box is None:
         return out
     r0, r1, c0, c1 = box
-    out[r0:r1, c0:c1] = _frontier_mask_full(grid[r0:r1, c0:c1])
+    out[r0:r1, c0:c1] = window_frontier_mask(grid[r0:r1, c0:c1])
     return out
 
 
@@ -106,7 +107,7 @@ def find_frontiers(map_int8: Int8Grid, min_size_cells: int = 8) -> list[Frontier
     if box is None:
         return []
     r0, r1, c0, c1 = box
-    mask = _frontier_mask_full(grid[r0:r1, c0:c1])
+    mask = window_frontier_mask(grid[r0:r1, c0:c1])
     n, labels, stats, centroids = cv2.connectedComponentsWithStats(
         mask.view(np.uint8), connectivity=8, ltype=cv2.CV_32S
     )

@@ -25,7 +25,7 @@ The machine (per robot, every step):
    end of its path; the target cell stopped being a frontier; or the robot is *stuck* (no progress
    along the path for ``stuck_steps`` steps, or ``bump_steps`` FORWARDs in a row that did not move
    it - a collision).
-2. Plan: frontiers of the map (:func:`~mrexplore.policies.frontiers.find_frontiers`), a
+2. Plan: frontiers of the map (:func:`~mrexplore.policies.frontier_cells.find_frontiers`), a
    planning grid with a distance field from the robot
    (:class:`~mrexplore.policies.planning.PlanningGrid`; 2x2 map cells by default), each
    frontier's path length to the nearest reachable planning cell within ``approach_cells``
@@ -44,6 +44,9 @@ The machine (per robot, every step):
 4. Follow the path with :func:`~mrexplore.policies.base.follow_path`; after a FORWARD that
    did not move the robot, turn towards the waypoint's side rather than push again
    (``slide_on_bump``).
+
+Size: one per-robot machine (plan, follow, re-plan, recover) and the three choosers that
+share it; the candidate extraction is in :mod:`~mrexplore.policies.frontier_cells`.
 """
 
 from __future__ import annotations
@@ -66,7 +69,7 @@ from mrexplore.policies.base import (
     follow_path,
     nearest_path_index,
 )
-from mrexplore.policies.frontiers import _frontier_mask_full, find_frontiers, known_bbox
+from mrexplore.policies.frontier_cells import find_frontiers, known_bbox, window_frontier_mask
 from mrexplore.policies.planning import PlanningGrid
 from mrexplore.robot import Action
 from mrexplore.types import RobotView
@@ -381,9 +384,14 @@ class FrontierExplorer(Policy):
         h, w = m.shape
         r0, r1 = max(r - radius - 1, 0), min(r + radius + 2, h)
         c0, c1 = max(c - radius - 1, 0), min(c + radius + 2, w)
-        win = _frontier_mask_full(m[r0:r1, c0:c1])
+        win = window_frontier_mask(m[r0:r1, c0:c1])
         rr0, cc0 = max(r - radius - r0, 0), max(c - radius - c0, 0)
         return bool(win[rr0 : r + radius + 1 - r0, cc0 : c + radius + 1 - c0].any())
+
+    def replan(self, view: RobotView) -> None:
+        """Plan now from ``view`` (choose a frontier and a path), as :meth:`act` does when a
+        re-plan is due (what ``mrexplore bench policies`` times)."""
+        self._plan(view, view.pose_cell, None)
 
     def _plan(
         self, view: RobotView, pose: tuple[float, float, float], claims: NDArray[np.float64] | None
@@ -394,7 +402,7 @@ class FrontierExplorer(Policy):
         self._commit(cands, k, view)
         self.plan_time_s += time.perf_counter() - t0
 
-    def _propose(self, view: RobotView, pose: tuple[float, float, float]) -> _Round | None:
+    def _propose(self, view: RobotView, pose: tuple[float, float, float]) -> PlanRound | None:
         """First half of a plan: forget the current plan and list the candidates.
 
         The goal-level env (:mod:`mrexplore.environment.goal_actions`) calls this and
@@ -416,7 +424,7 @@ class FrontierExplorer(Policy):
         self._remaining = None
         return self._candidates(view, pose)
 
-    def _commit(self, cands: _Round | None, k: int, view: RobotView) -> None:
+    def _commit(self, cands: PlanRound | None, k: int, view: RobotView) -> None:
         """Second half of a plan: follow candidate ``k`` of ``cands`` (none: ``done``)."""
         if cands is None or len(cands) == 0 or k < 0:
             self.done = True
@@ -437,7 +445,7 @@ class FrontierExplorer(Policy):
             self._best_left = math.inf
             self._stall = 0
 
-    def _candidates(self, view: RobotView, pose: tuple[float, float, float]) -> _Round | None:
+    def _candidates(self, view: RobotView, pose: tuple[float, float, float]) -> PlanRound | None:
         """Reachable, allowed frontiers with their path lengths (None: nothing to plan on).
 
         Per frontier, the *aim* is its cell with the shortest path to a planning cell within
@@ -463,7 +471,7 @@ class FrontierExplorer(Policy):
             if self.backtrack_trail
             else None
         )
-        out: _Round | None = None
+        out: PlanRound | None = None
         for factor, approach, clearance in self.rounds:
             grid = PlanningGrid.build(
                 crop,
@@ -492,7 +500,7 @@ class FrontierExplorer(Policy):
         counts: NDArray[np.int64],
         res: float,
         approach: int,
-    ) -> _Round:
+    ) -> PlanRound:
         """The reachable, allowed frontiers on one planning grid (``cells`` (N, 2) all frontier
         cells in map cells, grouped by frontier; ``counts`` (F,) cells per frontier)."""
         starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
@@ -519,7 +527,7 @@ class FrontierExplorer(Policy):
             self.blacklist.append((float(c[0]), float(c[1])))
         ok[here] = False
         sel = np.flatnonzero(ok)
-        return _Round(
+        return PlanRound(
             targets=cells[first[sel]],
             size_m=counts[sel].astype(np.float64) * res,
             dist_m=best[sel],
@@ -534,7 +542,7 @@ class FrontierExplorer(Policy):
         return int(np.argmin(cands.dist_m))
 
 
-class _Round(FrontierCandidates):
+class PlanRound(FrontierCandidates):
     """Candidates plus the planning grid they were measured on."""
 
     def __init__(

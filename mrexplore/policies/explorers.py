@@ -60,6 +60,15 @@ from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError, GridError
 from mrexplore.grid import apply_transform
+from mrexplore.options import (
+    boolean,
+    integer,
+    non_negative,
+    number,
+    optional,
+    positive,
+    validate,
+)
 from mrexplore.policies.base import (
     DEFAULT_FORWARD_STEP_M,
     DEFAULT_TURN_STEP_RAD,
@@ -184,25 +193,32 @@ class FrontierExplorer(Policy):
         turn_step_rad: float = DEFAULT_TURN_STEP_RAD,
         forward_step_m: float = DEFAULT_FORWARD_STEP_M,
     ) -> None:
-        checks = {
-            "min_frontier_cells": min_frontier_cells >= 1,
-            "plan_factor": plan_factor >= 1,
-            "approach_cells": approach_cells >= 0,
-            "replan_every": replan_every >= 1,
-            "min_replan_steps": 0 <= min_replan_steps <= replan_every,
-            "stuck_steps": stuck_steps >= 1,
-            "bump_steps": bump_steps >= 1,
-            "blacklist_radius_m": blacklist_radius_m >= 0,
-            "clearance_cells": clearance_cells >= 0,
-            "tight_clearance_cells": tight_clearance_cells is None or tight_clearance_cells >= 0,
-            "lookahead_m": lookahead_m > 0,
-            "arrive_m": arrive_m > 0,
-            "turn_step_rad": 0 < turn_step_rad < math.pi,
-            "forward_step_m": forward_step_m > 0,
-        }
-        bad = [k for k, ok in checks.items() if not ok]
-        if bad:
-            raise ConfigError(f"{type(self).__name__}: bad value for {', '.join(bad)}")
+        owner = type(self).__name__
+        for name, value, check in (
+            ("min_frontier_cells", min_frontier_cells, integer(1)),
+            ("plan_factor", plan_factor, integer(1)),
+            ("approach_cells", approach_cells, integer(0)),
+            ("replan_every", replan_every, integer(1)),
+            ("min_replan_steps", min_replan_steps, integer(0)),
+            ("stuck_steps", stuck_steps, integer(1)),
+            ("bump_steps", bump_steps, integer(1)),
+            ("blacklist_radius_m", blacklist_radius_m, non_negative),
+            ("clearance_cells", clearance_cells, non_negative),
+            ("tight_clearance_cells", tight_clearance_cells, optional(non_negative)),
+            ("fine_fallback", fine_fallback, boolean),
+            ("backtrack_trail", backtrack_trail, boolean),
+            ("slide_on_bump", slide_on_bump, boolean),
+            ("lookahead_m", lookahead_m, positive),
+            ("arrive_m", arrive_m, positive),
+            ("turn_step_rad", turn_step_rad, number(0.0, math.pi, low_open=True)),
+            ("forward_step_m", forward_step_m, positive),
+        ):
+            validate(owner, name, value, check)
+        if min_replan_steps > replan_every:
+            raise ConfigError(
+                f"{owner}: option min_replan_steps ({min_replan_steps}) must be at most "
+                f"replan_every ({replan_every})"
+            )
         self.min_frontier_cells = int(min_frontier_cells)
         self.plan_factor = int(plan_factor)
         self.approach_cells = int(approach_cells)

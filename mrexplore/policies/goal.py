@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError, GridError
 from mrexplore.grid import OCCUPIED, occupied_mask
+from mrexplore.options import integer, non_negative, positive, validate
 from mrexplore.policies.base import (
     DEFAULT_FORWARD_STEP_M,
     DEFAULT_TURN_STEP_RAD,
@@ -57,12 +58,13 @@ class GoalPolicy(Policy):
         turn_step_rad: float = DEFAULT_TURN_STEP_RAD,
         forward_step_m: float = DEFAULT_FORWARD_STEP_M,
     ) -> None:
-        if goal_tolerance_m <= 0 or plan_factor < 1 or margin_m < 0 or replan_every < 1:
-            raise ConfigError(
-                "GoalPolicy needs goal_tolerance_m > 0, plan_factor >= 1, margin_m >= 0, "
-                "replan_every >= 1; "
-                f"got {goal_tolerance_m}, {plan_factor}, {margin_m}, {replan_every}"
-            )
+        for name, value, check in (
+            ("goal_tolerance_m", goal_tolerance_m, positive),
+            ("plan_factor", plan_factor, integer(1)),
+            ("margin_m", margin_m, non_negative),
+            ("replan_every", replan_every, integer(1)),
+        ):
+            validate("GoalPolicy", name, value, check)
         self.goal_tolerance_m = float(goal_tolerance_m)
         self.plan_factor = int(plan_factor)
         self.margin_m = float(margin_m)

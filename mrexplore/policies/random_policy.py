@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mrexplore.errors import ConfigError
+from mrexplore.options import number, optional, validate
 from mrexplore.policies.base import Policy
 from mrexplore.robot import Action
 from mrexplore.types import RobotView
@@ -25,8 +25,7 @@ class RandomPolicy(Policy):
     """
 
     def __init__(self, forward_prob: float | None = None) -> None:
-        if forward_prob is not None and not 0.0 <= forward_prob <= 1.0:
-            raise ConfigError(f"forward_prob must be None or in [0, 1], got {forward_prob}")
+        validate("RandomPolicy", "forward_prob", forward_prob, optional(number(0.0, 1.0)))
         self.forward_prob = forward_prob
         self.rng = np.random.default_rng(0)
         actions = list(Action)

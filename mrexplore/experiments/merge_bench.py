@@ -238,6 +238,40 @@ def to_markdown(rows: Sequence[dict[str, Any]]) -> str:
     return "\n".join(out)
 
 
+def size_timing(sizes: Sequence[int], n: int = 10, seed: int = 0) -> list[dict[str, Any]]:
+    """The semantic merger's CPU time (this thread) by map size: for each size S, ``n`` pairs of
+    S x S crops (the second rotated at random, borders damaged) of generated office floors
+    (``symmetric_office`` at 0.05 m/cell, 1.6 S cells wide, fully known: walls 100, free 0),
+    merged with the default options. Reports the median and the outcome counts.
+    """
+    from mrexplore.experiments.merge_cases import real_map_case
+    from mrexplore.world import symmetric_office
+
+    out = []
+    for size in sizes:
+        rng = np.random.default_rng([seed, size])
+        cpu, outcomes = [], {"correct": 0, "imprecise": 0, "wrong": 0, "refused": 0}
+        for k in range(n):
+            side_m = round(1.6 * size * 0.05, 1)
+            world = symmetric_office(rng, width_m=side_m, height_m=side_m)
+            full = np.where(world.walls, 100, 0).astype(np.int8)
+            case = real_map_case(full, rng, crop=(size, size), name=f"office{size}#{k}")
+            t0 = time.thread_time()
+            res = merge_maps(case.a, case.b)
+            cpu.append(time.thread_time() - t0)
+            outcomes[classify(case, res.matched, res.transform)[0]] += 1
+        out.append(
+            {
+                "size": int(size),
+                "n": int(n),
+                "median_cpu_ms": round(float(np.median(cpu)) * 1e3, 1),
+                "max_cpu_ms": round(float(np.max(cpu)) * 1e3, 1),
+                **outcomes,
+            }
+        )
+    return out
+
+
 def tracker_timing(
     n_steps: int = 200, canvas: int = 1500, known: int = 400, seed: int = 0
 ) -> dict[str, float]:
@@ -312,13 +346,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     """CLI: ``merge_bench [--n N] [--seed S] [--methods m,..] [--families f,..] [--out STEM]
     [--tracker]``; returns the exit code."""
     p = argparse.ArgumentParser(prog="mrexplore bench merge", description=__doc__.split("\n\n")[0])
-    p.add_argument("--n", type=int, default=30, help="cases per family (default 30)")
+    p.add_argument(
+        "--n", type=int, default=30, help="cases per family (default 30; 0: only --sizes/--tracker)"
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--methods", default=None, help="comma list of semantic,paper,orb (default all)")
     p.add_argument("--detectors", default=None, help="comma list filter of detectors")
     p.add_argument("--families", default="symmetric,real")
     p.add_argument("--out", default=None, help="write STEM.json and STEM.md")
     p.add_argument("--tracker", action="store_true", help="also time the tracker per step")
+    p.add_argument(
+        "--sizes",
+        default=None,
+        metavar="S,S",
+        help="also time the semantic merger on S x S map pairs (e.g. 500,1000), CPU time",
+    )
     p.add_argument("--force", action="store_true", help="replace existing STEM.json/STEM.md")
     p.add_argument(
         "--semantic-variant",
@@ -353,20 +395,37 @@ def main(argv: Sequence[str] | None = None) -> int:
                 if (methods is None or m in methods)
                 and (detectors is None or d is None or d in detectors)
             ] + [("semantic", None, o) for o in variants]
-        rows = run_bench(
-            args.n,
-            methods=methods,
-            detectors=detectors,
-            seed=args.seed,
-            families=args.families.split(","),
-            configs=configs,
+        # --n 0: only the extra timings (--sizes, --tracker), no table
+        if args.n == 0 and not (args.sizes or args.tracker):
+            raise ConfigError("--n 0 runs only --sizes or --tracker: give one of them")
+        rows = (
+            run_bench(
+                args.n,
+                methods=methods,
+                detectors=detectors,
+                seed=args.seed,
+                families=args.families.split(","),
+                configs=configs,
+            )
+            if args.n != 0
+            else []
         )
     except MrexploreError as e:
         print(f"mrexplore bench merge: error: {e}", file=sys.stderr)
         return 2
-    md = to_markdown(rows)
-    print(md)
+    md = to_markdown(rows) if rows else ""
+    if md:
+        print(md)
     extra: dict[str, Any] = {}
+    if args.sizes:
+        extra["sizes"] = size_timing([int(s) for s in args.sizes.split(",")], seed=args.seed)
+        for row in extra["sizes"]:
+            print(
+                f"semantic merge, {row['size']} x {row['size']} cells, {row['n']} pairs: median "
+                f"{row['median_cpu_ms']} ms CPU (max {row['max_cpu_ms']}); correct "
+                f"{row['correct']}, refused {row['refused']}, imprecise {row['imprecise']}, "
+                f"wrong {row['wrong']}"
+            )
     if args.tracker:
         extra["tracker"] = tracker_timing()
         print(f"tracker update+fused, 2 robots, 1500x1500 canvases: {extra['tracker']}")

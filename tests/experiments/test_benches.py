@@ -15,7 +15,8 @@ from mrexplore.cli import main
         (["merge", "--methods", "bogus"], "unknown method(s) ['bogus']"),
         (["merge", "--detectors", "nope"], "unknown detector(s) ['nope']"),
         (["merge", "--families", "moon"], "unknown family"),
-        (["merge", "--n", "0"], "n_cases must be >= 1"),
+        (["merge", "--n", "-1"], "n_cases must be >= 1"),
+        (["merge", "--n", "0"], "--n 0 runs only --sizes or --tracker"),
         (["env", "--steps", "0"], "--steps must be at least 1"),
         (["env", "--seed", "-1"], "--seed must be an integer >= 0"),
         (["env", "--merge-latency-steps", "x"], "--merge-latency-steps must be integers >= 0"),
@@ -36,3 +37,10 @@ def test_bench_outputs_are_not_overwritten(tmp_path: Path, capsys) -> None:  # t
     assert main(["bench", "env", "--steps", "1", "--json", str(tmp_path / "e.json")]) == 2
     assert "already exists" in capsys.readouterr().err
     assert (tmp_path / "r.md").read_text() == (tmp_path / "e.json").read_text() == "earlier"
+
+
+def test_merge_sizes_prints_time_and_outcomes_per_size(capsys) -> None:  # type: ignore[no-untyped-def]
+    assert main(["bench", "merge", "--n", "0", "--sizes", "120"]) == 0
+    out = capsys.readouterr().out
+    assert "semantic merge, 120 x 120 cells, 10 pairs: median" in out
+    assert "ms CPU" in out and "wrong" in out

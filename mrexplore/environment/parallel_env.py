@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Callable
 from typing import Any, ClassVar
 
 import gymnasium
@@ -98,7 +99,11 @@ Infos = dict[AgentID, dict[str, Any]]
 class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
     """PettingZoo parallel env; build it with :func:`mrexplore.parallel_env`.
 
-    Options: :class:`~mrexplore.environment.config.EnvConfig`.
+    Options: :class:`~mrexplore.environment.config.EnvConfig` (the task among them: a name or
+    a :class:`~mrexplore.environment.task.Task` object). Parts with defaults, as jumanji's envs
+    take theirs: ``radio`` (a :class:`~mrexplore.environment.radio.Radio`; default: one with
+    ``comm_range_m``) and ``viewer`` (``FrameSnapshot -> RGB frame``; default
+    :func:`mrexplore.render.render_frame`).
     """
 
     metadata: ClassVar[dict[str, Any]] = {
@@ -108,7 +113,14 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         "render_fps": 8,
     }
 
-    def __init__(self, render_mode: str | None = None, **options: Any) -> None:
+    def __init__(
+        self,
+        render_mode: str | None = None,
+        *,
+        radio: Radio | None = None,
+        viewer: Callable[[FrameSnapshot], NDArray[np.uint8]] | None = None,
+        **options: Any,
+    ) -> None:
         self.config = cfg = EnvConfig.from_kwargs(**options)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ConfigError(
@@ -125,7 +137,12 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         self._resolution_m = probe.resolution_m
         # --- the parts, which live across episodes
         self.task = make_task(cfg)
-        self.radio = Radio(self.possible_agents, cfg.comm_range_m)
+        if radio is not None and list(radio.agents) != self.possible_agents:
+            raise ConfigError(
+                f"radio: its agents {radio.agents} must be the env's {self.possible_agents}"
+            )
+        self.radio = radio if radio is not None else Radio(self.possible_agents, cfg.comm_range_m)
+        self.viewer = viewer if viewer is not None else render_frame
         self.fusion = FusionStage(
             self.possible_agents,
             merger=cfg.merger,
@@ -379,7 +396,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
                 "render() called without a render_mode; pass render_mode='rgb_array'"
             )
             return None
-        frame = render_frame(self.snapshot())
+        frame = self.viewer(self.snapshot())
         if self.window is None:
             return frame
         self.window.show(frame)

@@ -71,3 +71,32 @@ def test_an_int_given_for_a_float_option_is_stored_as_a_float() -> None:
     cfg = mrexplore.parallel_env(**SMALL, comm_range_m=5, max_range_m=4).config
     assert type(cfg.comm_range_m) is float and type(cfg.max_range_m) is float
     assert type(cfg.n_robots) is int
+
+
+def test_an_injected_radio_and_viewer_are_used() -> None:
+    import numpy as np
+
+    from mrexplore.environment.radio import Radio
+
+    class Deaf(Radio):
+        """Nobody ever hears anybody."""
+
+        def update_links(self, true_xy):  # type: ignore[no-untyped-def]
+            self.links = np.zeros((len(self.agents), len(self.agents)), dtype=bool)
+            return self.links
+
+    seen = []
+    penv = mrexplore.parallel_env(
+        world="small_office",
+        n_robots=2,
+        merger=None,
+        render_mode="rgb_array",
+        radio=Deaf(["robot_0", "robot_1"]),
+        viewer=lambda snap: seen.append(snap.time_s) or np.zeros((2, 2, 3), np.uint8),
+    )
+    penv.reset(seed=0)
+    penv.step({a: 3 for a in penv.agents})
+    assert penv.robot_view("robot_0").in_range == frozenset()
+    assert penv.render().shape == (2, 2, 3) and seen == [0.25]
+    with pytest.raises(ConfigError, match="radio: its agents"):
+        mrexplore.parallel_env(**SMALL, radio=Radio(["a", "b"]))

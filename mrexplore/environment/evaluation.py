@@ -78,6 +78,10 @@ class TruthMonitor:
         self.incremental: dict[int, IncrementalScore | None] = {}
         self._inc_seen: dict[int, tuple[str, int]] = {}
         self._errors: dict[tuple[int, int], tuple[int, NDArray[np.float64], MergeError]] = {}
+        # per agent: (step, the transforms asked about, their worst error)
+        self._worst_memo: dict[
+            str, tuple[int, dict[str, NDArray[np.float64]], MergeError | None]
+        ] = {}
 
     # ------------------------------------------------------------------ merges
     def merge_errors(
@@ -93,14 +97,31 @@ class TruthMonitor:
                 out[other] = err
         return out
 
-    def merge_error(
+    def _worst(
         self, agent: str, transforms: Mapping[str, NDArray[np.float64]]
     ) -> MergeError | None:
-        """The worst (largest displacement) of :meth:`merge_errors`, None when not merged."""
         worst: MergeError | None = None
         for err in self.merge_errors(agent, transforms).values():
             if worst is None or err["translation_cells"] > worst["translation_cells"]:
                 worst = err
+        return worst
+
+    def merge_error(
+        self, agent: str, transforms: Mapping[str, NDArray[np.float64]]
+    ) -> MergeError | None:
+        """The worst (largest displacement) of :meth:`merge_errors`, None when not merged. Asked
+        several times a step (wrong-merge seconds, infos, frames): computed once per step and
+        set of transforms."""
+        memo = self._worst_memo.get(agent)
+        if (
+            memo is not None
+            and memo[0] == self.sim.steps
+            and memo[1].keys() == transforms.keys()
+            and all(memo[1][k] is T for k, T in transforms.items())
+        ):
+            return memo[2]
+        worst = self._worst(agent, transforms)
+        self._worst_memo[agent] = (int(self.sim.steps), dict(transforms), worst)
         return worst
 
     def count_wrong(

@@ -268,7 +268,7 @@ class SemanticOptions(Options):
     min_overlap_cells: int = option(80, integer(0))
     scale: int = option(4, integer(1, 32))
     peaks_per_rotation: int = option(12, integer(1, 1000))
-    max_rotation_peaks: int = option(2, integer(1, 45))
+    max_rotation_peaks: int = option(3, integer(1, 45))
     rotation_step_deg: float = option(0.0, number(0.0, 360.0))
     n_refine: int = option(8, integer(1, 1000))
     n_polish: int = option(24, integer(1, 10_000))
@@ -299,7 +299,8 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     - shared knowledge: ``min_overlap`` (0.15) of b's wall cells on a's known cells,
       ``min_overlap_cells`` (80), ``min_common_m2`` (10.0) m^2 known in both at
       ``resolution_m`` (0.05) m/cell (the every-step tracker asks for 20 m^2: a room);
-    - search: ``max_rotation_peaks`` (2) per rotation spectrum, ``rotation_step_deg`` (0 = no
+    - search: ``max_rotation_peaks`` (3: a hexagonal map's spectrum folds into three equal
+      peaks modulo 90 degrees) per rotation spectrum, ``rotation_step_deg`` (0 = no
       sweep), ``scale`` (4) cells per coarse block, ``peaks_per_rotation`` (12), ``n_polish``
       (24) and ``n_refine`` (8) hypotheses polished and refined, ``slide_step`` (8.0) cells
       (0 = no slide search), ``max_samples`` (20000) wall cells per map in the verifier;

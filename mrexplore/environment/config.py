@@ -146,6 +146,10 @@ class EnvConfig(Options):
         info_extra: add ``infos[agent]["extra"]``, a dict of richer, nested evaluation data (the
             merge error per teammate); off by default because clients that turn infos into
             tensors (TorchRL) need flat numbers. See ``docs/clients.md`` for the info keys.
+        evaluate: score every step against the truth for the evaluation-only infos
+            (``merge_error_*``, ``fused_contradiction``, ``merged_wrongly_s``; they are -1.0
+            with False). Nothing of it reaches a robot, so training may turn it off for speed
+            (5-10 % of a merging step); ``coverage_mode="held"`` needs it.
     """
 
     world: Any = option("symmetric_office", anything)  # checked by load_world
@@ -194,6 +198,7 @@ class EnvConfig(Options):
         "uint8", one_of(*OBS_DTYPES, hint=" (0..255: SB3; [0, 1]: RLlib, TorchRL)")
     )
     info_extra: bool = option(False, boolean)
+    evaluate: bool = option(True, boolean)
     merge_options: dict[str, Any] = option(None, _is_dict, factory=dict)
 
     def check_together(self) -> None:
@@ -201,6 +206,11 @@ class EnvConfig(Options):
             raise ConfigError(
                 f"option nav_warmup_s ({self.nav_warmup_s}) must be shorter than max_time_s "
                 f"({self.max_time_s}): the goal would never be given"
+            )
+        if self.coverage_mode == "held" and not self.evaluate:
+            raise ConfigError(
+                "option coverage_mode='held' scores the maps against the truth: it needs "
+                "evaluate=True"
             )
         if self.range_noise_m >= self.max_range_m:
             raise ConfigError(

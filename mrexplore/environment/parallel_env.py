@@ -236,8 +236,12 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         ep = self.episode = EpisodeState(
             world=world,
             sim=sim,
-            truth=TruthMonitor(
-                self.possible_agents, sim, self.fusion, self.config.coverage_mode == "held"
+            truth=(
+                TruthMonitor(
+                    self.possible_agents, sim, self.fusion, self.config.coverage_mode == "held"
+                )
+                if self.config.evaluate
+                else None
             ),
             collisions=np.zeros(n, dtype=np.int64),
             collided=np.zeros(n, dtype=bool),
@@ -261,7 +265,8 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         self._move(ep, act)
         self.task.after_move(ep.sim, given_before)
         self._exchange_maps(ep, attempt=True)
-        ep.truth.count_wrong(ep.transforms, self.config.dt_s)
+        if ep.truth is not None:
+            ep.truth.count_wrong(ep.transforms, self.config.dt_s)
         ep.obs = self._observe(ep)
         coverage = self._coverage_now(ep)
         reward = self.task.reward(coverage - ep.coverage, ep.sim, self._resolution_m)
@@ -372,7 +377,11 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
             trails=tuple(sim.trail_cells(i) for i in range(n)),
             world_from_map=tuple(sim.world_from_map(i) for i in range(n)),
             fused=fused,
-            fused_error=ep.truth.merge_error(a0, ep.transforms[a0]) if merged else None,
+            fused_error=(
+                ep.truth.merge_error(a0, ep.transforms[a0])
+                if merged and ep.truth is not None
+                else None
+            ),
             time_s=float(sim.time_s),
             coverage=self.coverage,
         )
@@ -471,6 +480,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         sim = ep.sim
         if self.config.coverage_mode == "observed" or sim.reachable_cells == 0:
             return sim.coverage()
+        assert ep.truth is not None, "coverage_mode='held' needs evaluate=True (EnvConfig)"
         held = max(ep.truth.map_accuracy(i)[1] or 0 for i in range(self.config.n_robots))
         return held / sim.reachable_cells
 
@@ -478,7 +488,9 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         """``agent``'s flat infos (:data:`~mrexplore.environment.infos.INFO_KEYS`, in order)."""
         i = self.possible_agents.index(agent)
         first = self.fusion.first_merge_step(agent)
-        err = ep.truth.merge_error(agent, ep.transforms[agent])
+        truth = ep.truth
+        err = None if truth is None else truth.merge_error(agent, ep.transforms[agent])
+        accuracy = UNKNOWN_INFO if truth is None else truth.map_accuracy(i)[0]
         given = self.task.given(ep.sim)
         info: dict[str, Any] = {
             "coverage": self.coverage,
@@ -492,8 +504,8 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
             **merge_error_infos(err),
             "collisions": int(ep.collisions[i]),
             "collided": bool(ep.collided[i]),
-            "fused_contradiction": known_or_unknown(ep.truth.map_accuracy(i)[0]),
-            "merged_wrongly_s": float(ep.truth.wrong_s[i]),
+            "fused_contradiction": known_or_unknown(accuracy),
+            "merged_wrongly_s": UNKNOWN_INFO if truth is None else float(truth.wrong_s[i]),
             "goal_given": given,
             "goal_reached": given and self.task.reached(ep.sim),
             "TimeLimit.truncated": bool(truncated),
@@ -501,7 +513,9 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         if self.config.info_extra:
             info["extra"] = {
                 "merge_error": err,
-                "merge_errors": ep.truth.merge_errors(agent, ep.transforms[agent]),
+                "merge_errors": {}
+                if truth is None
+                else truth.merge_errors(agent, ep.transforms[agent]),
             }
         return info
 

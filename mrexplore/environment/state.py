@@ -25,7 +25,7 @@ class EpisodeState:
     Attributes:
         world: the episode's world (drawn anew per episode for ``"random:..."`` worlds).
         sim: robots, lidars and own maps.
-        truth: evaluation against the truth (infos only).
+        truth: evaluation against the truth (infos only); None with ``evaluate=False``.
         collisions: (n,) int64 bumps per robot since reset; ``collided`` (n,) bool this step's.
         transforms: per agent, its estimated transforms (teammate -> 3x3, the teammate's cells
             into the agent's), as of the last fusion update.
@@ -36,7 +36,7 @@ class EpisodeState:
 
     world: World
     sim: Simulation
-    truth: TruthMonitor
+    truth: TruthMonitor | None
     collisions: NDArray[np.int64]
     collided: NDArray[np.bool_]
     transforms: dict[str, dict[str, NDArray[np.float64]]] = field(default_factory=dict)

@@ -100,3 +100,30 @@ def test_an_injected_radio_and_viewer_are_used() -> None:
     assert penv.render().shape == (2, 2, 3) and seen == [0.25]
     with pytest.raises(ConfigError, match="radio: its agents"):
         mrexplore.parallel_env(**SMALL, radio=Radio(["a", "b"]))
+
+
+def test_evaluate_false_changes_no_observation_reward_or_end() -> None:
+    """The truth monitor only writes evaluation infos: without it the rollout is the same, the
+    evaluation-only infos are -1.0 (nothing of the truth reaches a robot either way)."""
+    import numpy as np
+
+    opts = {"world": "small_office", "n_robots": 2, "merge_every": 5, "merge_latency_steps": 0}
+    runs = []
+    for evaluate in (True, False):
+        penv = mrexplore.parallel_env(**opts, evaluate=evaluate)
+        obs, infos = penv.reset(seed=4)
+        rng = np.random.default_rng(4)
+        trace = [np.concatenate([obs[a].ravel() for a in penv.agents])]
+        for _ in range(60):
+            obs, rew, term, trunc, infos = penv.step({a: int(rng.integers(4)) for a in penv.agents})
+            trace.append(np.concatenate([obs[a].ravel() for a in sorted(obs)]))
+            trace.append(np.array([rew["robot_0"], term["robot_0"], trunc["robot_0"]]))
+            trace.append(np.array([infos["robot_0"]["coverage"], infos["robot_0"]["merged"]]))
+        runs.append((trace, infos["robot_0"]))
+    (with_truth, info_t), (without, info_f) = runs
+    assert all(np.array_equal(x, y) for x, y in zip(with_truth, without, strict=True))
+    for key in ("merge_error_cells", "fused_contradiction", "merged_wrongly_s"):
+        assert info_f[key] == -1.0
+    assert info_t["fused_contradiction"] >= 0.0
+    with pytest.raises(ConfigError, match="evaluate=True"):
+        mrexplore.parallel_env(**opts, evaluate=False, coverage_mode="held")

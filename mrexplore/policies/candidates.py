@@ -118,18 +118,7 @@ class GoalExecutor(FrontierExplorer):
     def observe(self, view: RobotView) -> bool:
         """After a simulator step: update progress and collisions; True when a new decision is
         due (FrontierExplorer's re-plan conditions)."""
-        pose = _pose(view)
-        res = float(view.resolution_m)
-        if self.backtrack_trail and (
-            not self._trail
-            or math.hypot(pose[0] - self._trail[-1][0], pose[1] - self._trail[-1][1]) >= 0.5
-        ):
-            self._trail.append((pose[0], pose[1]))
-        stuck, bumped = self._update_progress(pose, res)
-        if stuck and self.target is not None:
-            self._strike(self.target, res)
-            self._stall = 0
-        if stuck or bumped or self._needs_replan(view, pose, res):
+        if self._progress(view, _pose(view), float(view.resolution_m)):
             self.needs_decision = True
         return self.needs_decision
 

@@ -307,16 +307,7 @@ class FrontierExplorer(Policy):
             )
         pose = (float(view.pose_cell[0]), float(view.pose_cell[1]), float(view.pose_cell[2]))
         res = float(view.resolution_m)
-        if self.backtrack_trail and (
-            not self._trail
-            or math.hypot(pose[0] - self._trail[-1][0], pose[1] - self._trail[-1][1]) >= 0.5
-        ):
-            self._trail.append((pose[0], pose[1]))
-        stuck, bumped = self._update_progress(pose, res)
-        if stuck and self.target is not None:
-            self._strike(self.target, res)
-            self._stall = 0
-        if force_replan or stuck or bumped or self._needs_replan(view, pose, res):
+        if self._progress(view, pose, res, force_replan):
             self._plan(view, pose, claims)
         action = self._follow(pose, res)
         if action == Action.STAY and self.path is not None:
@@ -344,6 +335,23 @@ class FrontierExplorer(Policy):
             clear=self._grid.clear if self._grid is not None else None,
             blocked_ahead=self.slide_on_bump and self._hit,
         )
+
+    def _progress(
+        self, view: RobotView, pose: tuple[float, float, float], res: float, force: bool = False
+    ) -> bool:
+        """After a move: extend the backtrack trail, count progress and bumps, strike a target
+        the robot is stuck on; whether a re-plan is due (``force``, stuck, bumped, or
+        :meth:`_needs_replan`, asked only when none of the others holds)."""
+        if self.backtrack_trail and (
+            not self._trail
+            or math.hypot(pose[0] - self._trail[-1][0], pose[1] - self._trail[-1][1]) >= 0.5
+        ):
+            self._trail.append((pose[0], pose[1]))
+        stuck, bumped = self._update_progress(pose, res)
+        if stuck and self.target is not None:
+            self._strike(self.target, res)
+            self._stall = 0
+        return force or stuck or bumped or self._needs_replan(view, pose, res)
 
     def _update_progress(self, pose: tuple[float, float, float], res: float) -> tuple[bool, bool]:
         """Track progress along the path and collisions: ``(stuck, bumped)``."""

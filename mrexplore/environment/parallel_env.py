@@ -467,7 +467,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         changes = {a: m.change() for a, m in zip(self.possible_agents, sim.maps, strict=True)}
         self.fusion.update(maps, int(sim.steps), links, attempt=attempt, changes=changes)
         ep.transforms = {a: self.fusion.transforms(a) for a in self.possible_agents}
-        self.radio.hear(ep.transforms, [sim.pose_cell(j) for j in range(self.config.n_robots)])
+        self.radio.hear(ep.transforms, sim.pose_cell)
 
     def _observe(self, ep: EpisodeState) -> Observations:
         out = {}

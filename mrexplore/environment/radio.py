@@ -8,7 +8,7 @@ where the teammate was when last heard.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
@@ -53,18 +53,19 @@ class Radio:
     def hear(
         self,
         transforms: Mapping[str, Mapping[str, NDArray[np.float64]]],
-        pose_cells: Sequence[tuple[float, float, float]],
+        pose_cell: Callable[[int], tuple[float, float, float]],
     ) -> None:
         """For every merged and linked pair, record where each robot hears the other: the
-        teammate's own pose estimate ``pose_cells[j]`` (its map cells) through the estimated
-        transform ``transforms[a][other]`` (the teammate's cells -> a's cells)."""
+        teammate's own pose estimate ``pose_cell(j)`` (its map cells; asked only for heard
+        teammates) through the estimated transform ``transforms[a][other]`` (the teammate's
+        cells -> a's cells)."""
         for a, mates in transforms.items():
             i = self.index[a]
             for other, T in mates.items():
                 j = self.index[other]
                 if not self.linked(i, j):
                     continue
-                c, r, _ = pose_cells[j]
+                c, r, _ = pose_cell(j)
                 p = apply_transform(T, np.array([[c, r]]))[0]
                 self._heard[(a, other)] = (float(p[0]), float(p[1]))
 

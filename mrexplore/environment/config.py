@@ -149,7 +149,8 @@ class EnvConfig(Options):
         evaluate: score every step against the truth for the evaluation-only infos
             (``merge_error_*``, ``fused_contradiction``, ``merged_wrongly_s``; they are -1.0
             with False). Nothing of it reaches a robot, so training may turn it off for speed
-            (5-10 % of a merging step); ``coverage_mode="held"`` needs it.
+            (1.2-1.3x steps/s on ``symmetric_office``, docs/clients.md); ``coverage_mode="held"``
+            needs it.
     """
 
     world: Any = option("symmetric_office", anything)  # checked by load_world

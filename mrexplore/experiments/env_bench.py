@@ -153,6 +153,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="comma-separated values of the env's merge_latency_steps, each measured in turn "
         "(default: the env's default, 8); e.g. 0,8 puts in-step and off-path merging side by side",
     )
+    p.add_argument(
+        "--evaluate",
+        default=None,
+        help="comma-separated values of the env's evaluate option (1 or 0), each measured in "
+        "turn (default: the env's, 1); 1,0 puts the truth monitor on and off side by side",
+    )
     p.add_argument("--breakdown", action="store_true", help="also time the stages (2 robots)")
     p.add_argument("--json", default=None, help="also write the figures to this JSON file")
     p.add_argument("--force", action="store_true", help="replace an existing --json file")
@@ -178,6 +184,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                 "bench env: --merge-latency-steps must be integers >= 0, "
                 f"got {args.merge_latency_steps!r}"
             )
+    evaluates: list[bool | None] = [None]
+    if args.evaluate is not None:
+        words = [v.strip() for v in args.evaluate.split(",") if v.strip()]
+        if not words or any(w not in ("0", "1") for w in words):
+            raise ConfigError(f"bench env: --evaluate must be 1 and/or 0, got {args.evaluate!r}")
+        evaluates = [w == "1" for w in words]
     if args.json:
         check_outputs([args.json], force=args.force, what="mrexplore bench env")
     merger = None if args.merger.lower() == "none" else args.merger
@@ -192,9 +204,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             if latency is not None:
                 label = f"{label}, latency {latency}"
                 opts = {**opts, "merge_latency_steps": latency}
-            r = measure(args.steps, args.seed, **opts)
-            results[label] = r
-            print(row(label, r), flush=True)
+            for evaluate in evaluates:  # side by side: on and off for one setting in a row
+                name, o = label, opts
+                if evaluate is not None:
+                    name, o = f"{label}, evaluate {int(evaluate)}", {**opts, "evaluate": evaluate}
+                r = measure(args.steps, args.seed, **o)
+                results[name] = r
+                print(row(name, r), flush=True)
     if args.breakdown:
         r = measure(args.steps, args.seed, breakdown=True, **{**DEFAULT_WORLD, "merger": merger})
         ms = r["ms_per_step"]

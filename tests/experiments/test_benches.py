@@ -21,6 +21,7 @@ from mrexplore.cli import main
         (["env", "--seed", "-1"], "--seed must be an integer >= 0"),
         (["env", "--merge-latency-steps", "x"], "--merge-latency-steps must be integers >= 0"),
         (["env", "--merge-latency-steps", "0,-2"], "--merge-latency-steps must be integers >= 0"),
+        (["env", "--evaluate", "yes"], "--evaluate must be 1 and/or 0"),
     ],
 )
 def test_bench_bad_options_exit_2(args: list[str], words: str, capsys) -> None:  # type: ignore[no-untyped-def]

@@ -40,6 +40,10 @@ DEFAULT_WORLD: dict[str, Any] = {"world": "symmetric_office"}
 EXPLORE_BENCH_WORLD: dict[str, Any] = {"world": "symmetric_office_coarse", "max_range_m": 3.0}
 
 
+#: Stage -> the env's method that does it (timed with ``--breakdown``).
+STAGES = {"act": "_move", "merge": "_exchange_maps", "observe": "_observe"}
+
+
 def _timed(fn: Callable[..., Any], acc: dict[str, float], key: str) -> Callable[..., Any]:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         t0 = time.thread_time()
@@ -68,8 +72,9 @@ def measure(
     penv = mrexplore.parallel_env(**options)
     acc: dict[str, float] = defaultdict(float)
     if breakdown:
-        for name in ("_act", "_merge", "_observe"):
-            setattr(penv, name, _timed(getattr(penv, name), acc, name.strip("_")))
+        # the step's parts, wrapped on this instance (the stage names the table prints)
+        for stage, name in STAGES.items():
+            setattr(penv, name, _timed(getattr(penv, name), acc, stage))
     rng = np.random.default_rng(seed)
     penv.reset(seed=seed)
     n_act = int(penv.action_space(penv.possible_agents[0]).n)
@@ -107,7 +112,7 @@ def measure(
         "max_ms": 1000.0 * float(lat.max()),
     }
     if breakdown:
-        parts = {k: acc[k] for k in ("act", "merge", "observe")}
+        parts = {k: acc[k] for k in STAGES}
         parts["other"] = total - sum(parts.values())
         out["ms_per_step"] = {k: 1000.0 * v / steps for k, v in parts.items()}
     return out

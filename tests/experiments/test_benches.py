@@ -45,3 +45,11 @@ def test_merge_sizes_prints_time_and_outcomes_per_size(capsys) -> None:  # type:
     out = capsys.readouterr().out
     assert "semantic merge, 120 x 120 cells, 10 pairs: median" in out
     assert "ms CPU" in out and "wrong" in out
+
+
+def test_env_breakdown_times_every_stage() -> None:
+    from mrexplore.experiments.env_bench import STAGES, measure
+
+    r = measure(5, 0, warmup=1, breakdown=True, world="small_office", merger=None)
+    assert set(r["ms_per_step"]) == {*STAGES, "other"}
+    assert all(r["ms_per_step"][k] > 0 for k in STAGES)

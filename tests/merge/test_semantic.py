@@ -228,3 +228,42 @@ def test_rotation_candidates_are_not_pulled_to_the_grid_axes() -> None:
         cands = np.degrees(rotation_candidates(_thin_rooms(ta), _thin_rooms(tb)))
         err = np.abs((cands - (ta - tb) + 45.0) % 90.0 - 45.0)  # modulo 90: the verifier picks k
         assert err.min() <= 1.5, (ta, tb, cands)
+
+
+def test_consistency_polish_finds_the_consistent_pose_next_to_an_off_one(
+    office_pair: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    """A pose a cell and a degree off the truth contradicts the maps; the polish moves it back
+    to where they agree within their noise, and never to a worse pose."""
+    from mrexplore.grid import make_transform
+    from mrexplore.merge.common import Verifier
+    from mrexplore.merge.semantic import _consistency_polish
+
+    a, b, T_ab = office_pair
+    v = Verifier(a, b, slack=0)  # strict: this crop's walls are thick enough to hide 2 cells
+    centre = tuple(v.points_b.mean(axis=0))
+    turn = (
+        translation(*centre)
+        @ make_transform(np.radians(1.0), 0.0, 0.0)
+        @ translation(*-np.array(centre))
+    )
+    off = translation(2.0, -1.0) @ T_ab @ turn
+    score = lambda T: v.structured(T, 5).score  # noqa: E731
+    assert score(off) < 0.97
+    T, c = _consistency_polish(off, v, score, centre)
+    assert c == score(T) and c >= 0.99
+    assert merge_error(T, T_ab, b)[0] < merge_error(off, T_ab, b)[0] - 1.0
+    # at a consistent pose it stays put
+    T2, c2 = _consistency_polish(T_ab, v, score, centre)
+    assert c2 >= score(T_ab) and merge_error(T2, T_ab, b)[0] < 1.5
+
+
+def test_consistency_polish_is_an_option_and_changes_only_refusals(
+    office_pair: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    a, b, _ = office_pair
+    on, off = merge_maps(a, b), merge_maps(a, b, consistency_polish=False)
+    assert on.matched and off.matched
+    np.testing.assert_array_equal(on.transform, off.transform)  # accepted as ICP left it
+    with pytest.raises(Exception, match="consistency_polish"):
+        merge_maps(a, b, consistency_polish="yes")

@@ -21,8 +21,9 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
   --semantic-variant slack_cells=0,min_run_cells=1 \
   --semantic-variant max_rotation_peaks=3,peaks_per_rotation=6,n_polish=12,n_refine=5 \
   --semantic-variant paper_candidates=true \
-  --semantic-variant shared_weight=0 --out "$out/merge_ablation" --force
-mrexplore bench loop --seeds 10 --jobs 2 --out "$out/loop_study" --force
+  --semantic-variant shared_weight=0 --semantic-variant consistency_polish=false \
+  --out "$out/merge_ablation" --force
+mrexplore bench loop --seeds 20 --jobs 2 --out "$out/loop_study" --force
 mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --out "$out" --force
 mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --tasks navigate \
   --nav-goal teammate --out "$out/nav_teammate" --force

@@ -264,6 +264,41 @@ def _consistency_polish(
     return best_T, best_c
 
 
+def cross_support(wall_a: NDArray[np.bool_], wall_b: NDArray[np.bool_], T: Transform) -> float:
+    """How firmly a pose is pinned along its weakest direction, in wall cells: the smaller
+    eigenvalue of ``sum n n^T`` over b's wall cells that land within a cell of a's walls under
+    ``T`` (b cells -> a cells), ``n`` the unit normal of a's wall there.
+
+    Normals come from a's structure tensor (gradients of the lightly blurred walls, their
+    products averaged over 4 cells), which smooths the staircase and the bumps of lidar walls.
+    One straight wall, or the two parallel walls of a corridor, gives ~0 whatever its length:
+    the maps then agree equally well after a slide along it, and only wall bumps of a cell or
+    two would decide where. A room corner gives the length of its shorter wall.
+    """
+    wa = wall_a.astype(np.float32)
+    img = cv2.GaussianBlur(wa, (0, 0), 1.0)
+    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3)
+    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3)
+    jxx = cv2.GaussianBlur(gx * gx, (0, 0), 4.0)
+    jyy = cv2.GaussianBlur(gy * gy, (0, 0), 4.0)
+    jxy = cv2.GaussianBlur(gx * gy, (0, 0), 4.0)
+    rb, cb = np.nonzero(wall_b)
+    T = np.asarray(T, dtype=np.float64)
+    c = np.rint(T[0, 0] * cb + T[0, 1] * rb + T[0, 2]).astype(np.int64)
+    r = np.rint(T[1, 0] * cb + T[1, 1] * rb + T[1, 2]).astype(np.int64)
+    h, w = wall_a.shape
+    inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
+    c, r = c[inside], r[inside]
+    near = cv2.dilate(wall_a.view(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    on = near[r, c]
+    c, r = c[on], r[on]
+    if c.size == 0:
+        return 0.0
+    ang = 0.5 * np.arctan2(2.0 * jxy[r, c], jxx[r, c] - jyy[r, c]).astype(np.float64)
+    u = np.stack([np.cos(ang), np.sin(ang)], axis=1)
+    return float(np.linalg.eigvalsh(u.T @ u)[0])
+
+
 class _SharedSpace:
     """Counts a's cells known in a and in b warped by a pose (nearest neighbour): the known
     space two maps share under it. The known masks are made once per merge, not per pose."""
@@ -317,6 +352,7 @@ class SemanticOptions(Options):
     slack_cells: int = option(2, integer(0, 10))
     min_run_cells: int = option(5, integer(1, 1000))
     consistency_polish: bool = option(True, boolean)
+    min_cross_cells: float = option(0.0, number(0.0, math.inf))
 
     def check_together(self) -> None:
         if self.detector is not None and not self.paper_candidates:
@@ -341,6 +377,11 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
       (0 = no slide search), ``max_samples`` (20000) wall cells per map in the verifier;
     - coarse score: ``ratio_power`` (2.0), or the linear score with ``w_free`` (0.2) and
       ``w_disagree`` (1.0) when it is 0;
+    - ``consistency_polish`` (True): an inconsistent best pose is replaced by the most
+      consistent pose within 2 cells and 1 degree of it, if that one passes;
+    - ``min_cross_cells`` (0 = off): refuse a pose whose agreeing walls pin it less than this
+      (:func:`cross_support`, wall cells) across their direction: one straight wall or a
+      corridor slides;
     - ``paper_candidates`` (False): add the seed paper's trusted-point matches as hypotheses
       (``detector``, default harris, picks their keypoints; 3-4x slower, one more correct merge
       in 166 bench pairs).
@@ -563,6 +604,19 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
             score=best.score,
             **common,
         )
+    if o.min_cross_cells > 0:
+        # a slide along one straight wall (or a corridor) explains the maps as well as the pose:
+        # its walls must also pin the pose across that direction
+        cross = cross_support(wall_a, wall_b, best.T)
+        info["cross_cells"] = cross
+        if cross < o.min_cross_cells:
+            return refuse(
+                f"the agreeing walls do not pin the pose along them (cross support {cross:.1f} "
+                f"wall cells < {o.min_cross_cells:g}): a slide along one wall or corridor fits "
+                "as well",
+                score=best.score,
+                **common,
+            )
     merged, offset = compose(a, b, T_full)
     # wall cells of b that land on a's walls: the point pairs that support the result (figures)
     pb_full = icp.pb + np.array([bbb[2], bbb[0]])

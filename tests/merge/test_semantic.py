@@ -267,3 +267,29 @@ def test_consistency_polish_is_an_option_and_changes_only_refusals(
     np.testing.assert_array_equal(on.transform, off.transform)  # accepted as ICP left it
     with pytest.raises(Exception, match="consistency_polish"):
         merge_maps(a, b, consistency_polish="yes")
+
+
+def test_cross_support_is_zero_along_one_wall_and_large_at_a_corner() -> None:
+    """A pose resting on one straight wall (even a long, bumpy, slanted one) leaves a slide along
+    it free; a corner pins it."""
+    import cv2
+
+    from mrexplore.merge.semantic import cross_support
+
+    wall = np.zeros((200, 200), np.uint8)
+    cv2.line(wall, (20, 30), (180, 150), 1, 1)  # a slanted staircase wall
+    wall[88:90, 100] = 1  # a bump
+    one = wall.astype(bool)
+    assert cross_support(one, one, np.eye(3)) < 3.0
+    corner = one.copy()
+    corner[150:190, 180] = True  # a second wall, across the first
+    assert cross_support(corner, corner, np.eye(3)) > 20.0
+
+
+def test_min_cross_cells_refuses_a_match_on_one_wall(
+    office_pair: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    a, b, _ = office_pair
+    assert merge_maps(a, b, min_cross_cells=10).matched  # a room's walls pin the pose
+    res = merge_maps(a, b, min_cross_cells=1e6)
+    assert not res.matched and "pin the pose" in res.reason

@@ -22,6 +22,7 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
   --semantic-variant max_rotation_peaks=3,peaks_per_rotation=6,n_polish=12,n_refine=5 \
   --semantic-variant paper_candidates=true \
   --semantic-variant shared_weight=0 --semantic-variant consistency_polish=false \
+  --semantic-variant min_cross_cells=0 \
   --out "$out/merge_ablation" --force
 mrexplore bench loop --seeds 20 --jobs 2 --out "$out/loop_study" --force
 mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --out "$out" --force

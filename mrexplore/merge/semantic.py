@@ -352,7 +352,7 @@ class SemanticOptions(Options):
     slack_cells: int = option(2, integer(0, 10))
     min_run_cells: int = option(5, integer(1, 1000))
     consistency_polish: bool = option(True, boolean)
-    min_cross_cells: float = option(0.0, number(0.0, math.inf))
+    min_cross_cells: float = option(10.0, number(0.0, math.inf))
 
     def check_together(self) -> None:
         if self.detector is not None and not self.paper_candidates:
@@ -379,7 +379,7 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
       ``w_disagree`` (1.0) when it is 0;
     - ``consistency_polish`` (True): an inconsistent best pose is replaced by the most
       consistent pose within 2 cells and 1 degree of it, if that one passes;
-    - ``min_cross_cells`` (0 = off): refuse a pose whose agreeing walls pin it less than this
+    - ``min_cross_cells`` (10; 0 = off): refuse a pose whose agreeing walls pin it less than this
       (:func:`cross_support`, wall cells) across their direction: one straight wall or a
       corridor slides;
     - ``paper_candidates`` (False): add the seed paper's trusted-point matches as hypotheses

@@ -237,6 +237,7 @@ def _consistency_polish(
     consistency: Callable[[Transform], float],
     centre: tuple[float, float],
     keep: int = 5,
+    start: float | None = None,
 ) -> tuple[Transform, float]:
     """The most consistent pose within 2 cells and 1 degree of ``T`` (b cells -> a cells):
     ``(pose, consistency)``.
@@ -245,7 +246,8 @@ def _consistency_polish(
     odometry drift can be a cell and a degree from where they contradict each other least
     (traced in the loop: a best pose at 0.96 beside one at 0.99). The 125 poses of the grid
     (shifts -2..2 cells, turns -1..1 degree by halves about ``centre``) are ranked by the cheap
-    slack count, and the ``keep`` best by the noise-aware ``consistency``.
+    slack count, and the ``keep`` best by the noise-aware ``consistency``. ``start``: the
+    consistency of ``T`` when the caller has it already (not computed again).
     """
     cx, cy = centre
     grid: list[tuple[float, int, Transform]] = []
@@ -256,7 +258,7 @@ def _consistency_polish(
                 Tn = translation(dc, dr) @ T @ turn
                 grid.append((slack_verify(Tn).score, len(grid), Tn))
     grid.sort(key=lambda g: (-g[0], g[1]))  # ties in grid order: the same answer everywhere
-    best_T, best_c = T, consistency(T)
+    best_T, best_c = T, consistency(T) if start is None else start
     for _, _, Tn in grid[:keep]:
         c = consistency(Tn)
         if c > best_c:
@@ -546,6 +548,7 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
             consistent_v,
             lambda T: consistent_v.structured(T, min_run).score,
             tuple(np.asarray(verify.points_b, dtype=np.float64).mean(axis=0)),
+            start=best_consistency,
         )
         if c_pol >= min_score:
             best.T, best_consistency = T_pol, c_pol

@@ -156,20 +156,49 @@ def cell_codes(grid: Int8Grid, tolerance: int = 1, slack: int = 0) -> NDArray[np
     cells (:func:`reliable_walls`) are coded unknown too, but still make their neighbours "near
     a wall".
     """
-    occupied = grid >= OCCUPIED_THRESHOLD
-    wall = reliable_walls(grid)
-    free = (grid >= 0) & (grid <= FREE_THRESHOLD)
-    k = 2 * int(tolerance) + 1
-    near = cv2.dilate(occupied.view(np.uint8), np.ones((k, k), np.uint8)).astype(bool)
-    codes = np.zeros(grid.shape, dtype=np.uint8)
-    codes[free] = CODE_FREE
-    if slack > 0:
-        k2 = 2 * (int(tolerance) + int(slack)) + 1
-        mid = cv2.dilate(occupied.view(np.uint8), np.ones((k2, k2), np.uint8)).astype(bool)
-        codes[free & mid] = CODE_UNKNOWN
-    codes[free & near] = CODE_FREE_NEAR_WALL
-    codes[wall] = CODE_WALL
-    return codes
+    return MapCodes(grid).codes(tolerance, slack)
+
+
+class MapCodes:
+    """One map's verifier inputs, made once and shared by every :class:`Verifier` of a merge:
+    its occupied, reliable-wall and free masks (H, W), its codes per ``(tolerance, slack)``
+    (:func:`cell_codes`) and the (row, col) indices of its reliable wall cells.
+
+    A merge verifies with four codings of the same two maps (screen, quick, full, noise-aware);
+    the masks and the wall-cell scan are the same for all of them.
+    """
+
+    def __init__(self, grid: Int8Grid) -> None:
+        self.shape = grid.shape
+        self.occupied = (grid >= OCCUPIED_THRESHOLD).view(np.uint8)
+        self.wall = reliable_walls(grid)
+        self.free = (grid >= 0) & (grid <= FREE_THRESHOLD)
+        self._codes: dict[tuple[int, int], NDArray[np.uint8]] = {}
+        self._wall_cells: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None
+
+    def _near(self, radius: int) -> NDArray[np.bool_]:
+        k = 2 * radius + 1
+        return cv2.dilate(self.occupied, np.ones((k, k), np.uint8)).astype(bool)
+
+    def codes(self, tolerance: int = 1, slack: int = 0) -> NDArray[np.uint8]:
+        """The codes (H, W) uint8 of :func:`cell_codes` (cached; do not modify)."""
+        key = (int(tolerance), int(slack))
+        if key not in self._codes:
+            codes = np.zeros(self.shape, dtype=np.uint8)
+            codes[self.free] = CODE_FREE
+            if slack > 0:
+                codes[self.free & self._near(key[0] + key[1])] = CODE_UNKNOWN
+            codes[self.free & self._near(key[0])] = CODE_FREE_NEAR_WALL
+            codes[self.wall] = CODE_WALL
+            self._codes[key] = codes
+        return self._codes[key]
+
+    def wall_cells(self) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+        """(rows, cols) of the reliable wall cells (the cells coded wall), row-major (cached)."""
+        if self._wall_cells is None:
+            rows, cols = np.nonzero(self.wall)
+            self._wall_cells = (rows, cols)
+        return self._wall_cells
 
 
 def translation(dc: float, dr: float) -> Transform:
@@ -205,9 +234,12 @@ class Agreement:
         return self.agree / n if n else 0.0
 
 
-def _sample(mask: NDArray[np.bool_], max_samples: int) -> tuple[NDArray[np.float64], float]:
-    """(col, row) points of ``mask`` on a regular stride (<= ~max_samples), and cells per point."""
-    rows, cols = np.nonzero(mask)
+def _sample(
+    cells: tuple[NDArray[np.intp], NDArray[np.intp]], max_samples: int
+) -> tuple[NDArray[np.float64], float]:
+    """(col, row) points of the cells ``(rows, cols)`` on a regular stride (<= ~max_samples),
+    and cells per point."""
+    rows, cols = cells
     n = rows.size
     if max_samples and n > max_samples:
         stride = int(np.ceil(n / max_samples))
@@ -228,7 +260,8 @@ class Verifier:
     the signal, are left out.
 
     ``tolerance`` widens the one-cell tolerance (the semantic method screens coarse hypotheses,
-    which may be a few cells off, with a wider one).
+    which may be a few cells off, with a wider one). ``a`` and ``b`` may be :class:`MapCodes`,
+    so several verifiers of one merge share the masks.
 
     Each call costs two gathers and two 16-bin ``bincount`` over at most ``max_samples`` points
     per map: a few hundred microseconds, so dozens of hypotheses cost milliseconds.
@@ -236,16 +269,18 @@ class Verifier:
 
     def __init__(
         self,
-        a: Int8Grid,
-        b: Int8Grid,
+        a: Int8Grid | MapCodes,
+        b: Int8Grid | MapCodes,
         max_samples: int = 20000,
         tolerance: int = 1,
         slack: int = 0,
     ) -> None:
-        self.codes_a = cell_codes(a, tolerance, slack)
-        self.codes_b = cell_codes(b, tolerance, slack)
-        self.points_b, self.cells_per_sample = _sample(self.codes_b == CODE_WALL, max_samples)
-        self.points_a, _ = _sample(self.codes_a == CODE_WALL, max_samples)
+        ma = a if isinstance(a, MapCodes) else MapCodes(a)
+        mb = b if isinstance(b, MapCodes) else MapCodes(b)
+        self.codes_a = ma.codes(tolerance, slack)
+        self.codes_b = mb.codes(tolerance, slack)
+        self.points_b, self.cells_per_sample = _sample(mb.wall_cells(), max_samples)
+        self.points_a, _ = _sample(ma.wall_cells(), max_samples)
 
     @staticmethod
     def _count(

@@ -59,6 +59,7 @@ from mrexplore.grid import (
 from mrexplore.merge.coarse import CoarseMatcher
 from mrexplore.merge.common import (
     Agreement,
+    MapCodes,
     MergeResult,
     Verifier,
     compose,
@@ -68,7 +69,7 @@ from mrexplore.merge.common import (
     warp_into,
 )
 from mrexplore.merge.icp import WallICP
-from mrexplore.merge.rotation import orientation_histogram, rotation_candidates
+from mrexplore.merge.rotation import direction_histogram, rotation_candidates, wall_normals
 from mrexplore.options import Options, boolean, integer, number, option
 
 F32 = NDArray[np.float32]
@@ -154,7 +155,7 @@ def _paper_hypotheses(
 
 def _slide_hypotheses(
     best: _Hypothesis,
-    wall_a: NDArray[np.bool_],
+    normals_a: tuple[NDArray[np.float32], NDArray[np.float32]],
     b_shape: tuple[int, int],
     step: float,
     screen: Verifier,
@@ -175,7 +176,7 @@ def _slide_hypotheses(
     best, puts the other poses on the ridge into the verification: either one explains more
     (it becomes the best) or one explains as much (the rival test refuses).
     """
-    hist = orientation_histogram(wall_a)
+    hist = direction_histogram(normals_a)
     phi = np.radians(float(np.argmax(hist)))  # wall normal direction mod 90 deg
     h, w = b_shape
     reach = float(np.hypot(h, w))
@@ -277,13 +278,6 @@ def cross_support(wall_a: NDArray[np.bool_], wall_b: NDArray[np.bool_], T: Trans
     the maps then agree equally well after a slide along it, and only wall bumps of a cell or
     two would decide where. A room corner gives the length of its shorter wall.
     """
-    wa = wall_a.astype(np.float32)
-    img = cv2.GaussianBlur(wa, (0, 0), 1.0)
-    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3)
-    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3)
-    jxx = cv2.GaussianBlur(gx * gx, (0, 0), 4.0)
-    jyy = cv2.GaussianBlur(gy * gy, (0, 0), 4.0)
-    jxy = cv2.GaussianBlur(gx * gy, (0, 0), 4.0)
     rb, cb = np.nonzero(wall_b)
     T = np.asarray(T, dtype=np.float64)
     c = np.rint(T[0, 0] * cb + T[0, 1] * rb + T[0, 2]).astype(np.int64)
@@ -291,14 +285,33 @@ def cross_support(wall_a: NDArray[np.bool_], wall_b: NDArray[np.bool_], T: Trans
     h, w = wall_a.shape
     inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
     c, r = c[inside], r[inside]
-    near = cv2.dilate(wall_a.view(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    if c.size == 0:
+        return 0.0
+    # The filters below reach 21 cells (blur 4 + Sobel 1 + blur 16): a window that far around
+    # b's landed walls gives the same tensor there as the whole map, at a fraction of the cost.
+    r0, c0 = max(int(r.min()) - _TENSOR_REACH, 0), max(int(c.min()) - _TENSOR_REACH, 0)
+    r1, c1 = min(int(r.max()) + _TENSOR_REACH + 1, h), min(int(c.max()) + _TENSOR_REACH + 1, w)
+    win = wall_a[r0:r1, c0:c1]
+    r, c = r - r0, c - c0
+    near = cv2.dilate(win.view(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     on = near[r, c]
     c, r = c[on], r[on]
     if c.size == 0:
         return 0.0
+    img = cv2.GaussianBlur(win.astype(np.float32), (0, 0), 1.0)
+    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3)
+    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3)
+    jxx = cv2.GaussianBlur(gx * gx, (0, 0), 4.0)
+    jyy = cv2.GaussianBlur(gy * gy, (0, 0), 4.0)
+    jxy = cv2.GaussianBlur(gx * gy, (0, 0), 4.0)
     ang = 0.5 * np.arctan2(2.0 * jxy[r, c], jxx[r, c] - jyy[r, c]).astype(np.float64)
     u = np.stack([np.cos(ang), np.sin(ang)], axis=1)
     return float(np.linalg.eigvalsh(u.T @ u)[0])
+
+
+#: How far (cells) the structure tensor of :func:`cross_support` reaches: float32 Gaussian
+#: kernels span 4 sigma each side (OpenCV), so blur 1 (4) + Sobel (1) + blur 4 (16), plus slack.
+_TENSOR_REACH = 24
 
 
 class _SharedSpace:
@@ -311,15 +324,27 @@ class _SharedSpace:
         self.size = (a.shape[1], a.shape[0])
 
     def __call__(self, T_ab: NDArray[np.float64]) -> int:
+        # only the window of a that b's canvas can cover under the pose is warped and counted
+        T = np.asarray(T_ab, dtype=np.float64)
+        hb, wb = self.known_b.shape
+        corners = np.array([[-1.0, -1.0], [wb, -1.0], [-1.0, hb], [wb, hb]]) @ T[:2, :2].T
+        corners += T[:2, 2]
+        w, h = self.size
+        c0, r0 = np.maximum(np.floor(corners.min(axis=0)), 0).astype(int)
+        c1, r1 = np.minimum(np.ceil(corners.max(axis=0)) + 1, (w, h)).astype(int)
+        if c1 <= c0 or r1 <= r0:
+            return 0
+        M = T[:2].copy()
+        M[:, 2] -= (c0, r0)
         warped = cv2.warpAffine(
             self.known_b,
-            np.asarray(T_ab, dtype=np.float64)[:2],
-            self.size,
+            M,
+            (int(c1 - c0), int(r1 - r0)),
             flags=cv2.INTER_NEAREST,
             borderMode=cv2.BORDER_CONSTANT,
             borderValue=0,
         )
-        return int(cv2.countNonZero(cv2.bitwise_and(warped, self.known_a)))
+        return int(cv2.countNonZero(cv2.bitwise_and(warped, self.known_a[r0:r1, c0:c1])))
 
 
 @dataclass(frozen=True)
@@ -425,12 +450,14 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     if min(n_wall_a, n_wall_b) < 20:
         return refuse(f"too few wall cells to align (a: {n_wall_a}, b: {n_wall_b}; need 20)")
 
-    verify = Verifier(ac, bc, max_samples=max_samples)
+    codes_a, codes_b = MapCodes(ac), MapCodes(bc)  # shared by the four verifiers below
+    verify = Verifier(codes_a, codes_b, max_samples=max_samples)
     shared = _SharedSpace(ac, bc)
-    quick = Verifier(ac, bc, max_samples=min(max_samples, 2000) if max_samples else 2000)
+    quick = Verifier(codes_a, codes_b, max_samples=min(max_samples, 2000) if max_samples else 2000)
 
     # --- 1. rotations ---
-    thetas = rotation_candidates(wall_a, wall_b, max_rot_peaks, rot_step)
+    normals_a = wall_normals(wall_a)  # a's wall directions: the rotation spectrum and the slide
+    thetas = rotation_candidates(wall_a, wall_b, max_rot_peaks, rot_step, normals_a)
     info["rotations_deg"] = [round(float(np.degrees(t)), 2) for t in thetas]
     if not thetas:
         return refuse("no wall edges to estimate a rotation from (add rotation_step_deg to sweep)")
@@ -455,7 +482,7 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
 
     # --- 3. screen the raw hypotheses with a wide tolerance (they are up to ~scale/2 cells off),
     # polish the best few with a short ICP, re-verify; 4. refine the best fully ---
-    screen = Verifier(ac, bc, max_samples=2000, tolerance=max(1, scale // 2 + 1))
+    screen = Verifier(codes_a, codes_b, max_samples=2000, tolerance=max(1, scale // 2 + 1))
     for hyp in hyps:
         hyp.agreement = screen(hyp.T)
     hyps.sort(key=lambda h: -(h.agreement.agree - h.agreement.disagree if h.agreement else 0))
@@ -501,7 +528,7 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     if slide_step > 0 and chosen:
         chosen += _slide_hypotheses(
             max(chosen, key=lambda h: h.evidence),
-            wall_a,
+            normals_a,
             bc.shape,
             slide_step,
             screen,
@@ -537,7 +564,7 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     # Consistency of the best pose with the maps' noise: walls within ``slack`` more cells of
     # the other map's walls (a wall seen from its two sides, a wall eroded by grazing beams) and
     # lone contradictions (groups under ``min_run`` cells) are noise, not evidence against it.
-    consistent_v = Verifier(ac, bc, max_samples=max_samples, slack=slack)
+    consistent_v = Verifier(codes_a, codes_b, max_samples=max_samples, slack=slack)
     best_consistency = consistent_v.structured(best.T, min_run).score
     if best_consistency < min_score and o.consistency_polish:
         # the best pose as ICP left it may sit a cell and a degree from where the maps agree

@@ -286,6 +286,86 @@ def test_cross_support_is_zero_along_one_wall_and_large_at_a_corner() -> None:
     assert cross_support(corner, corner, np.eye(3)) > 20.0
 
 
+def test_cross_support_on_a_window_equals_the_whole_map(
+    office_pair: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    """cross_support filters only a window around b's landed walls: the tensor there is the
+    whole map's (equal up to float32 rounding of the filters)."""
+    import cv2
+
+    from mrexplore.grid import make_transform
+    from mrexplore.merge.semantic import cross_support
+
+    def whole(wall_a: np.ndarray, wall_b: np.ndarray, T: np.ndarray) -> float:
+        img = cv2.GaussianBlur(wall_a.astype(np.float32), (0, 0), 1.0)
+        gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3)
+        gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3)
+        j = [cv2.GaussianBlur(p, (0, 0), 4.0) for p in (gx * gx, gy * gy, gx * gy)]
+        rb, cb = np.nonzero(wall_b)
+        c = np.rint(T[0, 0] * cb + T[0, 1] * rb + T[0, 2]).astype(np.int64)
+        r = np.rint(T[1, 0] * cb + T[1, 1] * rb + T[1, 2]).astype(np.int64)
+        h, w = wall_a.shape
+        ok = (c >= 0) & (c < w) & (r >= 0) & (r < h)
+        near = cv2.dilate(wall_a.view(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+        ok[ok] = near[r[ok], c[ok]]
+        ang = 0.5 * np.arctan2(2.0 * j[2][r[ok], c[ok]], j[0][r[ok], c[ok]] - j[1][r[ok], c[ok]])
+        u = np.stack([np.cos(ang), np.sin(ang)], axis=1).astype(np.float64)
+        return float(np.linalg.eigvalsh(u.T @ u)[0]) if ok.any() else 0.0
+
+    a, b, T_ab = office_pair
+    wa, wb = a >= OCCUPIED, b >= OCCUPIED
+    rng = np.random.default_rng(0)
+    poses = [np.asarray(T_ab)] + [
+        make_transform(rng.uniform(-3, 3), rng.uniform(-40, 200), rng.uniform(-40, 200))
+        for _ in range(10)
+    ]
+    for T in poses:
+        assert cross_support(wa, wb, T) == pytest.approx(whole(wa, wb, T), rel=1e-5, abs=1e-6)
+
+
+def test_shared_space_on_a_window_equals_the_whole_warp(
+    office_pair: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    """_SharedSpace warps only the window of a that b can cover: the same count as warping b
+    onto the whole of a."""
+    import cv2
+
+    from mrexplore.grid import make_transform
+    from mrexplore.merge.semantic import _SharedSpace
+
+    a, b, T_ab = office_pair
+    shared = _SharedSpace(a, b)
+    rng = np.random.default_rng(1)
+    poses = [np.asarray(T_ab), make_transform(0.0, 1e4, 0.0)] + [
+        make_transform(rng.uniform(-3, 3), rng.uniform(-60, 200), rng.uniform(-60, 200))
+        for _ in range(10)
+    ]
+    for T in poses:
+        full = cv2.warpAffine(
+            shared.known_b, T[:2], shared.size, flags=cv2.INTER_NEAREST, borderValue=0
+        )
+        assert shared(T) == int(cv2.countNonZero(cv2.bitwise_and(full, shared.known_a)))
+
+
+def test_verifiers_sharing_map_codes_count_as_their_own() -> None:
+    """Verifiers of one merge share each map's masks (MapCodes): the same counts as verifiers
+    that code the maps themselves, for every tolerance, slack and sample budget."""
+    from mrexplore.grid import make_transform
+    from mrexplore.merge.common import MapCodes, Verifier
+
+    rng = np.random.default_rng(2)
+    a = np.where(rng.random((120, 140)) < 0.1, OCCUPIED, 0).astype(np.int8)
+    a[:, :20] = UNKNOWN
+    b = np.where(rng.random((90, 100)) < 0.1, OCCUPIED, 0).astype(np.int8)
+    ca, cb = MapCodes(a), MapCodes(b)
+    T = make_transform(0.3, 12.0, -5.0)
+    for kw in ({}, {"max_samples": 200}, {"tolerance": 3}, {"slack": 2}):
+        own, shared = Verifier(a, b, **kw), Verifier(ca, cb, **kw)
+        assert own(T) == shared(T)
+        assert own.structured(T, 5) == shared.structured(T, 5)
+        np.testing.assert_array_equal(own.points_b, shared.points_b)
+
+
 def test_min_cross_cells_refuses_a_match_on_one_wall(
     office_pair: tuple[np.ndarray, np.ndarray, np.ndarray],
 ) -> None:

@@ -116,9 +116,10 @@ def info_arrays(rows: list[list[dict[str, Any]]]) -> dict[str, NDArray[Any]]:
     are not bool, int or float, e.g. ``extra``)."""
     n, r = len(rows), len(rows[0])
     out: dict[str, NDArray[Any]] = {}
-    for key in rows[0][0]:
+    for key, first in rows[0][0].items():
         vals = [inf[key] for row in rows for inf in row]
-        if all(isinstance(v, (bool, int, float, np.number, np.bool_)) for v in vals):
+        # an info key keeps its type on every step and copy (docs/clients.md): the first decides
+        if isinstance(first, (bool, int, float, np.number, np.bool_)):
             out[key] = np.asarray(vals).reshape(n, r)
         else:
             arr = np.empty(n * r, dtype=object)

@@ -15,7 +15,7 @@ per second, world-steps/s and robot-steps/s, p50 / p99 / max CPU time of one bat
 N worlds, auto-resets included), and robot-steps per second of the process's CPU time, which
 here also counts the shared merge worker thread (the stepping thread's time does not: it waits
 for that worker, it does not compute the attempts). Each row takes ``--steps // N`` batched
-steps (at least 100; ``--batched-steps`` sets it).
+steps (at least 100; ``--batched-steps`` sets it); ``--evaluate 1,0`` applies to these rows too.
 
 Settings: ``symmetric_office`` (0.05 m/cell, 360 beams, 4 m, merging on) for ``--robots``
 (default 1, 2, 4, 8), and two robots on the Explore-Bench-sized world (250 x 250 cells,
@@ -332,12 +332,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     if batched:
         print(BATCHED_HEADER)
     for n in batched:
-        name = f"batched, N = {n} worlds x 2 robots, merger {merger}"
-        opts = {**DEFAULT_WORLD, "n_robots": 2, "merger": merger}
-        b_steps = args.batched_steps or max(100, args.steps // n)
-        r = measure_batched(n, b_steps, args.seed, warmup=min(10, b_steps), **opts)
-        results[name] = r
-        print(batched_row(name, r), flush=True)
+        for evaluate in evaluates:
+            name = f"batched, N = {n} worlds x 2 robots, merger {merger}"
+            b_opts: dict[str, Any] = {**DEFAULT_WORLD, "n_robots": 2, "merger": merger}
+            if evaluate is not None:
+                name = f"{name}, evaluate {int(evaluate)}"
+                b_opts["evaluate"] = evaluate
+            b_steps = args.batched_steps or max(100, args.steps // n)
+            r = measure_batched(n, b_steps, args.seed, warmup=min(10, b_steps), **b_opts)
+            results[name] = r
+            print(batched_row(name, r), flush=True)
     if args.breakdown:
         r = measure(args.steps, args.seed, breakdown=True, **{**DEFAULT_WORLD, "merger": merger})
         ms = r["ms_per_step"]

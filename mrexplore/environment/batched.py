@@ -203,6 +203,13 @@ class BatchedExploreEnv:
     ) -> tuple[NDArray[Any], list[list[dict[str, Any]]]]:
         """Reset every copy (copy k with ``seed + k``); observations (N, R, ...) and the infos
         per copy and robot (the env's dicts)."""
+        if options and "reset_mask" in options:
+            # Gymnasium's partial reset serves the next-step and disabled autoreset modes; here a
+            # finished world is reset inside the step that ends it.
+            raise ConfigError(
+                "reset: options['reset_mask'] is not supported (same-step auto-reset: every "
+                "world is reset by the step that ends it)"
+            )
         seeds = _seeds(seed, self.num_envs)
         obs = np.empty((self.num_envs, self.n_robots, *self._obs_shape), dtype=self._obs_dtype)
         infos: list[list[dict[str, Any]]] = []

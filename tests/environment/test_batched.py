@@ -183,4 +183,22 @@ def test_bad_options_and_actions() -> None:
         venv.step(np.zeros(2, dtype=np.int64))
     with pytest.raises(ValueError, match="action"):
         venv.step(np.full((2, 2), 7))
+    with pytest.raises(ConfigError, match="reset_mask"):
+        venv.reset(options={"reset_mask": np.array([True, False])})
+    venv.close()
+
+
+def test_gymnasium_vector_wrappers_read_the_autoreset_mode() -> None:
+    """RecordEpisodeStatistics takes the same-step mode from the metadata and counts episodes."""
+    from gymnasium.wrappers.vector import RecordEpisodeStatistics
+
+    venv = RecordEpisodeStatistics(
+        mrexplore.vector_env(num_envs=2, n_robots=1, world=WORLD, max_cycles=3)
+    )
+    venv.reset(seed=0)
+    for _ in range(3):
+        *_, infos = venv.step(np.array([0, 3]))
+    assert infos["_episode"].all()
+    np.testing.assert_array_equal(infos["episode"]["l"], [3, 3])
+    np.testing.assert_allclose(infos["episode"]["r"], [-0.75, -0.75])
     venv.close()

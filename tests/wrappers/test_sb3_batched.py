@@ -61,6 +61,23 @@ def test_batched_vec_env_equals_the_parallel_env_vec_env() -> None:
     ref.close()
 
 
+def test_one_robot_per_world_through_the_batched_adapter() -> None:
+    opts = {**OPTS, "n_robots": 1}
+    venv = make_vec_env(n_copies=2, seed=1, batched=True, **opts)
+    ref = make_vec_env(n_copies=2, seed=1, **opts)
+    _same(venv.reset(), ref.reset(), "reset")
+    for t in range(12):
+        act = np.array([t % 4, 0])
+        for x, y, name in zip(venv.step(act), ref.step(act), "orde", strict=True):
+            if name == "e":
+                for i, (a, b) in enumerate(zip(x, y, strict=True)):
+                    _same(a, b, f"step {t} info {i}")
+            else:
+                _same(x, y, f"step {t} {name}")
+    venv.close()
+    ref.close()
+
+
 def test_vec_env_contract_of_the_batched_adapter() -> None:
     venv = make_vec_env(n_copies=2, seed=0, batched=True, **OPTS)
     assert isinstance(venv, VecEnv) and isinstance(venv, ParallelEnvVecEnv)

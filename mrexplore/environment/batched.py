@@ -1,6 +1,6 @@
 """N worlds stepped in one call: the batched env for training (:func:`mrexplore.vector_env`).
 
->>> import mrexplore
+>>> import numpy as np, mrexplore
 >>> venv = mrexplore.vector_env(num_envs=3, world="small_office", n_robots=2, max_cycles=4)
 >>> obs, infos = venv.reset(seed=0)
 >>> obs.shape, infos["coverage"].shape
@@ -23,7 +23,8 @@ seeding                ``reset(seed=s)``: copy k is reset with ``s + k`` (as ``m
 actions                int (N, R) (``ExploreVectorEnv``: (N,)), each in ``Discrete(4)``
 observations           (N, R, C, H, W) uint8 by default; ``obs_layout``/``obs_dtype`` respected
                        (``hwc``: (N, R, H, W, C)); a fresh array every call
-rewards                float32 (N, R) (the team reward on every robot of a copy)
+rewards                float32 (N, R) (the team reward on every robot of a copy;
+                       ``ExploreVectorEnv``: float64 (N,), as Gymnasium's vector envs)
 terminations, truncs   bool (N, R) (a copy's robots end together)
 infos                  a dict of arrays, Gymnasium's vector style: each flat info key
                        (:data:`~mrexplore.environment.infos.INFO_KEYS`) -> (N, R) array (bool,
@@ -46,8 +47,8 @@ merge worker           one single-thread executor for all copies' delayed merge 
 
 The copies are stepped one after the other in this process. What was measured before deciding
 not to fuse the numba calls of all robots of all worlds into one call: ``docs/speed.md``
-("The batched env"); the call overhead is a few per cent of a step, the work inside the
-kernels is the same either way.
+("The batched env"): the dispatch of a world-step's 11 kernel calls costs ~10-15 us of its
+~1.4 ms (under 1 %), and the work inside the kernels is the same either way.
 """
 
 from __future__ import annotations

@@ -2,6 +2,7 @@
 
     python scripts/ppo_split.py                       # 8 worlds x 2 robots, 8,192 robot-steps
     python scripts/ppo_split.py --copies 8 --timesteps 16384
+    python scripts/ppo_split.py --unbatched           # the same through separate copies
 
 Trains stable-baselines3 PPO exactly as ``mrexplore train --algo ppo`` sets it up (the
 ``mrexplore/configs/ppo.yaml`` policy, env options and hyperparameters, one torch thread), but
@@ -51,6 +52,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--timesteps", type=int, default=8192, help="robot-steps to train (8192)")
     p.add_argument("--n-steps", type=int, default=None, help="PPO n_steps per slot (ppo.yaml)")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--unbatched",
+        action="store_true",
+        help="through make_vec_env's default adapter (separate copies) instead, for comparison",
+    )
     args = p.parse_args(argv)
 
     import torch
@@ -68,7 +74,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     hyper = dict(cfg["hyperparams"])
     if args.n_steps is not None:
         hyper["n_steps"] = args.n_steps
-    inner = make_vec_env(n_copies=args.copies, seed=args.seed, batched=True, **env_opts)
+    batched = not args.unbatched
+    inner = make_vec_env(n_copies=args.copies, seed=args.seed, batched=batched, **env_opts)
     acc: dict[str, float] = defaultdict(float)
     inner.step_wait = _timed(inner.step_wait, acc, "env")  # type: ignore[method-assign]
     venv = VecMonitor(inner)
@@ -97,7 +104,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(
         f"PPO ({cfg['policy']}, ppo.yaml hyperparameters, n_steps {hyper['n_steps']} x "
         f"{slots} slots = {rollout} robot-steps per rollout, {hyper['n_epochs']} epochs, "
-        f"batch {hyper['batch_size']}) through the batched env: {args.copies} worlds x "
+        f"batch {hyper['batch_size']}) through the "
+        f"{'batched env' if batched else 'default adapter (separate copies)'}: "
+        f"{args.copies} worlds x "
         f"{args.robots} robots, world {env_opts['world']}; {model.num_timesteps} robot-steps; "
         f"torch threads {torch.get_num_threads()}; load average {load[0]:.2f} {load[1]:.2f}"
     )

@@ -460,7 +460,10 @@ def make_vec_env(
     render_mode = env_options.pop("render_mode", None)
     if batched:
         if use_subprocess:
-            raise ConfigError("make_vec_env: batched=True runs in this process (use_subprocess)")
+            raise ConfigError(
+                "make_vec_env: batched=True steps every copy in this process; it cannot be "
+                "combined with use_subprocess=True"
+            )
         from mrexplore.environment.batched import BatchedExploreEnv
 
         bvenv = BatchedVecEnv(BatchedExploreEnv(n_copies, render_mode=render_mode, **env_options))

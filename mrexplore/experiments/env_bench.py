@@ -14,8 +14,12 @@ threads OpenCV spreads some calls over (the stepping thread's time does not).
 per second, world-steps/s and robot-steps/s, p50 / p99 / max CPU time of one batched step (all
 N worlds, auto-resets included), and robot-steps per second of the process's CPU time, which
 here also counts the shared merge worker thread (the stepping thread's time does not: it waits
-for that worker, it does not compute the attempts). Each row takes ``--steps // N`` batched
-steps (at least 100; ``--batched-steps`` sets it); ``--evaluate 1,0`` applies to these rows too.
+for that worker, it does not compute the attempts). Every row takes the same number of batched
+steps (``--batched-steps``, 200) after 20 untimed ones, and world k draws its actions from a
+stream seeded ``seed + k`` as :func:`measure` does: each world is timed over the same steps of
+the same trajectory whatever N (world 0's is the per-env row's with ``--steps 200``), since a
+step's cost changes along an episode (maps grow, merges happen) and with where the robots go.
+``--evaluate 1,0`` applies to these rows too.
 
 Settings: ``symmetric_office`` (0.05 m/cell, 360 beams, 4 m, merging on) for ``--robots``
 (default 1, 2, 4, 8), and two robots on the Explore-Bench-sized world (250 x 250 cells,
@@ -128,9 +132,9 @@ def measure(
 
 def measure_batched(
     num_envs: int,
-    steps: int = 100,
+    steps: int = 200,
     seed: int = 0,
-    warmup: int = 10,
+    warmup: int = 20,
     **options: Any,
 ) -> dict[str, Any]:
     """Step ``vector_env(num_envs, **options)`` (a team) ``steps`` times with seeded random
@@ -145,15 +149,19 @@ def measure_batched(
 
     venv = BatchedExploreEnv(num_envs, **options)
     try:
-        rng = np.random.default_rng(seed)
+        # World k draws its actions from its own stream seeded seed + k, one robot at a time
+        # as measure() does: world 0 gets the actions of measure()'s env and world k the same
+        # actions whatever N, so rows time the same trajectories (a step's cost depends on
+        # where the robots go).
+        rngs = [np.random.default_rng(seed + k) for k in range(venv.num_envs)]
         venv.reset(seed=seed)
         n_act = int(venv.single_action_space.n)
-        shape = (venv.num_envs, venv.n_robots)
+        r = venv.n_robots
         lat = np.zeros(steps, dtype=np.float64)
         proc = 0.0
         ended = 0
         for k in range(-warmup, steps):
-            actions = rng.integers(n_act, size=shape)
+            actions = np.array([[int(g.integers(n_act)) for _ in range(r)] for g in rngs])
             p0 = time.process_time()
             t0 = time.thread_time()
             out = venv.step(actions)
@@ -249,13 +257,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--batched",
         default=None,
         help="comma-separated numbers of worlds N for the batched env (vector_env, 2 robots, "
-        "symmetric_office), e.g. 1,8,32; each row takes --steps // N batched steps (>= 100)",
+        "symmetric_office), e.g. 1,8,32; each row takes --batched-steps batched steps",
     )
     p.add_argument(
         "--batched-steps",
         type=int,
-        default=None,
-        help="batched steps per --batched row (default: --steps // N, at least 100)",
+        default=200,
+        help="batched steps per --batched row, the same for every N (default 200)",
     )
     p.add_argument(
         "--batched-only", action="store_true", help="with --batched: skip the per-env table"
@@ -301,7 +309,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise ConfigError(
                 f"bench env: --batched must be integers >= 1 (worlds), got {args.batched!r}"
             )
-    if args.batched_steps is not None and args.batched_steps < 1:
+    if args.batched_steps < 1:
         raise ConfigError(
             f"bench env: --batched-steps must be at least 1, got {args.batched_steps}"
         )
@@ -338,8 +346,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             if evaluate is not None:
                 name = f"{name}, evaluate {int(evaluate)}"
                 b_opts["evaluate"] = evaluate
-            b_steps = args.batched_steps or max(100, args.steps // n)
-            r = measure_batched(n, b_steps, args.seed, warmup=min(10, b_steps), **b_opts)
+            b_steps = args.batched_steps
+            r = measure_batched(n, b_steps, args.seed, **b_opts)
             results[name] = r
             print(batched_row(name, r), flush=True)
     if args.breakdown:

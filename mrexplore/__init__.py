@@ -18,12 +18,13 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # pragma: no cover
+    from mrexplore.environment.batched import BatchedExploreEnv, ExploreVectorEnv
     from mrexplore.environment.goal_actions import GoalActionEnv
     from mrexplore.environment.parallel_env import MultiRobotExplorationEnv
 
 __version__ = "0.1.0"
 
-__all__ = ["__version__", "env", "parallel_env", "raw_env"]
+__all__ = ["__version__", "env", "parallel_env", "raw_env", "vector_env"]
 
 
 #: Options of the goal level (``mrexplore.environment.goal_actions.GOAL_OPTIONS``, kept here so
@@ -52,6 +53,33 @@ def parallel_env(
     _, goal, low_options = split_options(options)
     low = MultiRobotExplorationEnv(render_mode=render_mode, **low_options)
     return low if goal is None else GoalActionEnv(low, goal)
+
+
+def vector_env(
+    num_envs: int = 1, render_mode: str | None = None, **options: Any
+) -> ExploreVectorEnv | BatchedExploreEnv:
+    """``num_envs`` worlds stepped in one call, for training (:mod:`mrexplore.environment.batched`).
+
+    ``n_robots=1``: a ``gymnasium.vector.VectorEnv`` (:class:`ExploreVectorEnv`, observations
+    (N, C, H, W)); a team (the default, 2 robots): a :class:`BatchedExploreEnv` with arrays
+    (N, R, ...). Both auto-reset in the same step (``final_obs`` / ``final_info`` in the infos);
+    ``reset(seed=s)`` seeds world k with ``s + k``. The options are those of
+    :func:`parallel_env` (low-level actions only). For stable-baselines3:
+    ``mrexplore.wrappers.make_vec_env(n_copies=N, batched=True, ...)``.
+
+    Raises:
+        ConfigError: ``num_envs`` not an integer >= 1, or a bad env option.
+    """
+    from mrexplore.environment.batched import (
+        BatchedExploreEnv,
+        ExploreVectorEnv,
+        check_num_envs,
+    )
+
+    check_num_envs(num_envs)
+    if options.get("n_robots", 2) == 1:
+        return ExploreVectorEnv(num_envs, render_mode=render_mode, **options)
+    return BatchedExploreEnv(num_envs, render_mode=render_mode, **options)
 
 
 def env(render_mode: str | None = None, **options: Any) -> Any:

@@ -8,7 +8,13 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["EnvConfig", "MultiRobotExplorationEnv", "RobotView"]
+__all__ = [
+    "BatchedExploreEnv",
+    "EnvConfig",
+    "ExploreVectorEnv",
+    "MultiRobotExplorationEnv",
+    "RobotView",
+]
 
 
 def __getattr__(name: str) -> Any:
@@ -20,6 +26,10 @@ def __getattr__(name: str) -> Any:
         from mrexplore.environment.parallel_env import MultiRobotExplorationEnv
 
         return MultiRobotExplorationEnv
+    if name in ("BatchedExploreEnv", "ExploreVectorEnv"):
+        from mrexplore.environment import batched
+
+        return getattr(batched, name)
     if name == "RobotView":
         from mrexplore.types import RobotView
 

@@ -48,6 +48,7 @@ from __future__ import annotations
 import copy
 import math
 from collections.abc import Callable
+from concurrent.futures import Executor
 from typing import Any, ClassVar
 
 import gymnasium
@@ -102,8 +103,10 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
     Options: :class:`~mrexplore.environment.config.EnvConfig` (the task among them: a name or
     a :class:`~mrexplore.environment.task.Task` object). Parts with defaults, as jumanji's envs
     take theirs: ``radio`` (a :class:`~mrexplore.environment.radio.Radio`; default: one with
-    ``comm_range_m``) and ``viewer`` (``FrameSnapshot -> RGB frame``; default
-    :func:`mrexplore.render.render_frame`).
+    ``comm_range_m``), ``viewer`` (``FrameSnapshot -> RGB frame``; default
+    :func:`mrexplore.render.render_frame`) and ``merge_executor`` (the worker thread of delayed
+    merge attempts, which the caller owns and may share between env copies, as the batched env
+    of :mod:`mrexplore.environment.batched` does; default: a private one made on first use).
     """
 
     metadata: ClassVar[dict[str, Any]] = {
@@ -119,6 +122,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         *,
         radio: Radio | None = None,
         viewer: Callable[[FrameSnapshot], NDArray[np.uint8]] | None = None,
+        merge_executor: Executor | None = None,
         **options: Any,
     ) -> None:
         self.config = cfg = EnvConfig.from_kwargs(**options)
@@ -151,6 +155,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
             merge_latency_steps=cfg.merge_latency_steps,
             merge_options=cfg.merge_options,
             resolution_m=self._resolution_m,
+            executor=merge_executor,
         )
         self._obs_builder = ObservationBuilder(
             self._resolution_m,

@@ -9,6 +9,18 @@ included: they run inside a step). Episodes that end are reset (not timed).
 The last column, steps per second of the whole process's CPU time, also counts the worker
 threads OpenCV spreads some calls over (the stepping thread's time does not).
 
+``--batched 1,8,32`` adds the batched env (:func:`mrexplore.vector_env`, 2 robots on
+``symmetric_office``, merging on, default options) at each number of worlds N: batched steps
+per second, world-steps/s and robot-steps/s, p50 / p99 / max CPU time of one batched step (all
+N worlds, auto-resets included), and robot-steps per second of the process's CPU time, which
+here also counts the shared merge worker thread (the stepping thread's time does not: it waits
+for that worker, it does not compute the attempts). Every row takes the same number of batched
+steps (``--batched-steps``, 200) after 20 untimed ones, and world k draws its actions from a
+stream seeded ``seed + k`` as :func:`measure` does: each world is timed over the same steps of
+the same trajectory whatever N (world 0's is the per-env row's with ``--steps 200``), since a
+step's cost changes along an episode (maps grow, merges happen) and with where the robots go.
+``--evaluate 1,0`` applies to these rows too.
+
 Settings: ``symmetric_office`` (0.05 m/cell, 360 beams, 4 m, merging on) for ``--robots``
 (default 1, 2, 4, 8), and two robots on the Explore-Bench-sized world (250 x 250 cells,
 0.1 m/cell, 3 m). ``--breakdown`` also times the stages of the default 2-robot step by wrapping
@@ -118,6 +130,83 @@ def measure(
     return out
 
 
+def measure_batched(
+    num_envs: int,
+    steps: int = 200,
+    seed: int = 0,
+    warmup: int = 20,
+    **options: Any,
+) -> dict[str, Any]:
+    """Step ``vector_env(num_envs, **options)`` (a team) ``steps`` times with seeded random
+    actions after ``warmup`` untimed steps; CPU-time figures of one batched step.
+
+    Returns a dict: ``num_envs``, ``n_robots``, ``steps`` (batched), ``episodes_ended``,
+    ``cpu_s`` (stepping thread), ``batch_steps_per_s``, ``world_steps_per_s``,
+    ``robot_steps_per_s``, ``p50_ms`` / ``p99_ms`` / ``max_ms`` (one batched step),
+    ``process_cpu_s`` and ``robot_steps_per_process_cpu_s`` (all threads: the merge worker too).
+    """
+    from mrexplore.environment.batched import BatchedExploreEnv
+
+    venv = BatchedExploreEnv(num_envs, **options)
+    try:
+        # World k draws its actions from its own stream seeded seed + k, one robot at a time
+        # as measure() does: world 0 gets the actions of measure()'s env and world k the same
+        # actions whatever N, so rows time the same trajectories (a step's cost depends on
+        # where the robots go).
+        rngs = [np.random.default_rng(seed + k) for k in range(venv.num_envs)]
+        venv.reset(seed=seed)
+        n_act = int(venv.single_action_space.n)
+        r = venv.n_robots
+        lat = np.zeros(steps, dtype=np.float64)
+        proc = 0.0
+        ended = 0
+        for k in range(-warmup, steps):
+            actions = np.array([[int(g.integers(n_act)) for _ in range(r)] for g in rngs])
+            p0 = time.process_time()
+            t0 = time.thread_time()
+            out = venv.step(actions)
+            if k >= 0:
+                lat[k] = time.thread_time() - t0
+                proc += time.process_time() - p0
+                ended += int(np.count_nonzero(out[2][:, 0] | out[3][:, 0]))
+    finally:
+        venv.close()
+    total = float(lat.sum())
+    robot_steps = steps * venv.num_envs * venv.n_robots
+    return {
+        "options": dict(options),
+        "num_envs": venv.num_envs,
+        "n_robots": venv.n_robots,
+        "steps": steps,
+        "episodes_ended": ended,
+        "cpu_s": total,
+        "batch_steps_per_s": steps / total,
+        "world_steps_per_s": steps * venv.num_envs / total,
+        "robot_steps_per_s": robot_steps / total,
+        "process_cpu_s": proc,
+        "robot_steps_per_process_cpu_s": robot_steps / proc,
+        "p50_ms": 1000.0 * float(np.percentile(lat, 50)),
+        "p99_ms": 1000.0 * float(np.percentile(lat, 99)),
+        "max_ms": 1000.0 * float(lat.max()),
+    }
+
+
+BATCHED_HEADER = (
+    f"{'batched env, 2 robots, symmetric_office (stepping thread)':<58} {'batch/s':>8} "
+    f"{'world-st/s':>10} {'robot-st/s':>10} {'p50 ms':>7} {'p99 ms':>7} {'max ms':>7} "
+    f"{'robot-st/proc-s':>15}"
+)
+
+
+def batched_row(label: str, r: dict[str, Any]) -> str:
+    """One printed line of a result of :func:`measure_batched`."""
+    return (
+        f"{label:<58} {r['batch_steps_per_s']:>8.1f} {r['world_steps_per_s']:>10.0f} "
+        f"{r['robot_steps_per_s']:>10.0f} {r['p50_ms']:>7.2f} {r['p99_ms']:>7.2f} "
+        f"{r['max_ms']:>7.1f} {r['robot_steps_per_process_cpu_s']:>15.0f}"
+    )
+
+
 def row(label: str, r: dict[str, Any]) -> str:
     """One printed line of a result of :func:`measure`."""
     return (
@@ -164,6 +253,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="comma-separated values of the env's evaluate option (1 or 0), each measured in "
         "turn (default: the env's, 1); 1,0 puts the truth monitor on and off side by side",
     )
+    p.add_argument(
+        "--batched",
+        default=None,
+        help="comma-separated numbers of worlds N for the batched env (vector_env, 2 robots, "
+        "symmetric_office), e.g. 1,8,32; each row takes --batched-steps batched steps",
+    )
+    p.add_argument(
+        "--batched-steps",
+        type=int,
+        default=200,
+        help="batched steps per --batched row, the same for every N (default 200)",
+    )
+    p.add_argument(
+        "--batched-only", action="store_true", help="with --batched: skip the per-env table"
+    )
     p.add_argument("--breakdown", action="store_true", help="also time the stages (2 robots)")
     p.add_argument("--json", default=None, help="also write the figures to this JSON file")
     p.add_argument("--force", action="store_true", help="replace an existing --json file")
@@ -195,6 +299,22 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not words or any(w not in ("0", "1") for w in words):
             raise ConfigError(f"bench env: --evaluate must be 1 and/or 0, got {args.evaluate!r}")
         evaluates = [w == "1" for w in words]
+    batched: list[int] = []
+    if args.batched is not None:
+        try:
+            batched = [int(v) for v in args.batched.split(",") if v.strip()]
+        except ValueError:
+            batched = []
+        if not batched or min(batched) < 1:
+            raise ConfigError(
+                f"bench env: --batched must be integers >= 1 (worlds), got {args.batched!r}"
+            )
+    if args.batched_steps < 1:
+        raise ConfigError(
+            f"bench env: --batched-steps must be at least 1, got {args.batched_steps}"
+        )
+    if args.batched_only and not batched:
+        raise ConfigError("bench env: --batched-only needs --batched")
     if args.json:
         check_outputs([args.json], force=args.force, what="mrexplore bench env")
     merger = None if args.merger.lower() == "none" else args.merger
@@ -202,9 +322,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"mrexplore bench env: {args.steps} random-action steps per setting, seed {args.seed}, "
         f"merger {merger}; figures are CPU time of the stepping thread"
     )
-    print(HEADER)
     results: dict[str, Any] = {}
-    for latency in latencies:
+    if not args.batched_only:
+        print(HEADER)
+    for latency in latencies if not args.batched_only else []:
         for label, opts in settings(robots, merger):
             if latency is not None:
                 label = f"{label}, latency {latency}"
@@ -216,6 +337,19 @@ def main(argv: Sequence[str] | None = None) -> int:
                 r = measure(args.steps, args.seed, **o)
                 results[name] = r
                 print(row(name, r), flush=True)
+    if batched:
+        print(BATCHED_HEADER)
+    for n in batched:
+        for evaluate in evaluates:
+            name = f"batched, N = {n} worlds x 2 robots, merger {merger}"
+            b_opts: dict[str, Any] = {**DEFAULT_WORLD, "n_robots": 2, "merger": merger}
+            if evaluate is not None:
+                name = f"{name}, evaluate {int(evaluate)}"
+                b_opts["evaluate"] = evaluate
+            b_steps = args.batched_steps
+            r = measure_batched(n, b_steps, args.seed, **b_opts)
+            results[name] = r
+            print(batched_row(name, r), flush=True)
     if args.breakdown:
         r = measure(args.steps, args.seed, breakdown=True, **{**DEFAULT_WORLD, "merger": merger})
         ms = r["ms_per_step"]

@@ -145,11 +145,25 @@ def train(
         env_opts["n_robots"] = _check_int("n_robots", n_robots, 1)
     copies = _check_int("n_copies", n_copies if n_copies is not None else cfg.get("n_copies", 1), 1)
     use_subprocess = bool(cfg.get("use_subprocess", False))
+    # ``batched: true``: the copies as one batched env (make_vec_env(batched=True): one engine,
+    # one merge worker for all copies; the same slots, seeds and results)
+    batched = bool(cfg.get("batched", False))
+    if batched and (use_subprocess or worlds):
+        raise ConfigError(
+            "train: batched: true takes one world spec for every copy, in this process "
+            "(not with use_subprocess or a worlds list)"
+        )
     out = check_out_dir(out, force=force, what="mrexplore train")
     from mrexplore.environment.config import EnvConfig
     from mrexplore.environment.goal_actions import split_options
 
-    _, _, low_opts = split_options(env_opts)  # goal-level options apart (action_mode="goal")
+    _, goal_opts, low_opts = split_options(
+        env_opts
+    )  # goal-level options apart (action_mode="goal")
+    if batched and goal_opts is not None:
+        raise ConfigError(
+            "train: batched: true batches the low-level env only, not action_mode='goal'"
+        )
     EnvConfig.from_kwargs(**{k: v for k, v in low_opts.items() if k != "world"})  # options check
     out.mkdir(parents=True, exist_ok=True)
     config = {
@@ -159,6 +173,7 @@ def train(
         "policy": cfg["policy"],
         "n_copies": copies,
         "use_subprocess": use_subprocess,
+        "batched": batched,
         "env": env_opts,
         **({"worlds": worlds} if worlds else {}),
         "hyperparams": cfg["hyperparams"],
@@ -192,7 +207,13 @@ def train(
         inner: Any = ParallelEnvVecEnv(fns, use_subprocess=use_subprocess)
         inner.seed(seed)
     else:
-        inner = make_vec_env(n_copies=copies, use_subprocess=use_subprocess, seed=seed, **env_opts)
+        inner = make_vec_env(
+            n_copies=copies,
+            use_subprocess=use_subprocess,
+            seed=seed,
+            batched=batched,
+            **env_opts,
+        )
     if algo in CONTRIB_ALGOS:
         from mrexplore.wrappers.action_masks import VecActionMasks
 

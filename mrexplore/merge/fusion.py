@@ -11,6 +11,7 @@ agents can talk (``links``), and the step counter.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import Executor
 from typing import Any
 
 import numpy as np
@@ -40,6 +41,8 @@ class FusionStage:
         merge_options: extra keyword options for the merge method.
         resolution_m: metres per cell of the maps; passed to the ``"semantic"`` merger (its
             minimum common area is in m^2) unless ``merge_options`` sets it.
+        executor: the worker thread for delayed attempts, shared with other stages (see
+            :class:`~mrexplore.merge.MapMergeTracker`); None: the tracker's own.
     """
 
     def __init__(
@@ -51,6 +54,7 @@ class FusionStage:
         merge_latency_steps: int = 0,
         merge_options: Mapping[str, Any] | None = None,
         resolution_m: float | None = None,
+        executor: Executor | None = None,
     ) -> None:
         self.agents = list(agents)
         self.index = {a: i for i, a in enumerate(self.agents)}
@@ -81,6 +85,7 @@ class FusionStage:
                 merge_every=merge_every,
                 recheck_every=recheck_every,
                 merge_latency_steps=merge_latency_steps,
+                executor=executor,
                 **options,
             )
 

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable, Sequence
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Executor, Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -160,6 +160,10 @@ class MapMergeTracker:
             waits for the merger (default 0: computed and applied in the step that starts it).
             A fixed delay, not "when ready": the same seed gives the same run on any machine.
             With a delay, at most one attempt or re-check starts per step.
+        executor: the worker for delayed attempts (e.g. one single-thread executor shared by
+            the trackers of many env copies, :mod:`mrexplore.environment.batched`); the caller
+            owns it. Default None: a private single-thread worker made on first use. The
+            schedule stays fixed either way, so the run does not depend on the worker.
         **merge_options: options for the named merger (validated at construction).
 
     >>> import numpy as np
@@ -183,6 +187,7 @@ class MapMergeTracker:
         retry_growth: float = 0.02,
         confirm_growth: float = 0.0,
         merge_latency_steps: int = 0,
+        executor: Executor | None = None,
         **merge_options: Any,
     ) -> None:
         for name, value, check in (
@@ -208,7 +213,8 @@ class MapMergeTracker:
         self.retry_growth = float(retry_growth)
         self.confirm_growth = float(confirm_growth)
         self.merge_latency_steps = int(merge_latency_steps)
-        self._pool: ThreadPoolExecutor | None = None  # made on first use (not pickled)
+        # made on first use unless given (not pickled: an unpickled tracker makes its own)
+        self._pool: Executor | None = executor
         self._jobs: list[_Job] = []
         self._merge = _resolve_merger(merger, dict(merge_options))
         self._merger_obj = merger

@@ -5,8 +5,9 @@
   ``own_pose_cell(agent)``).
 * :class:`SingleRobotExploreEnv` (:mod:`.single`): ``gymnasium.make("mrexplore/Explore-v0")``.
 * :class:`ParallelEnvVecEnv`, :func:`make_vec_env` (:mod:`.sb3_vec`): a ``ParallelEnv`` as an SB3
-  ``VecEnv``, one slot per robot, one shared policy. Needs stable-baselines3 (``pip install
-  mrexplore[train]``).
+  ``VecEnv``, one slot per robot, one shared policy; :class:`BatchedVecEnv` (``make_vec_env(...,
+  batched=True)``) the same over the batched env of :func:`mrexplore.vector_env`. Needs
+  stable-baselines3 (``pip install mrexplore[train]``).
 * :class:`VecActionMasks` (:mod:`.action_masks`): per-slot ``action_masks`` for sb3-contrib's
   ``MaskablePPO`` from the goal-level env's ``action_mask`` observations.
 
@@ -19,6 +20,7 @@ from __future__ import annotations
 from typing import Any
 
 __all__ = [
+    "BatchedVecEnv",
     "MapMergeWrapper",
     "ParallelEnvVecEnv",
     "SingleRobotExploreEnv",
@@ -33,6 +35,7 @@ _WHERE = {
     "SingleRobotExploreEnv": "mrexplore.wrappers.single",
     "ParallelEnvVecEnv": "mrexplore.wrappers.sb3_vec",
     "make_vec_env": "mrexplore.wrappers.sb3_vec",
+    "BatchedVecEnv": "mrexplore.wrappers.sb3_vec",
     "VecActionMasks": "mrexplore.wrappers.action_masks",
 }
 

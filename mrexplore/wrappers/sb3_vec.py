@@ -342,11 +342,99 @@ class ParallelEnvVecEnv(VecEnv):
         return [int(i) for i in indices]
 
 
+class BatchedVecEnv(ParallelEnvVecEnv):
+    """The batched env (:class:`~mrexplore.environment.batched.BatchedExploreEnv`) as an SB3
+    ``VecEnv``, with the contract of :class:`ParallelEnvVecEnv` (slot ``k * R + j`` = robot j
+    of world k, ``terminal_observation``, ``TimeLimit.truncated``, ``reset_infos``, seeds
+    ``seed + k``), so a run through it is the same run as through ``ParallelEnvVecEnv`` over
+    separate copies (a test checks it). What differs: the worlds are stepped by one engine
+    in this process and their delayed merge attempts share one worker thread.
+
+    Args:
+        batch: the batched env (closed with this ``VecEnv``).
+    """
+
+    def __init__(self, batch: Any) -> None:
+        self.batch = batch
+        self.use_subprocess = False
+        self.closed = False
+        self.waiting = False
+        # The copies as CopyRunners serve get_attr / set_attr / env_method / render.
+        self._copies = [CopyRunner(e) for e in batch.envs]
+        self.n_copies = batch.num_envs
+        self.agents_per_copy = batch.n_robots
+        self.possible_agents = list(batch.possible_agents)
+        self._actions = None
+        VecEnv.__init__(
+            self,
+            self.n_copies * self.agents_per_copy,
+            batch.single_observation_space,
+            batch.single_action_space,
+        )
+
+    def reset(self) -> VecEnvObs:
+        """Reset every world (world ``k`` with ``seed + k`` after :meth:`seed`); stacked obs."""
+        n = self.agents_per_copy
+        seeds = [self._seeds[self.slot(k, 0)] for k in range(self.n_copies)]
+        options = [self._options[self.slot(k, 0)] or None for k in range(self.n_copies)]
+        if any(o != options[0] for o in options):
+            raise ConfigError("BatchedVecEnv: set_options must give every world the same options")
+        obs, infos = self.batch.reset_copies(seeds, options[0])
+        self.reset_infos = [dict(i) for row in infos for i in row]
+        self._reset_seeds()
+        self._reset_options()
+        return obs.reshape(self.n_copies * n, *obs.shape[2:])
+
+    def step_async(self, actions: NDArray[Any]) -> None:
+        """Remember one action per slot."""
+        actions = np.asarray(actions)
+        if len(actions) != self.num_envs:
+            raise ValueError(f"expected {self.num_envs} actions (one per slot), got {len(actions)}")
+        self._actions = actions
+        self.waiting = True
+
+    def step_wait(self) -> VecEnvStepReturn:
+        """Step every world at once; a world whose episode ended is reset in the same step."""
+        if self._actions is None:
+            raise RuntimeError("step_wait() called without step_async()")
+        n = self.agents_per_copy
+        b = self.batch.step_copies(self._actions.reshape(self.n_copies, n))
+        self.waiting = False
+        self._actions = None
+        terms, truncs = b.terminations.reshape(-1), b.truncations.reshape(-1)
+        infos: list[dict[str, Any]] = []
+        for k, row in enumerate(b.infos):
+            last = b.final.get(k)
+            for j in range(n):
+                slot = k * n + j
+                info = dict(row[j] if last is None else last[1][j])
+                # SB3's convention: a time-limit end that is not also a true end bootstraps.
+                info["TimeLimit.truncated"] = bool(truncs[slot] and not terms[slot])
+                if last is not None:
+                    info["terminal_observation"] = last[0][j]
+                infos.append(info)
+            if last is not None:
+                self.reset_infos[k * n : (k + 1) * n] = [dict(i) for i in row]
+        return (
+            b.obs.reshape(self.num_envs, *b.obs.shape[2:]),
+            b.rewards.reshape(-1).astype(np.float32),
+            terms | truncs,
+            infos,
+        )
+
+    def close(self) -> None:
+        """Close the batched env (its copies and its merge worker)."""
+        if not self.closed:
+            self.batch.close()
+            self.closed = True
+
+
 def make_vec_env(
     n_copies: int = 1,
     use_subprocess: bool = False,
     seed: int | None = None,
     start_method: str | None = None,
+    batched: bool = False,
     **env_options: Any,
 ) -> ParallelEnvVecEnv:
     """``n_copies`` copies of :func:`mrexplore.parallel_env` as one SB3 ``VecEnv``.
@@ -356,6 +444,9 @@ def make_vec_env(
         use_subprocess: one process per copy.
         seed: seeds the first ``reset()`` (copy ``k`` gets ``seed + k``); None = random.
         start_method: multiprocessing start method (see :class:`ParallelEnvVecEnv`).
+        batched: step the copies as one batched env (:class:`BatchedVecEnv` over
+            :func:`mrexplore.vector_env`: one engine, one merge worker for all copies); not with
+            ``use_subprocess``. The same slots, seeds and results as the default.
         **env_options: options of :func:`mrexplore.parallel_env` (``world``, ``n_robots``, ...).
             ``render_mode`` is accepted too.
 
@@ -367,6 +458,18 @@ def make_vec_env(
     import mrexplore
 
     render_mode = env_options.pop("render_mode", None)
+    if batched:
+        if use_subprocess:
+            raise ConfigError(
+                "make_vec_env: batched=True steps every copy in this process; it cannot be "
+                "combined with use_subprocess=True"
+            )
+        from mrexplore.environment.batched import BatchedExploreEnv
+
+        bvenv = BatchedVecEnv(BatchedExploreEnv(n_copies, render_mode=render_mode, **env_options))
+        if seed is not None:
+            bvenv.seed(seed)
+        return bvenv
     if use_subprocess:
         # Build one copy here first, so that a typo fails in this process with its clear
         # ConfigError, before any worker starts.

@@ -22,6 +22,10 @@ from mrexplore.cli import main
         (["env", "--merge-latency-steps", "x"], "--merge-latency-steps must be integers >= 0"),
         (["env", "--merge-latency-steps", "0,-2"], "--merge-latency-steps must be integers >= 0"),
         (["env", "--evaluate", "yes"], "--evaluate must be 1 and/or 0"),
+        (["env", "--batched", "0,8"], "--batched must be integers >= 1"),
+        (["env", "--batched", "x"], "--batched must be integers >= 1"),
+        (["env", "--batched", "2", "--batched-steps", "0"], "--batched-steps must be at least 1"),
+        (["env", "--batched-only"], "--batched-only needs --batched"),
     ],
 )
 def test_bench_bad_options_exit_2(args: list[str], words: str, capsys) -> None:  # type: ignore[no-untyped-def]
@@ -53,3 +57,20 @@ def test_env_breakdown_times_every_stage() -> None:
     r = measure(5, 0, warmup=1, breakdown=True, world="small_office", merger=None)
     assert set(r["ms_per_step"]) == {*STAGES, "other"}
     assert all(r["ms_per_step"][k] > 0 for k in STAGES)
+
+
+def test_env_batched_rows_run_on_a_tiny_setting(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """``--batched``: one row per number of worlds (not timed: a tiny run)."""
+    out_json = tmp_path / "b.json"
+    args = ["bench", "env", "--batched", "1,2", "--batched-only", "--batched-steps", "2"]
+    assert main([*args, "--json", str(out_json)]) == 0
+    out = capsys.readouterr().out
+    assert "batch/s" in out and "robot-st/proc-s" in out
+    assert "batched, N = 1 worlds x 2 robots" in out and "batched, N = 2 worlds x 2 robots" in out
+    assert "symmetric_office, 1 robot" not in out  # --batched-only
+    import json
+
+    rows = json.loads(out_json.read_text())
+    r = rows["batched, N = 2 worlds x 2 robots, merger semantic"]
+    assert r["num_envs"] == 2 and r["n_robots"] == 2 and r["steps"] == 2
+    assert r["robot_steps_per_s"] == pytest.approx(4 * r["batch_steps_per_s"])

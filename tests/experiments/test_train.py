@@ -282,3 +282,22 @@ def test_goal_level_maskable_ppo_trains_loads_evaluates_and_runs_task_time(
     )
     assert np.isfinite(tt["tasks"]["explore"]["multi"]["mean"])
     assert "navigate" not in tt["tasks"]
+
+
+@pytest.mark.parametrize(
+    ("extra", "words"),
+    [
+        ({"use_subprocess": True}, "not with use_subprocess"),
+        ({"worlds": ["small_office", "tb3_office"]}, "worlds list"),
+        ({"env": {**TINY_ENV, "action_mode": "goal"}}, "not action_mode='goal'"),
+    ],
+)
+def test_batched_training_refuses_what_it_cannot_batch_before_any_work(
+    tmp_path: Path, extra: dict[str, object], words: str
+) -> None:
+    path = _tiny_yaml(tmp_path, "ppo")
+    cfg = {**yaml.safe_load(path.read_text()), "batched": True, **extra}
+    path.write_text(yaml.safe_dump(cfg))
+    with pytest.raises(ConfigError, match=words):
+        train(algo="ppo", timesteps=32, out=tmp_path / "run", hyperparams_file=path)
+    assert not (tmp_path / "run").exists()

@@ -6,7 +6,10 @@
 #   3. task_time.{json,csv,png}: single- vs multi-robot task time (the paper's 105 s -> 65 s and
 #      125 s -> 85 s); nav_teammate/: navigation to a place near robot_1's start (the paper's
 #      protocol: a robot goes where its teammate mapped)
-# It replaces the committed files, so it asks for --force. About 35 minutes on 2 cores.
+#   4. goal_policy_eval/{office,twin,tb3}/eval.{json,png}: the shipped learned goal chooser
+#      (policies/goal_ppo_2r) against the frontier planners on 50 held-out worlds of each family,
+#      on this version's merger
+# It replaces the committed files, so it asks for --force. About an hour on 2 cores.
 # Every figure but the timings (ms, steps/s) comes out the same on any machine with the pinned
 # versions (requirements/constraints.txt); timings depend on the machine and its load.
 set -euo pipefail
@@ -28,3 +31,10 @@ mrexplore bench loop --seeds 20 --jobs 2 --out "$out/loop_study" --force
 mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --out "$out" --force
 mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --tasks navigate \
   --nav-goal teammate --out "$out/nav_teammate" --force
+ev="$out/goal_policy_eval"
+mrexplore evaluate policies/goal_ppo_2r --seeds 50 --max-time-s 300 \
+  --worlds "random:symmetric_office?width_m=10&height_m=8" --out "$ev/office" --force
+mrexplore evaluate policies/goal_ppo_2r --seeds 50 --max-time-s 300 \
+  --worlds "random:twin_wings?width_m=14&height_m=14" --out "$ev/twin" --force
+mrexplore evaluate policies/goal_ppo_2r --seeds 50 --max-time-s 300 --worlds tb3_office \
+  --out "$ev/tb3" --force

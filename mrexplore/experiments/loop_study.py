@@ -9,7 +9,11 @@ odometry noise on (:data:`LOOP_ENV_OPTIONS`). Variants (same world, same seed, s
 - ``oracle``: 2 robots, :class:`OracleMerger`: the true transform as soon as the two maps share
   any known cell, through the same tracker (same confirmations, re-checks and drops);
 - ``none``: 2 robots that never merge;
-- ``single``: 1 robot.
+- ``single``: 1 robot;
+- ``seeded`` (asked for by name, not in the default set): 2 robots, :class:`SeededMerger`: the
+  semantic merger with the true pose added to its hypotheses, judged by the same rules. Between
+  ``semantic`` and ``seeded`` lies what the search misses; between ``seeded`` and ``oracle``,
+  what the decision rules (and the evidence the maps hold) refuse.
 
 Per episode it records whether the maps were merged, the first merge, the task time, whether
 the target was reached, whether a transform >= 5 cells off the truth was held at any step, the
@@ -42,8 +46,10 @@ from mrexplore.merge.common import MergeResult, translation, warp_into
 
 #: The worlds of the study (two symmetric generated floors, two real maps).
 WORLDS: tuple[str, ...] = ("symmetric_office", "twin_wings", "tb3_office", "depot")
-#: Variants: merger for two robots, or one robot.
+#: Variants: merger for two robots, or one robot (the default set of the study).
 VARIANTS: tuple[str, ...] = ("semantic", "oracle", "none", "single")
+#: Every variant the study can run (``seeded`` is a diagnostic, asked for by name).
+ALL_VARIANTS: tuple[str, ...] = (*VARIANTS, "seeded")
 POLICY = "coordinated-frontier"
 #: Env options of every episode: random start headings, range noise 2 cm (std), odometry
 #: translation noise 1 % of the distance, heading noise 0.005 rad per radian turned and
@@ -114,6 +120,35 @@ class OracleMerger:
         )
 
 
+class SeededMerger(OracleMerger):
+    """The semantic merger with the true pose among its hypotheses (a diagnostic; evaluation
+    only). Same decision rules, so a refusal here is the rules' (or the maps' evidence's), not
+    the search's."""
+
+    def merge_pair(
+        self,
+        i: int,
+        j: int,
+        a: Int8Grid,
+        b: Int8Grid,
+        offset_a: tuple[int, int],
+        offset_b: tuple[int, int],
+    ) -> MergeResult:
+        """:func:`~mrexplore.merge.semantic.merge_semantic` of the crops, the true ``T_ab``
+        between them handed in as an extra hypothesis."""
+        from mrexplore.merge.semantic import merge_semantic
+
+        sim = None if self._env is None else self._env.sim
+        if sim is None:
+            raise ConfigError("SeededMerger is not bound to a reset env: call bind(env) first")
+        T = (
+            translation(-offset_a[0], -offset_a[1])
+            @ sim.true_transform(i, j)
+            @ translation(offset_b[0], offset_b[1])
+        )
+        return merge_semantic(a, b, extra_hypotheses=[T])
+
+
 #: The noise options switched off by ``noise=False`` (exact odometry, the env's default 1 cm
 #: range noise): without drift the true transform between start frames is the one right answer,
 #: so "wrong merge" means a wrong place, not a map bent by odometry.
@@ -153,8 +188,8 @@ def run_loop_episode(
 
     opts = episode_options(world, variant, max_time_s, noise)
     oracle = None
-    if variant == "oracle":
-        oracle = OracleMerger()
+    if variant in ("oracle", "seeded"):
+        oracle = OracleMerger() if variant == "oracle" else SeededMerger()
         opts["merger"] = oracle
     agents = [f"robot_{k}" for k in range(opts["n_robots"])]
     team = make_team(POLICY, agents, "explore")
@@ -205,10 +240,12 @@ def validate(
     if isinstance(first_seed, bool) or not isinstance(first_seed, int) or first_seed < 0:
         raise ConfigError(f"loop study: --first-seed must be an integer >= 0, got {first_seed!r}")
     if not variants:
-        raise ConfigError(f"loop study: --variants is empty; choose from {list(VARIANTS)}")
-    bad = [v for v in variants if v not in VARIANTS]
+        raise ConfigError(f"loop study: --variants is empty; choose from {list(ALL_VARIANTS)}")
+    bad = [v for v in variants if v not in ALL_VARIANTS]
     if bad:
-        raise ConfigError(f"loop study: unknown variant(s) {bad}; variants are {list(VARIANTS)}")
+        raise ConfigError(
+            f"loop study: unknown variant(s) {bad}; variants are {list(ALL_VARIANTS)}"
+        )
     if len(set(variants)) != len(variants) or len(set(worlds)) != len(worlds):
         raise ConfigError("loop study: a world or variant is listed twice")
     if not (isinstance(max_time_s, (int, float)) and math.isfinite(max_time_s) and max_time_s > 0):
@@ -382,7 +419,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--seeds", type=int, default=20, help="seeds per world (default 20)")
     p.add_argument("--first-seed", type=int, default=1000, help="first seed (default 1000)")
     p.add_argument(
-        "--variants", nargs="+", default=list(VARIANTS), help=f"of {list(VARIANTS)} (default all)"
+        "--variants",
+        nargs="+",
+        default=list(VARIANTS),
+        help=f"of {list(ALL_VARIANTS)} (default: {list(VARIANTS)})",
     )
     p.add_argument("--max-time-s", type=float, default=600.0, help="truncation, simulated s")
     p.add_argument("--jobs", type=int, default=1, help="episodes in this many processes")

@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -386,7 +386,9 @@ class SemanticOptions(Options):
             raise ConfigError(f"{self.owner}: detector= is used only with paper_candidates=True")
 
 
-def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
+def merge_semantic(
+    a: Int8Grid, b: Int8Grid, *, extra_hypotheses: Sequence[Transform] = (), **options: Any
+) -> MergeResult:
     """Verified merge of b into a (int8 maps, any sizes). Options (validated; why each default
     is what it is, with the measurements: ``docs/merging.md``):
 
@@ -412,6 +414,11 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     - ``paper_candidates`` (False): add the seed paper's trusted-point matches as hypotheses
       (``detector``, default harris, picks their keypoints; 3-4x slower, one more correct merge
       in 166 bench pairs).
+
+    ``extra_hypotheses``: poses ``T_ab`` (3x3, b's cells -> a's) added to the search's own and
+    always polished and refined, judged by the same rules. For diagnostics: the loop study's
+    ``seeded`` variant hands it the true pose, to tell what the search misses from what the
+    decision rules refuse. The env never sets it.
     """
     t0 = time.perf_counter()
     o = SemanticOptions.from_kwargs(**options)
@@ -477,7 +484,7 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
                 _Hypothesis(T, "paper")
                 for T in _paper_hypotheses(ac, b_rot, T_rot, 150, 3, detector)
             ]
-    if not hyps:
+    if not hyps and not extra_hypotheses:
         return refuse("no candidate alignment (the maps share no structure)")
 
     # --- 3. screen the raw hypotheses with a wide tolerance (they are up to ~scale/2 cells off),
@@ -486,6 +493,14 @@ def merge_semantic(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     for hyp in hyps:
         hyp.agreement = screen(hyp.T)
     hyps.sort(key=lambda h: -(h.agreement.agree - h.agreement.disagree if h.agreement else 0))
+    # poses handed in go first, so that they are always polished (and judged like the rest)
+    to_crops = translation(-bba[2], -bba[0]), translation(bbb[2], bbb[0])
+    hyps = [
+        _Hypothesis(to_crops[0] @ np.asarray(T, dtype=np.float64) @ to_crops[1], "given")
+        for T in extra_hypotheses
+    ] + hyps
+    for hyp in hyps[: len(extra_hypotheses)]:
+        hyp.agreement = screen(hyp.T)
     icp = WallICP(wall_a, wall_b, max_points=1500)
     for hyp in hyps[:n_polish]:
         hyp.T = icp(hyp.T, iters=4, max_dist=1.5 * scale, n_points=400)

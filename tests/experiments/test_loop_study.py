@@ -13,7 +13,9 @@ import pytest
 import mrexplore
 from mrexplore.errors import ConfigError
 from mrexplore.experiments.loop_study import (
+    VARIANTS,
     OracleMerger,
+    SeededMerger,
     format_tables,
     main,
     run_study,
@@ -66,6 +68,32 @@ def test_oracle_merges_through_the_tracker_with_confirmations() -> None:
     assert infos["robot_0"]["merge_error_cells"] < 1e-6
     T = penv.fusion.transforms("robot_0")["robot_1"]
     np.testing.assert_allclose(T, penv.sim.true_transform(0, 1), atol=1e-9)
+
+
+def test_seeded_merger_judges_the_truth_by_the_semantic_rules() -> None:
+    """The diagnostic ``seeded`` variant: the semantic merger with the true pose among its
+    hypotheses, judged by the same rules. On the two first scans the rival test still refuses
+    (the truth is judged, not accepted); once the maps grow it merges at the truth, through the
+    tracker. It is not a default variant."""
+    seeded = SeededMerger()
+    penv = mrexplore.parallel_env(world="small_office", merger=seeded)
+    seeded.bind(penv)
+    _, infos = penv.reset(seed=0)
+    a, b = penv.local_map("robot_0"), penv.local_map("robot_1")
+    first = seeded.merge_pair(0, 1, a, b, (0, 0), (0, 0))
+    assert not first.matched and "ambiguous" in first.reason and first.method == "semantic"
+    rng = np.random.default_rng(5)
+    for _ in range(400):
+        if infos["robot_0"]["merged"]:
+            break
+        _, _, _, _, infos = penv.step(
+            {r: int(rng.choice(4, p=[0.7, 0.15, 0.15, 0.0])) for r in penv.agents}
+        )
+    assert infos["robot_0"]["merged"]
+    assert 0.0 <= infos["robot_0"]["merge_error_cells"] < 2.0
+    assert "seeded" not in VARIANTS
+    with pytest.raises(ConfigError):
+        SeededMerger().merge_pair(0, 1, a, b, (0, 0), (0, 0))
 
 
 @pytest.mark.parametrize(

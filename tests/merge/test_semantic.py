@@ -366,6 +366,25 @@ def test_verifiers_sharing_map_codes_count_as_their_own() -> None:
         np.testing.assert_array_equal(own.points_b, shared.points_b)
 
 
+def test_extra_hypotheses_are_judged_by_the_same_rules(
+    office_pair: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    """A pose handed in joins the search's and is judged like them: the truth handed in gives
+    the same answer as the search alone; a wrong pose handed in does not get accepted."""
+    from mrexplore.merge.semantic import merge_semantic
+
+    a, b, T_true = office_pair
+    plain = merge_semantic(a, b)
+    seeded = merge_semantic(a, b, extra_hypotheses=[T_true])
+    assert plain.matched and seeded.matched
+    assert seeded.transform is not None
+    assert merge_error(seeded.transform, T_true, b)[0] < 1.0
+    wrong = translation(40.0, -25.0) @ np.asarray(T_true)
+    misled = merge_semantic(a, b, extra_hypotheses=[wrong])
+    assert misled.matched and misled.transform is not None
+    assert merge_error(misled.transform, T_true, b)[0] < 1.0
+
+
 def test_min_cross_cells_refuses_a_match_on_one_wall(
     office_pair: tuple[np.ndarray, np.ndarray, np.ndarray],
 ) -> None:

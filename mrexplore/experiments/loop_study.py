@@ -135,7 +135,9 @@ class SeededMerger(OracleMerger):
         offset_b: tuple[int, int],
     ) -> MergeResult:
         """:func:`~mrexplore.merge.semantic.merge_semantic` of the crops, the true ``T_ab``
-        between them handed in as an extra hypothesis."""
+        between them handed in as an extra hypothesis, with the options the env gives the
+        semantic merger in the loop (20 m² shared, the map's resolution)."""
+        from mrexplore.merge.fusion import IN_LOOP_MIN_COMMON_M2
         from mrexplore.merge.semantic import merge_semantic
 
         sim = None if self._env is None else self._env.sim
@@ -146,7 +148,13 @@ class SeededMerger(OracleMerger):
             @ sim.true_transform(i, j)
             @ translation(offset_b[0], offset_b[1])
         )
-        return merge_semantic(a, b, extra_hypotheses=[T])
+        return merge_semantic(
+            a,
+            b,
+            extra_hypotheses=[T],
+            min_common_m2=IN_LOOP_MIN_COMMON_M2,
+            resolution_m=float(self._env.map_resolution_m),
+        )
 
 
 #: The noise options switched off by ``noise=False`` (exact odometry, the env's default 1 cm

@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError, MrexploreError
 from mrexplore.grid import UNKNOWN, Int8Grid
@@ -86,6 +87,22 @@ class OracleMerger:
         """Not usable without robot ids: the tracker calls :meth:`merge_pair`."""
         raise ConfigError("OracleMerger needs the robots' ids: use it through MapMergeTracker")
 
+    def _true_pose(
+        self, i: int, j: int, offset_a: tuple[int, int], offset_b: tuple[int, int]
+    ) -> NDArray[np.float64]:
+        """The true ``T_ab`` between robot j's crop (cell (0, 0) at ``offset_b`` of its canvas)
+        and robot i's (at ``offset_a``)."""
+        sim = None if self._env is None else self._env.sim
+        if sim is None:
+            name = type(self).__name__
+            raise ConfigError(f"{name} is not bound to a reset env: call bind(env) first")
+        return np.asarray(
+            translation(-offset_a[0], -offset_a[1])
+            @ sim.true_transform(i, j)
+            @ translation(offset_b[0], offset_b[1]),
+            dtype=np.float64,
+        )
+
     def merge_pair(
         self,
         i: int,
@@ -101,14 +118,7 @@ class OracleMerger:
         canvas. Returns the true ``T_ab`` between the crops when some cell is known in both
         maps under it (``overlap_cells`` > 0), else a refusal.
         """
-        sim = None if self._env is None else self._env.sim
-        if sim is None:
-            raise ConfigError("OracleMerger is not bound to a reset env: call bind(env) first")
-        T = (
-            translation(-offset_a[0], -offset_a[1])
-            @ sim.true_transform(i, j)
-            @ translation(offset_b[0], offset_b[1])
-        )
+        T = self._true_pose(i, j, offset_a, offset_b)
         b_in_a = warp_into(b, T, a.shape)
         shared = int(np.count_nonzero((a != UNKNOWN) & (b_in_a != UNKNOWN)))
         if shared == 0:
@@ -140,14 +150,7 @@ class SeededMerger(OracleMerger):
         from mrexplore.merge.fusion import IN_LOOP_MIN_COMMON_M2
         from mrexplore.merge.semantic import merge_semantic
 
-        sim = None if self._env is None else self._env.sim
-        if sim is None:
-            raise ConfigError("SeededMerger is not bound to a reset env: call bind(env) first")
-        T = (
-            translation(-offset_a[0], -offset_a[1])
-            @ sim.true_transform(i, j)
-            @ translation(offset_b[0], offset_b[1])
-        )
+        T = self._true_pose(i, j, offset_a, offset_b)
         return merge_semantic(
             a,
             b,

@@ -141,9 +141,13 @@ def reliable_walls(grid: Int8Grid) -> NDArray[np.bool_]:
     hit of a distant wall in a lidar map (beams spread wider than a cell at range). It is not a
     verification point and no wall lands on it with any effect (:func:`cell_codes`).
     """
-    wall = (grid >= OCCUPIED_THRESHOLD).view(np.uint8)
-    n = cv2.filter2D(wall, -1, np.ones((3, 3), np.float32), borderType=cv2.BORDER_CONSTANT)
-    return (wall > 0) & (n >= 2)
+    return _reliable((grid >= OCCUPIED_THRESHOLD).view(np.uint8))
+
+
+def _reliable(occupied: NDArray[np.uint8]) -> NDArray[np.bool_]:
+    """:func:`reliable_walls` from the occupied mask (uint8 0/1)."""
+    n = cv2.filter2D(occupied, -1, np.ones((3, 3), np.float32), borderType=cv2.BORDER_CONSTANT)
+    return (occupied > 0) & (n >= 2)
 
 
 def cell_codes(grid: Int8Grid, tolerance: int = 1, slack: int = 0) -> NDArray[np.uint8]:
@@ -171,7 +175,7 @@ class MapCodes:
     def __init__(self, grid: Int8Grid) -> None:
         self.shape = grid.shape
         self.occupied = (grid >= OCCUPIED_THRESHOLD).view(np.uint8)
-        self.wall = reliable_walls(grid)
+        self.wall = _reliable(self.occupied)
         self.free = (grid >= 0) & (grid <= FREE_THRESHOLD)
         self._codes: dict[tuple[int, int], NDArray[np.uint8]] = {}
         self._wall_cells: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None

@@ -70,6 +70,14 @@ def _stack(obs: Sequence[Any], space: gymnasium.spaces.Space[Any]) -> VecEnvObs:
     return np.stack(obs)
 
 
+def _slot_actions(actions: NDArray[Any], num_envs: int) -> NDArray[Any]:
+    """``actions`` as an array with one entry per slot, else a ``ValueError`` (SB3's contract)."""
+    actions = np.asarray(actions)
+    if len(actions) != num_envs:
+        raise ValueError(f"expected {num_envs} actions (one per slot), got {len(actions)}")
+    return actions
+
+
 class _RemoteCopy:
     """The parent's handle of one env copy running in a worker process (same API as CopyRunner)."""
 
@@ -240,9 +248,7 @@ class ParallelEnvVecEnv(VecEnv):
 
     def step_async(self, actions: NDArray[Any]) -> None:
         """Remember (or, with subprocesses, send) one action per slot."""
-        actions = np.asarray(actions)
-        if len(actions) != self.num_envs:
-            raise ValueError(f"expected {self.num_envs} actions (one per slot), got {len(actions)}")
+        actions = _slot_actions(actions, self.num_envs)
         if self.use_subprocess:
             n = self.agents_per_copy
             for k, c in enumerate(self._copies):
@@ -387,9 +393,7 @@ class BatchedVecEnv(ParallelEnvVecEnv):
 
     def step_async(self, actions: NDArray[Any]) -> None:
         """Remember one action per slot."""
-        actions = np.asarray(actions)
-        if len(actions) != self.num_envs:
-            raise ValueError(f"expected {self.num_envs} actions (one per slot), got {len(actions)}")
+        actions = _slot_actions(actions, self.num_envs)
         self._actions = actions
         self.waiting = True
 

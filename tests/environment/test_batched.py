@@ -13,26 +13,9 @@ from gymnasium.vector import AutoresetMode, SyncVectorEnv
 import mrexplore
 from mrexplore.environment.batched import BatchedExploreEnv, ExploreVectorEnv
 from mrexplore.errors import ConfigError
+from tests.helpers import assert_same
 
 WORLD = "small_office"
-
-
-def _same(x: Any, y: Any, where: str) -> None:
-    if isinstance(x, dict):
-        assert isinstance(y, dict) and x.keys() == y.keys(), (where, x.keys(), y.keys())
-        for k in x:
-            _same(x[k], y[k], f"{where}.{k}")
-    elif isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
-        x, y = np.asarray(x), np.asarray(y)
-        assert x.dtype == y.dtype or x.dtype == object or y.dtype == object, (where, x, y)
-        if x.dtype == object or y.dtype == object:
-            assert x.shape == y.shape, where
-            for i, (a, b) in enumerate(zip(x.reshape(-1), y.reshape(-1), strict=True)):
-                _same(a, b, f"{where}[{i}]")
-        else:
-            np.testing.assert_array_equal(x, y, err_msg=where)
-    else:
-        assert x == y and type(x) is type(y), (where, x, y)
 
 
 def test_batched_team_equals_separate_copies_bit_for_bit_over_auto_resets() -> None:
@@ -50,7 +33,7 @@ def test_batched_team_equals_separate_copies_bit_for_bit_over_auto_resets() -> N
         for j, a in enumerate(agents):
             np.testing.assert_array_equal(obs[k, j], o[a])
             for key, v in inf[a].items():
-                _same(infos[key][k, j].item(), v, f"reset {key}")
+                assert_same(infos[key][k, j].item(), v, f"reset {key}")
     resets = 0
     scored = False
     for t in range(220):
@@ -74,10 +57,10 @@ def test_batched_team_equals_separate_copies_bit_for_bit_over_auto_resets() -> N
                 if ended:
                     np.testing.assert_array_equal(final_obs[j], o[a], err_msg=where)
                     for key, v in inf[a].items():
-                        _same(final_info[key][k, j].item(), v, f"{where} final {key}")
+                        assert_same(final_info[key][k, j].item(), v, f"{where} final {key}")
                 np.testing.assert_array_equal(obs[k, j], now_o[a], err_msg=where)
                 for key, v in now_inf[a].items():
-                    _same(infos[key][k, j].item(), v, f"{where} {key}")
+                    assert_same(infos[key][k, j].item(), v, f"{where} {key}")
                 scored |= inf[a]["score"] != -1.0
             if not ended and "_final_obs" in infos:
                 assert not infos["_final_obs"][k] and infos["final_obs"][k] is None
@@ -119,8 +102,8 @@ def test_single_robot_is_a_gymnasium_vector_env_equal_to_sync_vector_env() -> No
     robs, rinfos = ref.reset(seed=5)
     assert obs.shape == (n, 8, 64, 64)
     assert venv.observation_space.contains(obs)
-    _same(obs, robs, "reset obs")
-    _same(infos, rinfos, "reset infos")
+    assert_same(obs, robs, "reset obs")
+    assert_same(infos, rinfos, "reset infos")
     venv.action_space.seed(0)
     ended = 0
     for t in range(14):
@@ -128,7 +111,7 @@ def test_single_robot_is_a_gymnasium_vector_env_equal_to_sync_vector_env() -> No
         out = venv.step(act)
         rout = ref.step(act)
         for name, x, y in zip(("obs", "rew", "term", "trunc", "infos"), out, rout, strict=True):
-            _same(x, y, f"step {t} {name}")
+            assert_same(x, y, f"step {t} {name}")
         ended += int(np.count_nonzero(out[3]))
         assert venv.observation_space.contains(out[0])
     assert ended >= n  # the 6-step episodes ended and were reset in the same step

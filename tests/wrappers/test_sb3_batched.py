@@ -15,20 +15,9 @@ from mrexplore.environment.batched import BatchedExploreEnv
 from mrexplore.environment.parallel_env import MultiRobotExplorationEnv
 from mrexplore.errors import ConfigError
 from mrexplore.wrappers import BatchedVecEnv, ParallelEnvVecEnv, make_vec_env
+from tests.helpers import assert_same
 
 OPTS: dict[str, Any] = {"world": "small_office", "n_robots": 2, "max_cycles": 9}
-
-
-def _same(x: Any, y: Any, where: str) -> None:
-    if isinstance(x, dict):
-        assert isinstance(y, dict) and x.keys() == y.keys(), (where, x.keys(), y.keys())
-        for k in x:
-            _same(x[k], y[k], f"{where}.{k}")
-    elif isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
-        assert np.asarray(x).dtype == np.asarray(y).dtype, where
-        np.testing.assert_array_equal(x, y, err_msg=where)
-    else:
-        assert x == y and type(x) is type(y), (where, x, y)
 
 
 def test_batched_vec_env_equals_the_parallel_env_vec_env() -> None:
@@ -40,23 +29,23 @@ def test_batched_vec_env_equals_the_parallel_env_vec_env() -> None:
     assert venv.observation_space == ref.observation_space
     assert venv.action_space == ref.action_space
     assert venv.possible_agents == ref.possible_agents
-    _same(venv.reset(), ref.reset(), "reset")
-    _same(venv.reset_infos, ref.reset_infos, "reset_infos")
+    assert_same(venv.reset(), ref.reset(), "reset")
+    assert_same(venv.reset_infos, ref.reset_infos, "reset_infos")
     rng = np.random.default_rng(1)
     dones = 0
     for t in range(30):
         act = rng.integers(0, 4, size=venv.num_envs)
         out, rout = venv.step(act), ref.step(act)
         for name, x, y in zip(("obs", "rew", "done"), out[:3], rout[:3], strict=True):
-            _same(x, y, f"step {t} {name}")
+            assert_same(x, y, f"step {t} {name}")
         for i, (a, b) in enumerate(zip(out[3], rout[3], strict=True)):
-            _same(a, b, f"step {t} info {i}")
-        _same(venv.reset_infos, ref.reset_infos, f"step {t} reset_infos")
+            assert_same(a, b, f"step {t} info {i}")
+        assert_same(venv.reset_infos, ref.reset_infos, f"step {t} reset_infos")
         dones += int(out[2].sum())
     assert dones == 3 * 2 * n  # three episodes of 9 steps ended in every copy
     # seed() again: the next reset re-seeds every copy the same way
     assert venv.seed(9) == ref.seed(9) == [9, 9, 10, 10, 11, 11]
-    _same(venv.reset(), ref.reset(), "re-seeded reset")
+    assert_same(venv.reset(), ref.reset(), "re-seeded reset")
     venv.close()
     ref.close()
 
@@ -65,15 +54,15 @@ def test_one_robot_per_world_through_the_batched_adapter() -> None:
     opts = {**OPTS, "n_robots": 1}
     venv = make_vec_env(n_copies=2, seed=1, batched=True, **opts)
     ref = make_vec_env(n_copies=2, seed=1, **opts)
-    _same(venv.reset(), ref.reset(), "reset")
+    assert_same(venv.reset(), ref.reset(), "reset")
     for t in range(12):
         act = np.array([t % 4, 0])
         for x, y, name in zip(venv.step(act), ref.step(act), "orde", strict=True):
             if name == "e":
                 for i, (a, b) in enumerate(zip(x, y, strict=True)):
-                    _same(a, b, f"step {t} info {i}")
+                    assert_same(a, b, f"step {t} info {i}")
             else:
-                _same(x, y, f"step {t} {name}")
+                assert_same(x, y, f"step {t} {name}")
     venv.close()
     ref.close()
 

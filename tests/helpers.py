@@ -1,0 +1,27 @@
+"""Assertions shared by several test modules."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+
+def assert_same(x: Any, y: Any, where: str) -> None:
+    """Assert that two nested results (dicts, arrays, object arrays of arrays, scalars) are
+    equal bit for bit, with the same dtypes and types; ``where`` names the place in messages."""
+    if isinstance(x, dict):
+        assert isinstance(y, dict) and x.keys() == y.keys(), (where, x.keys(), y.keys())
+        for k in x:
+            assert_same(x[k], y[k], f"{where}.{k}")
+    elif isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
+        x, y = np.asarray(x), np.asarray(y)
+        assert x.dtype == y.dtype or x.dtype == object or y.dtype == object, (where, x, y)
+        if x.dtype == object or y.dtype == object:
+            assert x.shape == y.shape, where
+            for i, (a, b) in enumerate(zip(x.reshape(-1), y.reshape(-1), strict=True)):
+                assert_same(a, b, f"{where}[{i}]")
+        else:
+            np.testing.assert_array_equal(x, y, err_msg=where)
+    else:
+        assert x == y and type(x) is type(y), (where, x, y)

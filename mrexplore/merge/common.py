@@ -426,18 +426,17 @@ def warp_into(
     M = np.asarray(T_dst_src, dtype=np.float64).copy()
     M[0, 2] -= dst_origin[0]
     M[1, 2] -= dst_origin[1]
-    # OpenCV's nearest-neighbour warp of CV_8S is not supported everywhere: shift to uint8
-    # (unknown -> 0) so the constant border means "unknown", and shift back.
-    shifted = (src.astype(np.int16) + 1).astype(np.uint8)
+    # A nearest-neighbour warp only copies cells: warp the int8 map as its uint8 view (OpenCV's
+    # CV_8S warp is not supported everywhere), the border 255 being unknown's -1.
     out = cv2.warpAffine(
-        shifted,
+        src.view(np.uint8),
         M[:2],
         (int(dst_shape[1]), int(dst_shape[0])),
         flags=cv2.INTER_NEAREST,
         borderMode=cv2.BORDER_CONSTANT,
-        borderValue=0,
+        borderValue=255,
     )
-    return (out.astype(np.int16) - 1).astype(np.int8)
+    return np.asarray(out).view(np.int8)
 
 
 def fuse(a: Int8Grid, b: Int8Grid) -> Int8Grid:

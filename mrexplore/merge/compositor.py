@@ -22,12 +22,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-import cv2
 import numpy as np
 
 from mrexplore.errors import GridError
 from mrexplore.grid import UNKNOWN, Int8Grid, MapChange, Transform, invert_transform
-from mrexplore.merge.common import known_bbox, translation
+from mrexplore.merge.common import known_bbox, translation, warp_into
 from mrexplore.types import Box
 
 
@@ -75,29 +74,6 @@ def _map_box(T: Transform, box: Box) -> Box:
         math.floor(min(xs)) - 1,
         math.ceil(max(xs)) + 2,
     )
-
-
-def _warp_nn(
-    src: Int8Grid,
-    T_dst_src: Transform,
-    dst_shape: tuple[int, int],
-    dst_origin: tuple[int, int],
-) -> Int8Grid:
-    """:func:`mrexplore.merge.common.warp_into` without its two int16 round trips: a
-    nearest-neighbour warp only copies values, so the int8 map is warped as its uint8 view with
-    unknown (-1, 255 as uint8) as the border: the same cells, bit for bit (tested)."""
-    M = np.asarray(T_dst_src, dtype=np.float64)[:2].copy()
-    M[0, 2] -= dst_origin[0]
-    M[1, 2] -= dst_origin[1]
-    out = cv2.warpAffine(
-        np.ascontiguousarray(src).view(np.uint8),
-        M,
-        (int(dst_shape[1]), int(dst_shape[0])),
-        flags=cv2.INTER_NEAREST,
-        borderMode=cv2.BORDER_CONSTANT,
-        borderValue=255,
-    )
-    return np.asarray(out).view(np.int8)
 
 
 class MapCompositor:
@@ -366,7 +342,7 @@ class MapCompositor:
                     src = _clip(_map_box(old.T_inv, dst), mj.shape)
                     if src is not None:
                         s0, s1, t0, t1 = src
-                        piece = _warp_nn(
+                        piece = warp_into(
                             mj[s0:s1, t0:t1],
                             T @ translation(t0, s0),
                             (dst[1] - dst[0], dst[3] - dst[2]),
@@ -389,7 +365,7 @@ class MapCompositor:
         if box is None:
             return old  # j's known part falls outside i's canvas
         r0, r1, c0, c1 = box
-        data = _warp_nn(b, T_crop, (r1 - r0, c1 - c0), dst_origin=(c0, r0))
+        data = warp_into(b, T_crop, (r1 - r0, c1 - c0), dst_origin=(c0, r0))
         p = _Patch(
             r0, c0, data, self._version[j], T.copy(), invert_transform(T), None, self._next_serial
         )

@@ -333,19 +333,36 @@ def test_tracker_fed_map_changes_equals_the_scanning_tracker() -> None:
             np.testing.assert_array_equal(scan.fused(i), told.fused(i))
 
 
-def test_patch_warp_equals_warp_into() -> None:
-    """The tracker's patch warp (int8 viewed as uint8) gives warp_into's cells exactly."""
+def test_warp_into_equals_a_shifted_uint8_warp() -> None:
+    """warp_into warps the int8 map as its uint8 view (unknown's -1 is 255): the same cells as
+    the older shift to uint8 (unknown -> 0) and back, on whole maps and on crops (views)."""
+    import cv2
+
     from mrexplore.grid import make_transform
     from mrexplore.merge.common import warp_into
-    from mrexplore.merge.compositor import _warp_nn
+
+    def shifted_warp(src, T, shape, origin):  # type: ignore[no-untyped-def]
+        M = np.asarray(T, dtype=np.float64)[:2].copy()
+        M[:, 2] -= origin
+        out = cv2.warpAffine(
+            (src.astype(np.int16) + 1).astype(np.uint8),
+            M,
+            (shape[1], shape[0]),
+            flags=cv2.INTER_NEAREST,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=0,
+        )
+        return (out.astype(np.int16) - 1).astype(np.int8)
 
     rng = np.random.default_rng(6)
-    src = rng.choice(np.array([UNKNOWN, 0, 30, 64, OCC], dtype=np.int8), (90, 70))
+    whole = rng.choice(np.array([UNKNOWN, 0, 30, 64, OCC], dtype=np.int8), (90, 70))
     for k in range(30):
         T = make_transform(rng.uniform(-3.2, 3.2), rng.uniform(-40, 120), rng.uniform(-40, 120))
         if k % 3 == 0:
             T = make_transform(k * np.pi / 6, 30.0, 20.0)
         origin = (int(rng.integers(-20, 20)), int(rng.integers(-20, 20)))
+        src = whole if k % 2 else whole[5:80, 3:61]
         np.testing.assert_array_equal(
-            _warp_nn(src, T, (80, 100), origin), warp_into(src, T, (80, 100), dst_origin=origin)
+            warp_into(src, T, (80, 100), dst_origin=origin),
+            shifted_warp(src, T, (80, 100), origin),
         )

@@ -4,7 +4,7 @@
 #      paper's Table 1/2 and more); merge_ablation.{json,md}: what each part of the default buys
 #   2. loop_study.{json,md}: merging in the exploration loop against an oracle merger;
 #      loop_seeded.{json,md}: the semantic merger with the true pose among its hypotheses
-#      (symmetric office), which tells the search's share of the gap from the rules'
+#      (the four worlds), which tells the search's share of the gap from the rules'
 #   3. task_time.{json,csv,png}: single- vs multi-robot task time (the paper's 105 s -> 65 s and
 #      125 s -> 85 s); nav_teammate/: navigation to a place near robot_1's start (the paper's
 #      protocol: a robot goes where its teammate mapped)
@@ -30,8 +30,7 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
   --semantic-variant min_cross_cells=0 \
   --out "$out/merge_ablation" --force
 mrexplore bench loop --seeds 20 --jobs 2 --out "$out/loop_study" --force
-mrexplore bench loop --worlds symmetric_office --variants seeded --seeds 20 --jobs 2 \
-  --out "$out/loop_seeded" --force
+mrexplore bench loop --variants seeded --seeds 20 --jobs 2 --out "$out/loop_seeded" --force
 mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --out "$out" --force
 mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --tasks navigate \
   --nav-goal teammate --out "$out/nav_teammate" --force

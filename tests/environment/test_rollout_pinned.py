@@ -159,12 +159,15 @@ CASES: dict[str, tuple[int, int, str | None, dict[str, Any]]] = {
 #: infos, which report -1 where the figures were None); the lean step reproduces each. The two
 #: merging cases were re-recorded at the merger's speed work (2026-11-23: the Hough accumulator
 #: at half a degree and float64 coarse FFTs move poses by a fraction of a cell; navigate_three's
-#: first merge came at step 117 instead of 127, default_merging's at the same step, 137).
+#: first merge came at step 117 instead of 127, default_merging's at the same step, 137). And
+#: again when each pair's merge error (an evaluation info) began to refresh on its own phase
+#: (2026-11-24): with the three merge-error figures left out of the hash, both digests were the
+#: same before and after the change, so nothing else moved.
 PINNED: dict[str, str] = {
     "coarse_held": "e129f616ae84e3aca58b726531136ba160e6eadbfd780c739a59a0eaa2694850",
-    "default_merging": "69c0f8e5184e05c6c698f8e0f996490f9c909dbb2252e68b00491e87be061988",
+    "default_merging": "362d3da1ed6743a9a09d07606954653392072cc102b2cce093499c83a6d74caf",
     "heading_up_noisy": "f3fcfeefec852c58e0e24a27c6a179e423d2edc39961e49f918fae5946d990a7",
-    "navigate_three": "037796dcf0d7c561296a7968bea824179d4a075581d1d5793c3b0b0d5d9aa011",
+    "navigate_three": "b18aa91ced0622b81dd1175744313278cfb295bba5e6b0db96e872b0ccc664e4",
 }
 
 

@@ -429,7 +429,7 @@ def warp_into(
     # A nearest-neighbour warp only copies cells: warp the int8 map as its uint8 view (OpenCV's
     # CV_8S warp is not supported everywhere), the border 255 being unknown's -1.
     out = cv2.warpAffine(
-        src.view(np.uint8),
+        np.asarray(src, dtype=np.int8).view(np.uint8),
         M[:2],
         (int(dst_shape[1]), int(dst_shape[0])),
         flags=cv2.INTER_NEAREST,

@@ -43,10 +43,10 @@ def test_pool_is_block_any_wall_and_all_free(s: int) -> None:
         np.testing.assert_array_equal(got[1], want[1])
 
 
-def test_correlation_is_the_circular_cross_correlation() -> None:
+@pytest.mark.parametrize("shape", [(45, 60), (45, 75), (64, 81)])  # odd and even sides
+def test_correlation_is_the_circular_cross_correlation(shape: tuple[int, int]) -> None:
     """sum_x a(x + t) b(x) over the padded canvas, summed over pairs (numpy's FFT as reference)."""
     rng = np.random.default_rng(0)
-    shape = (45, 60)
     a1, a2 = rng.random((30, 41)), rng.random((30, 41))
     b1, b2 = rng.random((20, 33)), rng.random((20, 33))
     got = _correlation(

@@ -3,18 +3,20 @@
 Steps the PettingZoo env with seeded random actions and measures the **CPU time of the stepping
 thread** (``time.thread_time``), so the figures hold on a machine shared with other work (wall
 time would count the other processes' turns). Per setting it prints env steps/s, robot-steps/s
-(steps/s x robots), and the p50 / p99 / max CPU time of one ``step()`` (merge attempts
-included: they run inside a step). Episodes that end are reset (not timed).
+(steps/s x robots), and the p50 / p99 / max CPU time of one ``step()``. Episodes that end are
+reset (not timed).
 
-The last column, steps per second of the whole process's CPU time, also counts the worker
-threads OpenCV spreads some calls over (the stepping thread's time does not).
+The last two columns: steps per second of the whole process's CPU time, which also counts the
+merge worker thread and the threads OpenCV spreads some calls over (the stepping thread's time
+does not), and steps per second of wall time, which also counts the time the stepping thread
+waits for a merge attempt that outlasts its latency (``merge_latency_steps``) and other
+processes' turns on a shared machine: what a training loop sees, and the noisiest figure.
 
 ``--batched 1,8,32`` adds the batched env (:func:`mrexplore.vector_env`, 2 robots on
 ``symmetric_office``, merging on, default options) at each number of worlds N: batched steps
 per second, world-steps/s and robot-steps/s, p50 / p99 / max CPU time of one batched step (all
-N worlds, auto-resets included), and robot-steps per second of the process's CPU time, which
-here also counts the shared merge worker thread (the stepping thread's time does not: it waits
-for that worker, it does not compute the attempts). Every row takes the same number of batched
+N worlds, auto-resets included), and robot-steps per second of the process's CPU time (the
+shared merge worker thread included) and of wall time. Every row takes the same number of batched
 steps (``--batched-steps``, 200) after 20 untimed ones, and world k draws its actions from a
 stream seeded ``seed + k`` as :func:`measure` does: each world is timed over the same steps of
 the same trajectory whatever N (world 0's is the per-env row's with ``--steps 200``), since a
@@ -79,7 +81,8 @@ def measure(
 
     Returns a dict: ``steps``, ``episodes``, ``cpu_s`` (stepping thread), ``steps_per_s``,
     ``robot_steps_per_s``, ``p50_ms`` / ``p99_ms`` / ``max_ms`` (CPU time of one ``step()``),
-    and with ``breakdown`` ``ms_per_step`` by stage.
+    ``steps_per_process_cpu_s``, ``wall_s`` and ``steps_per_wall_s``, and with ``breakdown``
+    ``ms_per_step`` by stage.
     """
     penv = mrexplore.parallel_env(**options)
     acc: dict[str, float] = defaultdict(float)
@@ -93,7 +96,7 @@ def measure(
     n_robots = len(penv.possible_agents)
     episodes = 1
     lat = np.zeros(steps, dtype=np.float64)
-    proc = 0.0
+    proc = wall = 0.0
     for k in range(-warmup, steps):
         if not penv.agents:
             penv.reset()
@@ -101,12 +104,14 @@ def measure(
         actions = {a: int(rng.integers(n_act)) for a in penv.agents}
         if k == 0:
             acc.clear()
+        w0 = time.perf_counter()
         p0 = time.process_time()
         t0 = time.thread_time()
         penv.step(actions)
         if k >= 0:
             lat[k] = time.thread_time() - t0
             proc += time.process_time() - p0
+            wall += time.perf_counter() - w0
     total = float(lat.sum())
     out: dict[str, Any] = {
         "options": dict(options),
@@ -119,6 +124,8 @@ def measure(
         # all threads of the process (OpenCV spreads some calls over worker threads)
         "process_cpu_s": proc,
         "steps_per_process_cpu_s": steps / proc,
+        "wall_s": wall,
+        "steps_per_wall_s": steps / wall,
         "p50_ms": 1000.0 * float(np.percentile(lat, 50)),
         "p99_ms": 1000.0 * float(np.percentile(lat, 99)),
         "max_ms": 1000.0 * float(lat.max()),
@@ -143,7 +150,8 @@ def measure_batched(
     Returns a dict: ``num_envs``, ``n_robots``, ``steps`` (batched), ``episodes_ended``,
     ``cpu_s`` (stepping thread), ``batch_steps_per_s``, ``world_steps_per_s``,
     ``robot_steps_per_s``, ``p50_ms`` / ``p99_ms`` / ``max_ms`` (one batched step),
-    ``process_cpu_s`` and ``robot_steps_per_process_cpu_s`` (all threads: the merge worker too).
+    ``process_cpu_s`` and ``robot_steps_per_process_cpu_s`` (all threads: the merge worker too),
+    ``wall_s`` and ``robot_steps_per_wall_s``.
     """
     from mrexplore.environment.batched import BatchedExploreEnv
 
@@ -158,16 +166,18 @@ def measure_batched(
         n_act = int(venv.single_action_space.n)
         r = venv.n_robots
         lat = np.zeros(steps, dtype=np.float64)
-        proc = 0.0
+        proc = wall = 0.0
         ended = 0
         for k in range(-warmup, steps):
             actions = np.array([[int(g.integers(n_act)) for _ in range(r)] for g in rngs])
+            w0 = time.perf_counter()
             p0 = time.process_time()
             t0 = time.thread_time()
             out = venv.step(actions)
             if k >= 0:
                 lat[k] = time.thread_time() - t0
                 proc += time.process_time() - p0
+                wall += time.perf_counter() - w0
                 ended += int(np.count_nonzero(out[2][:, 0] | out[3][:, 0]))
     finally:
         venv.close()
@@ -185,6 +195,8 @@ def measure_batched(
         "robot_steps_per_s": robot_steps / total,
         "process_cpu_s": proc,
         "robot_steps_per_process_cpu_s": robot_steps / proc,
+        "wall_s": wall,
+        "robot_steps_per_wall_s": robot_steps / wall,
         "p50_ms": 1000.0 * float(np.percentile(lat, 50)),
         "p99_ms": 1000.0 * float(np.percentile(lat, 99)),
         "max_ms": 1000.0 * float(lat.max()),
@@ -194,7 +206,7 @@ def measure_batched(
 BATCHED_HEADER = (
     f"{'batched env, 2 robots, symmetric_office (stepping thread)':<58} {'batch/s':>8} "
     f"{'world-st/s':>10} {'robot-st/s':>10} {'p50 ms':>7} {'p99 ms':>7} {'max ms':>7} "
-    f"{'robot-st/proc-s':>15}"
+    f"{'robot-st/proc-s':>15} {'robot-st/wall-s':>15}"
 )
 
 
@@ -203,7 +215,8 @@ def batched_row(label: str, r: dict[str, Any]) -> str:
     return (
         f"{label:<58} {r['batch_steps_per_s']:>8.1f} {r['world_steps_per_s']:>10.0f} "
         f"{r['robot_steps_per_s']:>10.0f} {r['p50_ms']:>7.2f} {r['p99_ms']:>7.2f} "
-        f"{r['max_ms']:>7.1f} {r['robot_steps_per_process_cpu_s']:>15.0f}"
+        f"{r['max_ms']:>7.1f} {r['robot_steps_per_process_cpu_s']:>15.0f} "
+        f"{r['robot_steps_per_wall_s']:>15.0f}"
     )
 
 
@@ -212,13 +225,13 @@ def row(label: str, r: dict[str, Any]) -> str:
     return (
         f"{label:<56} {r['steps_per_s']:>8.0f} {r['robot_steps_per_s']:>9.0f} "
         f"{r['p50_ms']:>7.2f} {r['p99_ms']:>7.2f} {r['max_ms']:>7.1f} "
-        f"{r['steps_per_process_cpu_s']:>10.0f}"
+        f"{r['steps_per_process_cpu_s']:>10.0f} {r['steps_per_wall_s']:>10.0f}"
     )
 
 
 HEADER = (
     f"{'setting (CPU time of the stepping thread)':<56} {'steps/s':>8} {'robot-st/s':>9} "
-    f"{'p50 ms':>7} {'p99 ms':>7} {'max ms':>7} {'st/proc-s':>10}"
+    f"{'p50 ms':>7} {'p99 ms':>7} {'max ms':>7} {'st/proc-s':>10} {'st/wall-s':>10}"
 )
 
 

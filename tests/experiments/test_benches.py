@@ -57,6 +57,8 @@ def test_env_breakdown_times_every_stage() -> None:
     r = measure(5, 0, warmup=1, breakdown=True, world="small_office", merger=None)
     assert set(r["ms_per_step"]) == {*STAGES, "other"}
     assert all(r["ms_per_step"][k] > 0 for k in STAGES)
+    # wall time holds the stepping thread's CPU time (and any wait for the merge worker)
+    assert r["wall_s"] >= 0.9 * r["cpu_s"] > 0 and r["steps_per_wall_s"] == 5 / r["wall_s"]
 
 
 def test_env_batched_rows_run_on_a_tiny_setting(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
@@ -65,7 +67,7 @@ def test_env_batched_rows_run_on_a_tiny_setting(tmp_path: Path, capsys) -> None:
     args = ["bench", "env", "--batched", "1,2", "--batched-only", "--batched-steps", "2"]
     assert main([*args, "--json", str(out_json)]) == 0
     out = capsys.readouterr().out
-    assert "batch/s" in out and "robot-st/proc-s" in out
+    assert "batch/s" in out and "robot-st/proc-s" in out and "robot-st/wall-s" in out
     assert "batched, N = 1 worlds x 2 robots" in out and "batched, N = 2 worlds x 2 robots" in out
     assert "symmetric_office, 1 robot" not in out  # --batched-only
     import json

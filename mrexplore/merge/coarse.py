@@ -13,6 +13,11 @@ from mrexplore.grid import FREE_THRESHOLD, OCCUPIED_THRESHOLD, Int8Grid
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
 
+#: Coarse scores are rounded to this many decimals (the linear score's terms are multiples of
+#: ``w_free`` and ``w_disagree``; the ratio score's are exact counts) so that the FFT's last-bit
+#: noise, which differs between CPUs, cannot reorder two peaks.
+SCORE_DECIMALS = 6
+
 
 def _pool(grid: Int8Grid, s: int) -> tuple[F32, F32]:
     """(wall, free) block maps at 1/s: wall = block holds a wall; free = all known and free.
@@ -112,13 +117,15 @@ class CoarseMatcher:
             FB2 = _spectrum(fb * (1.0 - _dilate(wb)), shape)
             # agreement and disagreement apart: rank by agree * (agree / (agree + dis))^p, which
             # favours clean alignments over large but contradicted overlaps (repetitive shelves)
-            ag = np.maximum(_correlation((self.FAW, FB1)), 0.0)
-            ds = np.maximum(_correlation((self.FAF, FB1), (self.FAWW, FB2)), 0.0)
-            S = (ag * (ag / (ag + ds + 2.0)) ** self.p).astype(np.float32)
-            return self._top(S, wb.shape, k, nms)
+            # both are counts of 0/1 blocks: rounded, they are exact on every CPU (the FFT's
+            # last bits are not), and so is the score computed from them
+            ag = np.maximum(np.rint(_correlation((self.FAW, FB1))), 0.0)
+            ds = np.maximum(np.rint(_correlation((self.FAF, FB1), (self.FAWW, FB2))), 0.0)
+            S = np.round(ag * (ag / (ag + ds + 2.0)) ** self.p, SCORE_DECIMALS)
+            return self._top(S.astype(np.float32), wb.shape, k, nms)
         FB2 = _spectrum(fb, shape)
-        S = _correlation((self.FA1, FB1), (self.FA2, FB2)).astype(np.float32)
-        return self._top(S, wb.shape, k, nms)
+        S = np.round(_correlation((self.FA1, FB1), (self.FA2, FB2)), SCORE_DECIMALS)
+        return self._top(S.astype(np.float32), wb.shape, k, nms)
 
     def _top(
         self, S: F32, b_shape: tuple[int, int], k: int, nms: int
@@ -132,8 +139,9 @@ class CoarseMatcher:
         cand = np.flatnonzero((mx <= S).ravel() & (S.ravel() > 0))
         if cand.size == 0:
             return []
-        vals = S.ravel()[cand]
-        top = cand[np.argsort(vals)[::-1][:k]]
+        # best first, ties in raster order: numpy's default sort orders ties differently on
+        # different CPUs (its SIMD sorts), and ties are common (scores of small block counts)
+        top = cand[np.lexsort((cand, -S.ravel()[cand]))[:k]]
         rows, cols = np.unravel_index(top, S.shape)
         # Block t -> cells: b's block j covers cells [s j, s j + s); same for a, so t * s.
         return [

@@ -2,28 +2,69 @@
 from their rotation spectra (modulo 90 degrees, half-degree bins): the directions of straight
 wall segments (probabilistic Hough, length-weighted) and of blurred wall gradients. The peaks of
 each pair's circular cross-correlation give theta0 + k 90 degrees.
+
+**The same candidates on every CPU.** OpenCV and numpy pick SIMD code at run time (SSE, AVX2,
+AVX-512) whose rounding differs in the last bits; a candidate that moves by 1e-5 degrees
+rotates b onto a few different cells (nearest neighbour), and the search then ends elsewhere
+(traced in the loop; docs/merging.md). So every continuous quantity on the way to a candidate
+is exact or rounded to a grid far coarser than that noise: the blurred gradients are integer
+sums (an integer Gaussian kernel in float64, exact in any order), the directions are rounded to
+:data:`ANGLE_DECIMALS`, the spectra's correlations to :data:`SPECTRUM_DIGITS` relative digits,
+and the candidates to :data:`CANDIDATE_DECIMALS`, then turned into radians in the degree domain.
 """
 
 from __future__ import annotations
+
+import math
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+#: Wall directions are rounded to this many decimals of a degree before they are binned: far
+#: coarser than the last-bit noise of ``arctan2`` between SIMD paths (~1e-14 degrees).
+ANGLE_DECIMALS = 6
+
+#: Spectrum correlations are rounded to this many digits relative to their largest value
+#: before their peaks are picked and refined.
+SPECTRUM_DIGITS = 9
+
+#: Rotation candidates are rounded to this many decimals of a degree (0.01: ICP and the
+#: rotation polish refine them; their own accuracy is a few tenths of a degree).
+CANDIDATE_DECIMALS = 2
+
+#: Fixed-point scale of the integer Gaussian kernel of :func:`wall_normals`.
+_KERNEL_ONE = 1 << 16
+
+
+def _integer_gaussian(sigma: float) -> NDArray[np.float64]:
+    """OpenCV's Gaussian kernel for ``sigma`` (its float size rule: 8 sigma + 1 taps, odd) in
+    fixed point: integers summing to about 2^16, stored as float64 (exact in any order)."""
+    ksize = round(sigma * 8 + 1) | 1
+    return np.rint(cv2.getGaussianKernel(ksize, sigma, cv2.CV_64F) * _KERNEL_ONE)
+
 
 def wall_normals(
     wall: NDArray[np.bool_], sigma: float = 2.5
-) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
-    """The wall-normal directions (degrees, (-180, 180]) and gradient magnitudes (N,) of the
-    cells whose blurred-wall gradient is at least 5 % of the largest: the input of
-    :func:`orientation_histogram`, computed once per map when several histograms need it."""
-    img = cv2.GaussianBlur(wall.astype(np.float32), (0, 0), sigma)
-    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3)
-    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3)
-    mag = np.hypot(gx, gy)
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The wall-normal directions (degrees, (-180, 180], rounded to :data:`ANGLE_DECIMALS`) and
+    gradient magnitudes (N,) of the cells whose blurred-wall gradient is at least 5 % of the
+    largest: the input of :func:`orientation_histogram`, computed once per map when several
+    histograms need it.
+
+    The blur (``sigma`` cells, an integer kernel) and the Sobel gradients are integer sums,
+    exact in float64 (below 2^53) whatever order a CPU adds them in; the magnitudes use only
+    IEEE multiply, add and square root, so they are the same bits on every CPU too.
+    """
+    k = _integer_gaussian(sigma)
+    img = cv2.sepFilter2D(wall.astype(np.float64), cv2.CV_64F, k, k)
+    gx = cv2.Sobel(img, cv2.CV_64F, 1, 0, ksize=3)
+    gy = cv2.Sobel(img, cv2.CV_64F, 0, 1, ksize=3)
+    mag = np.sqrt(gx * gx + gy * gy)
     top = float(mag.max()) if mag.size else 0.0
     keep = mag > 0.05 * top if top > 0 else mag > 0
-    return np.degrees(np.arctan2(gy[keep], gx[keep])), mag[keep]
+    deg = np.round(np.degrees(np.arctan2(gy[keep], gx[keep])), ANGLE_DECIMALS)
+    return np.asarray(deg, dtype=np.float64), np.asarray(mag[keep], dtype=np.float64)
 
 
 def orientation_histogram(
@@ -43,7 +84,7 @@ def orientation_histogram(
 
 
 def direction_histogram(
-    normals: tuple[NDArray[np.float32], NDArray[np.float32]],
+    normals: tuple[NDArray[np.float64], NDArray[np.float64]],
     bins: int = 90,
     period_deg: float = 90.0,
 ) -> NDArray[np.float64]:
@@ -87,8 +128,8 @@ def segment_histogram(
     seg = np.asarray(lines, dtype=np.float64).reshape(-1, 4)
     dx, dy = seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1]
     length = np.hypot(dx, dy)
-    ang = np.degrees(np.arctan2(dy, dx)) % period_deg
-    sd = np.maximum(np.degrees(np.arctan2(1.0, length)), 0.25)
+    ang = np.round(np.degrees(np.arctan2(dy, dx)), ANGLE_DECIMALS) % period_deg
+    sd = np.maximum(np.round(np.degrees(np.arctan2(1.0, length)), ANGLE_DECIMALS), 0.25)
     centres = (np.arange(bins) + 0.5) * period_deg / bins
     d = (centres[None, :] - ang[:, None] + period_deg / 2) % period_deg - period_deg / 2
     hist = (length[:, None] * np.exp(-0.5 * (d / sd[:, None]) ** 2)).sum(axis=0)
@@ -123,7 +164,13 @@ def _relative_peaks_deg(ha: NDArray[np.float64], hb: NDArray[np.float64], k: int
     """Peaks (degrees, mod 90) of the circular cross-correlation of two mod-90 histograms."""
     bins = ha.size
     R = np.fft.irfft(np.fft.rfft(ha) * np.conj(np.fft.rfft(hb)), n=bins)  # sum ha(phi) hb(phi - d)
-    return [p * 90.0 / bins for p in _circular_peaks(R, k, 0.5, max(1, bins // 11))]
+    top = float(np.abs(R).max())
+    if top > 0:  # relative rounding: the peaks and their refinement then agree on every CPU
+        R = np.round(R / top, SPECTRUM_DIGITS)
+    return [
+        round(p * 90.0 / bins, CANDIDATE_DECIMALS)
+        for p in _circular_peaks(R, k, 0.5, max(1, bins // 11))
+    ]
 
 
 def rotation_candidates(
@@ -131,7 +178,7 @@ def rotation_candidates(
     wall_b: NDArray[np.bool_],
     max_peaks: int = 2,
     step_deg: float = 0.0,
-    normals_a: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None,
+    normals_a: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
 ) -> list[float]:
     """Candidate rotations (radians, in (-pi, pi]) of b relative to a, best first.
 
@@ -154,9 +201,23 @@ def rotation_candidates(
     ):
         if all(min(abs(p - q) % 90.0, 90.0 - abs(p - q) % 90.0) > 1.0 for q in peaks):
             peaks.append(p)
-    out: list[float] = []
-    for p in peaks:
-        out += [np.radians(p + 90.0 * k) for k in range(4)]
+    degrees = [p + 90.0 * k for p in peaks for k in range(4)]
     if step_deg > 0:
-        out += [float(x) for x in np.radians(np.arange(0.0, 360.0, step_deg))]
-    return [float(np.arctan2(np.sin(t), np.cos(t))) for t in out]
+        degrees += [round(float(x), CANDIDATE_DECIMALS) for x in np.arange(0.0, 360.0, step_deg)]
+    # wrapped to (-180, 180] in degrees, then converted: plain IEEE arithmetic, the same bits on
+    # every CPU (numpy's vectorised sin, cos and arctan2 are not)
+    return [math.radians(_wrap_deg(d)) for d in degrees]
+
+
+def _wrap_deg(d: float) -> float:
+    """``d`` degrees wrapped to (-180, 180].
+
+    >>> _wrap_deg(270.0), _wrap_deg(-180.0), _wrap_deg(180.0)
+    (-90.0, 180.0, 180.0)
+    """
+    w = math.fmod(d, 360.0)
+    if w > 180.0:
+        w -= 360.0
+    elif w <= -180.0:
+        w += 360.0
+    return w

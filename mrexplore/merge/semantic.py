@@ -54,7 +54,6 @@ from mrexplore.grid import (
     UNKNOWN,
     Int8Grid,
     Transform,
-    make_transform,
 )
 from mrexplore.merge.coarse import CoarseMatcher
 from mrexplore.merge.common import (
@@ -62,9 +61,11 @@ from mrexplore.merge.common import (
     MapCodes,
     MergeResult,
     Verifier,
+    chain,
     compose,
     detector_check,
     known_bbox,
+    map_points,
     translation,
     warp_into,
 )
@@ -108,22 +109,37 @@ class _Hypothesis:
 # --------------------------------------------------------------------------------------------
 
 
+def _rigid(theta_rad: float) -> Transform:
+    """The rotation by ``theta_rad`` as a 3x3 transform, from ``math.cos``/``math.sin`` (the C
+    library's; numpy's vectorised ones round differently on different CPUs)."""
+    c, s = math.cos(theta_rad), math.sin(theta_rad)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _turn_about(deg: float, cx: float, cy: float) -> Transform:
+    """A turn by ``deg`` degrees about the cell ``(cx, cy)``."""
+    return chain(translation(cx, cy), _rigid(math.radians(deg)), translation(-cx, -cy))
+
+
 def _rotation_about(theta: float, shape: tuple[int, int]) -> tuple[Transform, tuple[int, int]]:
     """Rotation of a (h, w) grid by ``theta`` about its centre, shifted so the result fits in a
     canvas starting at (0, 0); returns (T_rot, canvas shape)."""
     h, w = shape
-    R = make_transform(theta, 0.0, 0.0)
+    R = _rigid(theta)
     corners = np.array([[0, 0], [w - 1, 0], [0, h - 1], [w - 1, h - 1]], dtype=np.float64)
-    q = corners @ R[:2, :2].T
+    # rounded before floor and ceil: at a multiple of 90 degrees a corner lands within 1e-13 of
+    # an integer, on either side depending on the CPU's rounding, which would shift the canvas
+    q = np.round(np.stack(map_points(corners, R), axis=1), 6)
     lo = np.floor(q.min(axis=0))
     hi = np.ceil(q.max(axis=0))
-    T = translation(-lo[0], -lo[1]) @ R
+    T = chain(translation(-lo[0], -lo[1]), R)
     return T, (int(hi[1] - lo[1]) + 1, int(hi[0] - lo[0]) + 1)
 
 
 def _mean_shift(T1: Transform, T2: Transform, pts: NDArray[np.float64]) -> float:
-    d = pts @ (T1[:2, :2] - T2[:2, :2]).T + (T1[:2, 2] - T2[:2, 2])
-    return float(np.mean(np.hypot(d[:, 0], d[:, 1])))
+    dx, dy = map_points(pts, np.asarray(T1) - np.asarray(T2))
+    # rounded: it is compared with thresholds (far_cells, 1 cell)
+    return round(float(np.mean(np.sqrt(dx * dx + dy * dy))), 6)
 
 
 def _paper_hypotheses(
@@ -148,14 +164,14 @@ def _paper_hypotheses(
     if len(ta) == 0 or len(tb) == 0:
         return []
     C = correlation_matrix(gradient_windows(a, ta, f), gradient_windows(b_rot, tb, f))
-    top = np.argsort(C, axis=None)[::-1][:k]
+    top = np.lexsort((np.arange(C.size), -np.round(C.ravel(), 9)))[:k]  # ties in raster order
     ii, jj = np.unravel_index(top, C.shape)
-    return [translation(*(ta[i] - tb[j])) @ T_rot for i, j in zip(ii, jj, strict=True)]
+    return [chain(translation(*(ta[i] - tb[j])), T_rot) for i, j in zip(ii, jj, strict=True)]
 
 
 def _slide_hypotheses(
     best: _Hypothesis,
-    normals_a: tuple[NDArray[np.float32], NDArray[np.float32]],
+    normals_a: tuple[NDArray[np.float64], NDArray[np.float64]],
     b_shape: tuple[int, int],
     step: float,
     screen: Verifier,
@@ -177,17 +193,20 @@ def _slide_hypotheses(
     (it becomes the best) or one explains as much (the rival test refuses).
     """
     hist = direction_histogram(normals_a)
-    phi = np.radians(float(np.argmax(hist)))  # wall normal direction mod 90 deg
+    phi = math.radians(float(np.argmax(hist)))  # wall normal direction mod 90 deg
     h, w = b_shape
-    reach = float(np.hypot(h, w))
+    reach = math.hypot(h, w)
     ks = np.arange(step, reach, step)
-    dirs = np.array([[np.cos(phi), np.sin(phi)], [-np.sin(phi), np.cos(phi)]])
+    c, s = math.cos(phi), math.sin(phi)
+    dirs = np.array([[c, s], [-s, c]])
     shifts = np.concatenate([s * ks[:, None] * d[None, :] for d in dirs for s in (1.0, -1.0)])
     agree, disagree = screen.shifted(best.T, shifts)
-    order = np.argsort(-(agree - 10 * disagree))[: 3 * keep]
+    order = np.argsort(-(agree - 10 * disagree), kind="stable")[: 3 * keep]  # ties: shift order
     out = [
         _Hypothesis(
-            translation(*shifts[k]) @ best.T, "slide", Agreement(int(agree[k]), int(disagree[k]))
+            chain(translation(*shifts[k]), best.T),
+            "slide",
+            Agreement(int(agree[k]), int(disagree[k])),
         )
         for k in order
         if agree[k] > 0
@@ -225,8 +244,8 @@ def _rotation_polish(
         return
     cy, cx = (b_shape[0] - 1) / 2.0, (b_shape[1] - 1) / 2.0
     for d in offsets_deg:
-        turn = translation(cx, cy) @ make_transform(np.radians(d), 0.0, 0.0) @ translation(-cx, -cy)
-        T = icp(icp(hyp.T @ turn, iters=10, max_dist=3.0), iters=5, max_dist=1.5)
+        turn = _turn_about(d, cx, cy)
+        T = icp(icp(chain(hyp.T, turn), iters=10, max_dist=3.0), iters=5, max_dist=1.5)
         ag = verify(T)
         if ag.agree - 10 * ag.disagree > hyp.agreement.agree - 10 * hyp.agreement.disagree:
             hyp.T, hyp.agreement = T, ag
@@ -253,10 +272,10 @@ def _consistency_polish(
     cx, cy = centre
     grid: list[tuple[float, int, Transform]] = []
     for d in (-1.0, -0.5, 0.0, 0.5, 1.0):
-        turn = translation(cx, cy) @ make_transform(np.radians(d), 0.0, 0.0) @ translation(-cx, -cy)
+        turn = _turn_about(d, cx, cy)
         for dr in (-2, -1, 0, 1, 2):
             for dc in (-2, -1, 0, 1, 2):
-                Tn = translation(dc, dr) @ T @ turn
+                Tn = chain(translation(dc, dr), T, turn)
                 grid.append((slack_verify(Tn).score, len(grid), Tn))
     grid.sort(key=lambda g: (-g[0], g[1]))  # ties in grid order: the same answer everywhere
     best_T, best_c = T, consistency(T) if start is None else start
@@ -298,18 +317,20 @@ def cross_support(wall_a: NDArray[np.bool_], wall_b: NDArray[np.bool_], T: Trans
     c, r = c[on], r[on]
     if c.size == 0:
         return 0.0
-    img = cv2.GaussianBlur(win.astype(np.float32), (0, 0), 1.0)
-    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3)
-    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3)
+    # float64 (float32's last bits differ between CPUs' SIMD paths), and the answer rounded:
+    # it is compared with min_cross_cells
+    img = cv2.GaussianBlur(win.astype(np.float64), (0, 0), 1.0)
+    gx = cv2.Sobel(img, cv2.CV_64F, 1, 0, ksize=3)
+    gy = cv2.Sobel(img, cv2.CV_64F, 0, 1, ksize=3)
     jxx = cv2.GaussianBlur(gx * gx, (0, 0), 4.0)
     jyy = cv2.GaussianBlur(gy * gy, (0, 0), 4.0)
     jxy = cv2.GaussianBlur(gx * gy, (0, 0), 4.0)
-    ang = 0.5 * np.arctan2(2.0 * jxy[r, c], jxx[r, c] - jyy[r, c]).astype(np.float64)
+    ang = 0.5 * np.arctan2(2.0 * jxy[r, c], jxx[r, c] - jyy[r, c])
     u = np.stack([np.cos(ang), np.sin(ang)], axis=1)
-    return float(np.linalg.eigvalsh(u.T @ u)[0])
+    return round(float(np.linalg.eigvalsh(u.T @ u)[0]), 6)
 
 
-#: How far (cells) the structure tensor of :func:`cross_support` reaches: float32 Gaussian
+#: How far (cells) the structure tensor of :func:`cross_support` reaches: float Gaussian
 #: kernels span 4 sigma each side (OpenCV), so blur 1 (4) + Sobel (1) + blur 4 (16), plus slack.
 _TENSOR_REACH = 24
 
@@ -327,8 +348,9 @@ class _SharedSpace:
         # only the window of a that b's canvas can cover under the pose is warped and counted
         T = np.asarray(T_ab, dtype=np.float64)
         hb, wb = self.known_b.shape
-        corners = np.array([[-1.0, -1.0], [wb, -1.0], [-1.0, hb], [wb, hb]]) @ T[:2, :2].T
-        corners += T[:2, 2]
+        corners = np.stack(
+            map_points(np.array([[-1.0, -1.0], [wb, -1.0], [-1.0, hb], [wb, hb]]), T), axis=1
+        )
         w, h = self.size
         c0, r0 = np.maximum(np.floor(corners.min(axis=0)), 0).astype(int)
         c1, r1 = np.minimum(np.ceil(corners.max(axis=0)) + 1, (w, h)).astype(int)
@@ -478,7 +500,7 @@ def merge_semantic(
         b_rot = warp_into(bc, T_rot, shape)
         for dc, dr, _ in coarse.peaks(b_rot, k_peaks):
             # pooled blocks are anchored at the corner: half a block of ambiguity, which ICP removes
-            hyps.append(_Hypothesis(translation(dc, dr) @ T_rot, "coarse"))
+            hyps.append(_Hypothesis(chain(translation(dc, dr), T_rot), "coarse"))
         if use_paper:
             hyps += [
                 _Hypothesis(T, "paper")
@@ -496,7 +518,7 @@ def merge_semantic(
     # poses handed in go first, so that they are always polished (and judged like the rest)
     to_crops = translation(-bba[2], -bba[0]), translation(bbb[2], bbb[0])
     hyps = [
-        _Hypothesis(to_crops[0] @ np.asarray(T, dtype=np.float64) @ to_crops[1], "given")
+        _Hypothesis(chain(to_crops[0], np.asarray(T, dtype=np.float64), to_crops[1]), "given")
         for T in extra_hypotheses
     ] + hyps
     for hyp in hyps[: len(extra_hypotheses)]:
@@ -572,7 +594,7 @@ def merge_semantic(
     credit_shared_space(chosen)  # their poses moved in the refinement: count again
     chosen.sort(key=lambda h: -h.evidence)
     info["hypotheses"] = [
-        (translation(bba[2], bba[0]) @ h.T @ translation(-bbb[2], -bbb[0]), h.agreement)
+        (chain(translation(bba[2], bba[0]), h.T, translation(-bbb[2], -bbb[0])), h.agreement)
         for h in chosen
     ]
     best = chosen[0]
@@ -615,7 +637,7 @@ def merge_semantic(
     runner = rivals[0].score if rivals else None
     info["best_agreement"] = best.agreement
     info["runner_up_agreement"] = rivals[0].agreement if rivals else None
-    T_full = translation(bba[2], bba[0]) @ best.T @ translation(-bbb[2], -bbb[0])
+    T_full = chain(translation(bba[2], bba[0]), best.T, translation(-bbb[2], -bbb[0]))
     overlap_cells = int(best.agreement.overlap * verify.cells_per_sample)
     common = dict(n_hypotheses=len(hyps), runner_up_score=runner, overlap_cells=overlap_cells)
     info["best_source"] = best.source

@@ -1,0 +1,72 @@
+"""The merger's CPU-independent arithmetic (issue 11): transform products and inverses without
+BLAS, the exact integer blur of the rotation spectrum, rounded rotation candidates."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from mrexplore.grid import make_transform
+from mrexplore.merge.common import chain, map_points, rigid_inverse, translation
+from mrexplore.merge.rotation import (
+    CANDIDATE_DECIMALS,
+    _integer_gaussian,
+    rotation_candidates,
+    wall_normals,
+)
+
+
+def _random_transforms(n: int, seed: int = 0) -> list[np.ndarray]:
+    rng = np.random.default_rng(seed)
+    return [
+        make_transform(float(rng.uniform(-np.pi, np.pi)), *rng.uniform(-500, 500, 2))
+        for _ in range(n)
+    ]
+
+
+def test_chain_equals_the_matrix_product() -> None:
+    Ts = _random_transforms(30)
+    for A, B, C in zip(Ts[::3], Ts[1::3], Ts[2::3], strict=True):
+        np.testing.assert_allclose(chain(A, B, C), A @ B @ C, rtol=0, atol=1e-9)
+        assert chain(A).tolist() == A.tolist()
+
+
+def test_rigid_inverse_inverts() -> None:
+    for T in _random_transforms(20, seed=1):
+        np.testing.assert_allclose(chain(T, rigid_inverse(T)), np.eye(3), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(rigid_inverse(T), np.linalg.inv(T), rtol=0, atol=1e-9)
+
+
+def test_map_points_equals_the_matrix_form() -> None:
+    T = _random_transforms(1, seed=2)[0]
+    pts = np.random.default_rng(3).uniform(0, 300, (100, 2))
+    x, y = map_points(pts, T)
+    np.testing.assert_allclose(np.stack([x, y], 1), pts @ T[:2, :2].T + T[:2, 2], atol=1e-9)
+
+
+def test_translations_compose_exactly() -> None:
+    T = _random_transforms(1, seed=4)[0]
+    assert chain(translation(3, -7), T)[:2, :2].tolist() == T[:2, :2].tolist()
+
+
+def test_the_blurred_gradients_are_exact_integers() -> None:
+    k = _integer_gaussian(2.5)
+    assert k.shape == (21, 1) and np.all(k == np.rint(k)) and abs(k.sum() - 65536) <= 2
+    wall = np.zeros((60, 60), dtype=bool)
+    wall[10:50, 20] = wall[30, 5:55] = True
+    deg, mag = wall_normals(wall)
+    assert deg.dtype == np.float64 and mag.size == deg.size > 0
+    # directions are rounded to a grid far coarser than the last-bit noise of arctan2
+    np.testing.assert_array_equal(deg, np.round(deg, 6))
+
+
+def test_rotation_candidates_lie_on_their_grid() -> None:
+    wall = np.zeros((80, 80), dtype=bool)
+    wall[10:70, 15] = wall[10:70, 60] = wall[12, 15:61] = True
+    rot = np.zeros_like(wall)
+    rot[10:70, 20] = rot[10:70, 65] = rot[40, 20:66] = True
+    for t in rotation_candidates(wall, rot):
+        d = math.degrees(t)
+        assert -180.0 < d <= 180.0
+        assert abs(d * 10**CANDIDATE_DECIMALS - round(d * 10**CANDIDATE_DECIMALS)) < 1e-6

@@ -8,7 +8,7 @@ AVX-512) whose rounding differs in the last bits; a candidate that moves by 1e-5
 rotates b onto a few different cells (nearest neighbour), and the search then ends elsewhere
 (traced in the loop; docs/merging.md). So every continuous quantity on the way to a candidate
 is exact or rounded to a grid far coarser than that noise: the blurred gradients are integer
-sums (an integer Gaussian kernel in float64, exact in any order), the directions are rounded to
+sums (an integer Gaussian kernel, exact in float32 in any order), the directions are rounded to
 :data:`ANGLE_DECIMALS`, the spectra's correlations to :data:`SPECTRUM_DIGITS` relative digits,
 and the candidates to :data:`CANDIDATE_DECIMALS`, then turned into radians in the degree domain.
 """
@@ -33,15 +33,19 @@ SPECTRUM_DIGITS = 9
 #: rotation polish refine them; their own accuracy is a few tenths of a degree).
 CANDIDATE_DECIMALS = 2
 
-#: Fixed-point scale of the integer Gaussian kernel of :func:`wall_normals`.
-_KERNEL_ONE = 1 << 16
+#: Fixed-point scale of the integer Gaussian kernel of :func:`wall_normals`: small enough that
+#: the blur (at most 2^10 per pass) and its Sobel gradients (at most 2^23) are integers that
+#: float32 holds exactly, so OpenCV's SIMD filters give the same bits on every CPU.
+_KERNEL_ONE = 1 << 10
 
 
-def _integer_gaussian(sigma: float) -> NDArray[np.float64]:
+def _integer_gaussian(sigma: float) -> NDArray[np.float32]:
     """OpenCV's Gaussian kernel for ``sigma`` (its float size rule: 8 sigma + 1 taps, odd) in
-    fixed point: integers summing to about 2^16, stored as float64 (exact in any order)."""
+    fixed point: integers summing to about 2^10, as float32 (exact in any order)."""
     ksize = round(sigma * 8 + 1) | 1
-    return np.rint(cv2.getGaussianKernel(ksize, sigma, cv2.CV_64F) * _KERNEL_ONE)
+    k = np.rint(cv2.getGaussianKernel(ksize, sigma, cv2.CV_64F) * _KERNEL_ONE)
+    k = k[k > 0]  # the zero taps at the ends cost time and add nothing
+    return np.asarray(k, dtype=np.float32).reshape(-1, 1)
 
 
 def wall_normals(
@@ -53,18 +57,21 @@ def wall_normals(
     histograms need it.
 
     The blur (``sigma`` cells, an integer kernel) and the Sobel gradients are integer sums,
-    exact in float64 (below 2^53) whatever order a CPU adds them in; the magnitudes use only
-    IEEE multiply, add and square root, so they are the same bits on every CPU too.
+    exact in float32 (below 2^24) whatever order a CPU adds them in; their squares are exact in
+    float64, and the magnitudes use only IEEE square roots, so they are the same bits on every
+    CPU too.
     """
     k = _integer_gaussian(sigma)
-    img = cv2.sepFilter2D(wall.astype(np.float64), cv2.CV_64F, k, k)
-    gx = cv2.Sobel(img, cv2.CV_64F, 1, 0, ksize=3)
-    gy = cv2.Sobel(img, cv2.CV_64F, 0, 1, ksize=3)
-    mag = np.sqrt(gx * gx + gy * gy)
-    top = float(mag.max()) if mag.size else 0.0
-    keep = mag > 0.05 * top if top > 0 else mag > 0
-    deg = np.round(np.degrees(np.arctan2(gy[keep], gx[keep])), ANGLE_DECIMALS)
-    return np.asarray(deg, dtype=np.float64), np.asarray(mag[keep], dtype=np.float64)
+    img = cv2.sepFilter2D(wall.view(np.uint8), cv2.CV_32F, k, k)
+    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3)
+    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3)
+    nz = np.flatnonzero((gx != 0) | (gy != 0))  # most cells lie far from any wall
+    gxn, gyn = gx.ravel()[nz].astype(np.float64), gy.ravel()[nz].astype(np.float64)
+    mag2 = gxn * gxn + gyn * gyn  # exact: integers below 2^47
+    top2 = float(mag2.max()) if mag2.size else 0.0
+    keep = mag2 > 0.0025 * top2  # magnitude above 5 % of the largest
+    deg = np.round(np.degrees(np.arctan2(gyn[keep], gxn[keep])), ANGLE_DECIMALS)
+    return np.asarray(deg, dtype=np.float64), np.sqrt(mag2[keep])
 
 
 def orientation_histogram(

@@ -286,7 +286,9 @@ def _consistency_polish(
     return best_T, best_c
 
 
-def cross_support(wall_a: NDArray[np.bool_], wall_b: NDArray[np.bool_], T: Transform) -> float:
+def cross_support(
+    wall_a: NDArray[np.bool_], wall_b: NDArray[np.bool_], T: Transform, precise: bool = False
+) -> float:
     """How firmly a pose is pinned along its weakest direction, in wall cells: the smaller
     eigenvalue of ``sum n n^T`` over b's wall cells that land within a cell of a's walls under
     ``T`` (b cells -> a cells), ``n`` the unit normal of a's wall there.
@@ -296,6 +298,10 @@ def cross_support(wall_a: NDArray[np.bool_], wall_b: NDArray[np.bool_], T: Trans
     One straight wall, or the two parallel walls of a corridor, gives ~0 whatever its length:
     the maps then agree equally well after a slide along it, and only wall bumps of a cell or
     two would decide where. A room corner gives the length of its shorter wall.
+
+    In float32 (OpenCV's fast filters) unless ``precise``: float32's last bits differ between
+    CPUs' SIMD paths, by far less than a thousandth of a cell here, so a caller comparing the
+    answer with a threshold recomputes it with ``precise=True`` (float64) when it lies near.
     """
     rb, cb = np.nonzero(wall_b)
     T = np.asarray(T, dtype=np.float64)
@@ -317,18 +323,21 @@ def cross_support(wall_a: NDArray[np.bool_], wall_b: NDArray[np.bool_], T: Trans
     c, r = c[on], r[on]
     if c.size == 0:
         return 0.0
-    # float64 (float32's last bits differ between CPUs' SIMD paths), and the answer rounded:
-    # it is compared with min_cross_cells
-    img = cv2.GaussianBlur(win.astype(np.float64), (0, 0), 1.0)
-    gx = cv2.Sobel(img, cv2.CV_64F, 1, 0, ksize=3)
-    gy = cv2.Sobel(img, cv2.CV_64F, 0, 1, ksize=3)
+    dtype, depth = (np.float64, cv2.CV_64F) if precise else (np.float32, cv2.CV_32F)
+    img = cv2.GaussianBlur(win.astype(dtype), (0, 0), 1.0)
+    gx = cv2.Sobel(img, depth, 1, 0, ksize=3)
+    gy = cv2.Sobel(img, depth, 0, 1, ksize=3)
     jxx = cv2.GaussianBlur(gx * gx, (0, 0), 4.0)
     jyy = cv2.GaussianBlur(gy * gy, (0, 0), 4.0)
     jxy = cv2.GaussianBlur(gx * gy, (0, 0), 4.0)
-    ang = 0.5 * np.arctan2(2.0 * jxy[r, c], jxx[r, c] - jyy[r, c])
+    ang = 0.5 * np.arctan2(2.0 * jxy[r, c], jxx[r, c] - jyy[r, c]).astype(np.float64)
     u = np.stack([np.cos(ang), np.sin(ang)], axis=1)
-    return round(float(np.linalg.eigvalsh(u.T @ u)[0]), 6)
+    return float(np.linalg.eigvalsh(u.T @ u)[0])
 
+
+#: Within this many cells of ``min_cross_cells`` the cross support is recomputed in float64
+#: before it decides: float32's CPU-dependent last bits move it by far less.
+_CROSS_GUARD_CELLS = 1.0
 
 #: How far (cells) the structure tensor of :func:`cross_support` reaches: float Gaussian
 #: kernels span 4 sigma each side (OpenCV), so blur 1 (4) + Sobel (1) + blur 4 (16), plus slack.
@@ -676,6 +685,10 @@ def merge_semantic(
         # a slide along one straight wall (or a corridor) explains the maps as well as the pose:
         # its walls must also pin the pose across that direction
         cross = cross_support(wall_a, wall_b, best.T)
+        if abs(cross - o.min_cross_cells) < _CROSS_GUARD_CELLS or cross < o.min_cross_cells:
+            # near the threshold, or refused (its figure is printed): the CPU-independent value
+            cross = cross_support(wall_a, wall_b, best.T, precise=True)
+        cross = round(cross, 2)
         info["cross_cells"] = cross
         if cross < o.min_cross_cells:
             return refuse(

@@ -52,7 +52,7 @@ def test_translations_compose_exactly() -> None:
 
 def test_the_blurred_gradients_are_exact_integers() -> None:
     k = _integer_gaussian(2.5)
-    assert k.shape == (21, 1) and np.all(k == np.rint(k)) and abs(k.sum() - 65536) <= 2
+    assert k.shape[1] == 1 and np.all(k == np.rint(k)) and abs(k.sum() - 1024) <= 2
     wall = np.zeros((60, 60), dtype=bool)
     wall[10:50, 20] = wall[30, 5:55] = True
     deg, mag = wall_normals(wall)

@@ -54,6 +54,9 @@ _END_NUDGE_CELLS: float = 1e-3
 #: compiled kernel bit for bit, which the tests use).
 NUMPY_TRAVERSE_DTYPE: type[np.floating] = np.float32
 
+#: Headings whose beam directions each map keeps (see :meth:`OccupancyMap._directions`).
+_DIR_CACHE: int = 16
+
 #: The per-scan stamps are uint16: scan ids wrap (and the stamps are cleared) before 2 id + 1
 #: overflows.
 _STAMP_WRAP: int = 32767
@@ -132,6 +135,10 @@ class OccupancyMap:
         # the update that made ``version``
         self._changed_arr = np.array([0, -1, 0, -1], dtype=np.int64)
         self._changed_box: Box | None = None
+        # Beam directions of the last few headings (see _directions): heading bits -> (cos,
+        # sin), for the beam angles whose bytes are _dir_angles.
+        self._dir_cache: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
+        self._dir_angles = b""
 
     # ------------------------------------------------------------------ queries
     def cell_of(self, x_m: float, y_m: float) -> tuple[float, float]:
@@ -230,12 +237,13 @@ class OccupancyMap:
             raise GridError(
                 f"pose ({x:.3f}, {y:.3f}) m is outside the {h}x{w} canvas: make the canvas larger"
             )
-        a = th + ang
         t_end = np.asarray(rng_m, dtype=np.float64) / res
         if kernels.enabled():
-            self._integrate_numba(ox, oy, np.cos(a), np.sin(a), t_end, hits)
+            dx, dy = self._directions(th, ang)
+            self._integrate_numba(ox, oy, dx, dy, t_end, hits)
             self._note_change()
             return
+        a = th + ang
         d = np.stack([np.cos(a), np.sin(a)], axis=1)
         hits = hits.copy()
         # Beams that would leave the canvas (keeping a one-cell ring) are cut at its edge and
@@ -311,6 +319,31 @@ class OccupancyMap:
                     min(b[2], box[2]),
                     max(b[3], box[3]),
                 ]
+
+    def _directions(
+        self, th: float, ang: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Unit beam directions ``(cos(th + ang), sin(th + ang))``, each float64 (B,), for the
+        heading ``th`` and beam angles ``ang`` (B,), radians; not to be written to.
+
+        A robot turns in fixed steps, so its headings repeat: the last :data:`_DIR_CACHE`
+        headings' directions are kept (keyed by the heading's bits and the angles' bytes, so a
+        hit returns what numpy would compute now), saving two 360-element trig calls per scan.
+        """
+        raw = ang.dtype.str.encode() + ang.tobytes()
+        if raw != self._dir_angles:
+            self._dir_cache.clear()
+            self._dir_angles = raw
+        key = float(th).hex()  # the bits: -0.0 and 0.0 differ
+        hit = self._dir_cache.get(key)
+        if hit is not None:
+            return hit
+        a = th + ang
+        out = (np.cos(a), np.sin(a))
+        if len(self._dir_cache) >= _DIR_CACHE:
+            del self._dir_cache[next(iter(self._dir_cache))]  # the oldest heading
+        self._dir_cache[key] = out
+        return out
 
     def _integrate_numba(
         self,

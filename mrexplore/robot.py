@@ -86,6 +86,17 @@ def wrap_angle(theta: NDArray[np.floating] | float) -> NDArray[np.float64]:
     return np.where(w <= -math.pi, w + 2.0 * math.pi, w)
 
 
+def wrap_angle_scalar(theta: float) -> float:
+    """:func:`wrap_angle` of one angle (radians) with plain float math, to the same bits.
+
+    Python's float ``%`` is numpy's ``np.mod`` (``fmod``, then the divisor's sign), and the
+    other steps are the same IEEE operations in the same order; a 0-d numpy call costs ~5 us,
+    this ~0.2 us (the simulator wraps one heading per turning robot per step).
+    """
+    w = (theta + math.pi) % (2.0 * math.pi) - math.pi
+    return w + 2.0 * math.pi if w <= -math.pi else w
+
+
 def disc_kernel(radius_cells: float) -> NDArray[np.uint8]:
     """uint8 square kernel with ones on the cells whose centre is within ``radius_cells``."""
     n = math.floor(radius_cells)
@@ -180,15 +191,18 @@ class Motion:
         a = np.asarray(actions).reshape(-1)
         if a.shape[0] != p.shape[0]:
             raise ConfigError(f"got {p.shape[0]} poses but {a.shape[0]} actions")
-        if a.size and (a.min() < 0 or a.max() > _STAY):
-            raise ConfigError(f"actions must be in 0..{int(Action.STAY)}, got {a.tolist()}")
+        # Per robot in plain Python (a handful of robots: numpy's per-call overhead on 0-d and
+        # 1-element arrays was most of this function).
+        acts = a.tolist()
+        if acts and (min(acts) < 0 or max(acts) > _STAY):
+            raise ConfigError(f"actions must be in 0..{int(Action.STAY)}, got {acts}")
         turn = self.config.turn_rad
         # Only turning robots are wrapped: the others keep their heading bit for bit.
-        left, right = a == _TURN_LEFT, a == _TURN_RIGHT
-        if left.any():
-            p[left, 2] = wrap_angle(p[left, 2] + turn)
-        if right.any():
-            p[right, 2] = wrap_angle(p[right, 2] - turn)
+        for j, act in enumerate(acts):
+            if act == _TURN_LEFT:
+                p[j, 2] = wrap_angle_scalar(float(p[j, 2]) + turn)
+            elif act == _TURN_RIGHT:
+                p[j, 2] = wrap_angle_scalar(float(p[j, 2]) - turn)
         collided = np.zeros(p.shape[0], dtype=bool)
         fwd = np.flatnonzero(a == _FORWARD)
         if fwd.size == 0:

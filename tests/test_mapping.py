@@ -192,3 +192,22 @@ def test_rotated_start_maps_the_same_walls_under_the_true_transform() -> None:
     assert near.mean() > 0.95
     # b's own map is rotated: its occupied cells do not line up with a's without the transform
     assert np.abs(math.degrees(math.atan2(T_ab[1, 0], T_ab[0, 0])) - 30.0) < 1e-9
+
+
+def test_cached_beam_directions_are_numpys() -> None:
+    # The per-map cache of beam directions returns what numpy computes now, per heading bits
+    # (0.0 and -0.0 apart) and per beam angles; old headings fall out after 16 others.
+    m = OccupancyMap((21, 21), 0.05, (10, 10))
+    ang = np.linspace(-math.pi, math.pi, 37)
+    headings = [0.0, -0.0, math.pi / 8, -math.pi, math.pi, 1e-300] + [k * 0.1 for k in range(20)]
+    for th in headings + headings[::-1]:
+        dx, dy = m._directions(th, ang)
+        assert dx.tobytes() == np.cos(th + ang).tobytes()
+        assert dy.tobytes() == np.sin(th + ang).tobytes()
+    assert len(m._dir_cache) == 16
+    first = m._directions(0.3, ang)
+    assert m._directions(0.3, ang) is first  # a hit
+    other = ang + 1e-3
+    dx, _ = m._directions(0.3, other)  # new angles: recomputed
+    assert dx.tobytes() == np.cos(0.3 + other).tobytes()
+    assert len(m._dir_cache) == 1

@@ -15,6 +15,7 @@ from mrexplore.robot import (
     configuration_space,
     sample_start_poses,
     wrap_angle,
+    wrap_angle_scalar,
 )
 from mrexplore.world.world import World
 
@@ -163,3 +164,26 @@ def test_start_poses_errors() -> None:
         sample_start_poses(world, 2, np.random.default_rng(0), 0.1, min_separation_m=100.0)
     with pytest.raises(ConfigError):
         sample_start_poses(world, 0, np.random.default_rng(0), 0.1)
+
+
+def test_wrap_angle_scalar_equals_the_numpy_wrap() -> None:
+    # Bit for bit, on random angles and the edges: +-pi and their neighbours, multiples of
+    # 2 pi, signed zeros, tiny and huge values, infinities and NaN.
+    rng = np.random.default_rng(12)
+    edges = [math.pi, -math.pi, 0.0, -0.0, 5e-324, -5e-324, 1e-300, 1e300, -1e300]
+    edges += [np.nextafter(v, d) for v in (math.pi, -math.pi) for d in (-10.0, 10.0)]
+    edges += [k * math.pi for k in range(-40, 41)]
+    edges += [k * 2.0 * math.pi + e for k in range(-20, 21) for e in (0.0, 1e-15, -1e-15)]
+    edges += [math.pi + k * math.pi / 8 for k in range(-64, 65)]
+    edges += [math.inf, -math.inf, math.nan]
+    values = np.concatenate(
+        [
+            np.array(edges, dtype=np.float64),
+            rng.uniform(-4 * math.pi, 4 * math.pi, 5000),
+            rng.normal(0.0, 1e3, 2000),
+        ]
+    )
+    with np.errstate(invalid="ignore"):
+        expected = wrap_angle(values)
+    got = np.array([wrap_angle_scalar(float(v)) for v in values])
+    assert got.tobytes() == expected.tobytes()

@@ -70,6 +70,102 @@ def _family(
     return moving, t0, inv, a, s, int(fo), int(fo_other), sgn, offset
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _n_before(t0: float, dt: float, lim: float) -> int:
+    """The number of crossings ``k >= 0`` of a family with ``t0 + k * dt < lim`` (cells),
+    evaluated with that very formula (monotonic in k), so a counted loop visits exactly the
+    crossings a ``while t < lim`` walk does; 0 when ``t0`` is not below ``lim`` (or NaN)."""
+    if not (t0 < lim):
+        return 0
+    n = max(math.ceil((lim - t0) / dt), 1)
+    while n > 1 and not (t0 + (n - 1) * dt < lim):
+        n -= 1
+    while t0 + n * dt < lim:
+        n += 1
+    return n
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _first_wall(
+    table: NDArray[np.bool_],
+    plane: int,
+    wp: int,
+    vertical: bool,
+    t0: float,
+    dt: float,
+    a: float,
+    s: float,
+    across0: int,
+    across_step: int,
+    along0: int,
+    lim: float,
+    best: float,
+) -> float:
+    """The t (cells) of the first wall crossing of one line family of one ray before
+    ``min(lim, best)``, or ``best`` when there is none (the cast's wall test, one family).
+
+    Crossing k is at ``t0 + k dt``; the position along the lines is ``k s + a``; the entered
+    cell of the padded grid is ``across0 + (k + 1) across_step`` across the lines and
+    ``along0 + floor(pos)`` along them (the column and the row for ``vertical`` lines, else the
+    row and the column), as set up by :func:`_family`. Within ``CORNER_EPS`` of a corner the
+    table's second (vertical lines) or third plane (both cells beside the crossing) is read.
+    """
+    near_lim = 1.0 - 2.0 * CORNER_EPS
+    near_plane = plane if vertical else 2 * plane
+    for k in range(_n_before(t0, dt, min(lim, best))):
+        pos = k * s + a
+        cell = math.floor(pos)
+        across = across0 + (k + 1) * across_step
+        along = along0 + int(cell)
+        idx = along * wp + across if vertical else across * wp + along
+        # Outside the padded table cannot happen before the border ring; a wall anyway.
+        if idx < 0 or idx >= plane:
+            return t0 + k * dt
+        if table[idx + near_plane if (pos - cell) >= near_lim else idx]:
+            return t0 + k * dt
+    return best
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _mark_family(
+    observed: NDArray[np.bool_],
+    team: NDArray[np.bool_],
+    reach: NDArray[np.bool_],
+    newly_out: NDArray[np.int64],
+    i: int,
+    h: int,
+    w: int,
+    vertical: bool,
+    t0: float,
+    dt: float,
+    a: float,
+    s: float,
+    across0: int,
+    across_step: int,
+    along0: int,
+    lim: float,
+) -> int:
+    """Mark the cells robot ``i`` enters at the crossings of one line family with ``t < lim``
+    (cells of the padded grid as in :func:`_first_wall`; those outside the world are skipped):
+    updates ``observed[i]``, ``team`` and ``newly_out[i]``; returns the number of ``reach``
+    cells the team observed for the first time."""
+    covered = 0
+    for k in range(_n_before(t0, dt, lim)):
+        across = across0 + (k + 1) * across_step
+        along = along0 + math.floor(k * s + a)
+        row, col = (along, across) if vertical else (across, along)
+        if 1 <= row <= h and 1 <= col <= w:
+            f = (row - 1) * w + (col - 1)
+            if not observed[i, f]:
+                observed[i, f] = True
+                newly_out[i] += 1
+                if not team[f]:
+                    team[f] = True
+                    if reach[f]:
+                        covered += 1
+    return covered
+
+
 @numba.njit(cache=True, nogil=True)
 def cast_observe(
     table: NDArray[np.bool_],
@@ -124,7 +220,6 @@ def cast_observe(
     h = hp - 2
     w = wp - 2
     t_cap = max_cells + 2.0
-    near_lim = 1.0 - 2.0 * CORNER_EPS
     has_noise = noise.shape[0] > 0
     mr32 = np.float32(max_range_m)
     covered = 0
@@ -157,56 +252,65 @@ def cast_observe(
             else:
                 mx, t0x, dtx, ax, sx, fox, foox, sgx, offx = _family(ox, oy, dx, dy, t_cap)
                 my, t0y, dty, ay, sy, foy, fooy, sgy, offy = _family(oy, ox, dy, dx, t_cap)
-                kx = 0
-                ky = 0
-                tx = t0x if mx else math.inf
-                ty = t0y if my else math.inf
+                # One line family at a time, each a counted loop, instead of merging the two in
+                # t order (~10 % faster on recorded scans). The hit is the first wall crossing of
+                # either family (the y walk stops at the x hit); the marked cells are those of
+                # every crossing before hit + slack (an exact corner's coincident crossings
+                # too), else before the range + slack: the merged walk's set, in another order.
                 lim = max_cells + _MARK_SLACK
-                while True:
-                    # Next crossing in t order (vertical lines first on a tie, as the reference).
-                    fam_x = tx <= ty
-                    t = tx if fam_x else ty
-                    if not (t < lim):
-                        break
-                    if fam_x:
-                        pos = kx * sx + ax
-                        cell = math.floor(pos)
-                        row = foox - offx + int(cell)
-                        col = fox + (kx + 1) * sgx
-                        idx = row * wp + col
-                        near = (pos - cell) >= near_lim
-                        kx += 1
-                        tx = t0x + kx * dtx
-                        tab = idx + plane if near else idx
-                    else:
-                        pos = ky * sy + ay
-                        cell = math.floor(pos)
-                        col = fooy - offy + int(cell)
-                        row = foy + (ky + 1) * sgy
-                        idx = row * wp + col
-                        near = (pos - cell) >= near_lim
-                        ky += 1
-                        ty = t0y + ky * dty
-                        tab = idx + 2 * plane if near else idx
-                    if mark and 1 <= row <= h and 1 <= col <= w:
-                        f = (row - 1) * w + (col - 1)
-                        if not observed[i, f]:
-                            observed[i, f] = True
-                            newly_out[i] += 1
-                            if not team[f]:
-                                team[f] = True
-                                if reach[f]:
-                                    covered += 1
-                    if best == math.inf:
-                        # Outside the padded table cannot happen for crossings before the
-                        # border ring; count it as a wall anyway.
-                        wall = True if (idx < 0 or idx >= plane) else table[tab]
-                        if wall:
-                            best = t
-                            if not mark:
-                                break
-                            # Keep marking coincident crossings (an exact corner), as numpy.
-                            lim = t + _MARK_SLACK
+                if my and math.isnan(t0y):
+                    # Unreachable for unit directions (a subnormal component); the merged walk
+                    # then stopped at once: keep its result.
+                    mx = my = False
+                if mx:
+                    best = _first_wall(
+                        table, plane, wp, True, t0x, dtx, ax, sx, fox, sgx, foox - offx, lim, best
+                    )
+                if my:
+                    best = _first_wall(
+                        table, plane, wp, False, t0y, dty, ay, sy, foy, sgy, fooy - offy, lim, best
+                    )
+                if mark:
+                    if best != math.inf:
+                        lim = best + _MARK_SLACK
+                    if mx:
+                        covered += _mark_family(
+                            observed,
+                            team,
+                            reach,
+                            newly_out,
+                            i,
+                            h,
+                            w,
+                            True,
+                            t0x,
+                            dtx,
+                            ax,
+                            sx,
+                            fox,
+                            sgx,
+                            foox - offx,
+                            lim,
+                        )
+                    if my:
+                        covered += _mark_family(
+                            observed,
+                            team,
+                            reach,
+                            newly_out,
+                            i,
+                            h,
+                            w,
+                            False,
+                            t0y,
+                            dty,
+                            ay,
+                            sy,
+                            foy,
+                            sgy,
+                            fooy - offy,
+                            lim,
+                        )
             hit = best <= max_cells
             r32 = np.float32((best if hit else max_cells) * res)
             if has_noise and hit:
@@ -326,6 +430,15 @@ def map_update(
         stamp[f] = s_free
         if _apply(logodds, int8_map, f, l_free, l_min, l_max, thresholds, pct_clip):
             q0, q1, p0, p1 = min(q0, orow), max(q1, orow), min(p0, ocol), max(p1, ocol)
+    # Two passes over the free cells. Pass 1 walks every beam and, per crossing, only stamps
+    # the cells new in this scan and lists them (branch-free: whether a cell is new is
+    # unpredictable near the robot, where the beams overlap). Pass 2 applies ``l_free`` once per
+    # listed cell. A cell is updated at most once per scan either way, so the map, the int8 view
+    # and the changed box are those of applying at the first visit; the ~2-3x revisits near the
+    # robot now cost a stamp compare instead of a log-odds, int8 and exp evaluation.
+    n_slots_max = math.ceil(max(max_short, max_long, 0.0)) + 1
+    fresh_cells = np.empty(2 * n_b * n_slots_max, dtype=np.int64)
+    n_fresh = 0
     for b in range(n_b):
         group_max = max_short if t_end[b] < short_cells else max_long
         n_slots = math.ceil(group_max) + 1
@@ -355,31 +468,32 @@ def map_update(
             base = (foo - off) * st_other + (fo + sg) * st_across
             step = sg * st_across
             for k in range(n):
-                cell = math.floor(k * s + a)
-                f = base + k * step + cell * st_other
-                # Branch-free apply (a select, not a jump): whether a cell is new in this scan
-                # is unpredictable near the robot, where the beams overlap, and mispredicted
-                # branches dominated this loop.
+                f = base + k * step + math.floor(k * s + a) * st_other
                 st = stamp[f]
-                fresh = (st != s_occ) & (st != s_free)
-                stamp[f] = s_free if fresh else st
-                old = logodds[f]
-                lo = min(max(old + l_free, l_min), l_max)
-                lo = lo if fresh else old
-                logodds[f] = lo
-                if lo >= thresholds[1]:
-                    v = pct_clip[1]
-                elif lo > thresholds[0]:
-                    pct = np.rint(100.0 / (1.0 + math.exp(-float(lo))))
-                    v = min(max(int(pct), pct_clip[2]), pct_clip[3])
-                else:
-                    v = pct_clip[0]
-                if int8_map[f] != v:
-                    int8_map[f] = v
-                    other = foo - off + cell
-                    across = fo + (k + 1) * sg
-                    row, col = (other, across) if fam == 0 else (across, other)
-                    q0, q1, p0, p1 = min(q0, row), max(q1, row), min(p0, col), max(p1, col)
+                # Listed at every visit, counted only when new: a select, not a jump.
+                fresh_cells[n_fresh] = f
+                n_fresh += 1 if (st != s_occ) & (st != s_free) else 0
+                stamp[f] = st if st == s_occ else s_free
+    # Pass 2, inlined rather than through ``_apply`` with the thresholds read once: the call
+    # (re-reading them per cell, as the arrays may alias) cost ~7x this loop.
+    thr_free, thr_occ = thresholds[0], thresholds[1]
+    v_free, v_occ, v_low, v_high = pct_clip[0], pct_clip[1], pct_clip[2], pct_clip[3]
+    for j in range(n_fresh):
+        f = fresh_cells[j]
+        lo = min(max(logodds[f] + l_free, l_min), l_max)
+        logodds[f] = lo
+        if lo >= thr_occ:
+            v = v_occ
+        elif lo > thr_free:
+            pct = np.rint(100.0 / (1.0 + math.exp(-float(lo))))
+            v = min(max(int(pct), v_low), v_high)
+        else:
+            v = v_free
+        if int8_map[f] != v:
+            int8_map[f] = v
+            row = f // w
+            col = f - row * w
+            q0, q1, p0, p1 = min(q0, row), max(q1, row), min(p0, col), max(p1, col)
     bbox[0], bbox[1], bbox[2], bbox[3] = r0, r1, c0, c1
     changed[0], changed[1], changed[2], changed[3] = q0, q1, p0, p1
 

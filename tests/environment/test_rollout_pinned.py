@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import mrexplore
+from mrexplore import kernels
 from mrexplore.policies import make_team_policy
 
 
@@ -174,6 +175,9 @@ PINNED: dict[str, str] = {
 }
 
 
+#: Cases whose robots merge their maps (see the skip in the test).
+MERGING = {"default_merging", "navigate_three"}
+
 #: Cases that take seconds (a long merged episode, held coverage): in the expensive set.
 SLOW = {"default_merging", "coarse_held"}
 
@@ -183,5 +187,10 @@ SLOW = {"default_merging", "coarse_held"}
 )
 def test_rollout_is_pinned(name: str) -> None:
     steps, seed, policy, options = CASES[name]
+    if name in MERGING and not kernels.enabled():
+        pytest.skip(
+            "recorded with the compiled merger; its numpy reference (MREXPLORE_NUMBA=0) agrees "
+            "to a tolerance, not to the bit, so merged poses differ in their last digits"
+        )
     digest, _ = rollout_digest(steps, seed, policy, **options)
     assert digest == PINNED[name]

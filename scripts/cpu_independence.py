@@ -94,8 +94,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seeds", type=int, default=20)
     p.add_argument("--first-seed", type=int, default=1000)
     args = p.parse_args(argv)
-    if args.seeds < 1:
-        p.error(f"--seeds must be at least 1, got {args.seeds}")
+    from mrexplore.errors import MrexploreError
+    from mrexplore.experiments.loop_study import validate
+
+    try:  # every option checked before any work, with the loop study's own rules
+        validate(list(args.worlds), args.seeds, args.first_seed, ["semantic"], 600.0, 1)
+    except MrexploreError as exc:
+        p.error(str(exc))
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     attempts = capture(list(args.worlds), seeds)
     with tempfile.TemporaryDirectory() as tmp:

@@ -70,3 +70,15 @@ def test_rotation_candidates_lie_on_their_grid() -> None:
         d = math.degrees(t)
         assert -180.0 < d <= 180.0
         assert abs(d * 10**CANDIDATE_DECIMALS - round(d * 10**CANDIDATE_DECIMALS)) < 1e-6
+
+
+def test_cross_support_fast_and_precise_agree() -> None:
+    from mrexplore.merge.semantic import cross_support
+
+    wall = np.zeros((90, 90), dtype=bool)
+    wall[10:80, 10] = wall[10, 10:80] = wall[10:80, 79] = True  # a room corner and a far wall
+    T = np.eye(3)  # the identity: every wall lands on itself
+    fast = cross_support(wall, wall, T)
+    precise = cross_support(wall, wall, T, precise=True)
+    assert precise > 10.0  # a corner pins the pose
+    assert abs(fast - precise) < 1e-3  # float32 is far inside the guard band of one cell

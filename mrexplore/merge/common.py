@@ -381,7 +381,8 @@ class Verifier:
         pa = np.stack(map_points(self.points_a[::sa], Ti), axis=1)
         ab, db = self._count_many(pb, shifts, self.codes_a)
         # translation(s) @ T maps a's points back by T^-1 (p - s) = T^-1 p - R^-1 s
-        Ri = Ti * np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+        Ri = Ti.copy()
+        Ri[:2, 2] = 0.0  # the rotation part alone
         aa, da = self._count_many(pa, -np.stack(map_points(shifts, Ri), axis=1), self.codes_b)
         return ab + aa, db + da
 

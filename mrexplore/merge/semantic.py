@@ -197,8 +197,8 @@ def _slide_hypotheses(
     h, w = b_shape
     reach = math.hypot(h, w)
     ks = np.arange(step, reach, step)
-    c, s = math.cos(phi), math.sin(phi)
-    dirs = np.array([[c, s], [-s, c]])
+    cos_phi, sin_phi = math.cos(phi), math.sin(phi)
+    dirs = np.array([[cos_phi, sin_phi], [-sin_phi, cos_phi]])
     shifts = np.concatenate([s * ks[:, None] * d[None, :] for d in dirs for s in (1.0, -1.0)])
     agree, disagree = screen.shifted(best.T, shifts)
     order = np.argsort(-(agree - 10 * disagree), kind="stable")[: 3 * keep]  # ties: shift order

@@ -18,7 +18,7 @@ Conventions (see README, "Conventions"):
 
 from __future__ import annotations
 
-from typing import Final, NamedTuple
+from typing import Any, Final, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -154,14 +154,93 @@ def transform_angle(T: Transform) -> float:
     return float(np.arctan2(T[1, 0], T[0, 0]))
 
 
+# Transforms feed the merger, whose ICP amplifies a difference in the last bit into a different
+# pose on a poor hypothesis (traced: 1e-16 -> 1.6 cells in four ICP calls), and the evaluation.
+# numpy's ``@`` and ``linalg.inv`` call BLAS/LAPACK, whose kernels (and their fused multiply-adds)
+# depend on the CPU; the helpers below use plain elementwise IEEE operations in a fixed order, the
+# same bits on every CPU and for every memory layout of their inputs.
+
+
+def chain(*transforms: Transform) -> Transform:
+    """The product ``T1 @ T2 @ ...`` of 3x3 transforms (left to right), the same bits on every
+    CPU (unlike ``@``, which calls BLAS).
+
+    >>> chain(make_transform(0.0, 1, 2), make_transform(0.0, 3, 4))[:2, 2].tolist()
+    [4.0, 6.0]
+    """
+    out = np.asarray(transforms[0], dtype=np.float64)
+    for T in transforms[1:]:
+        B = np.asarray(T, dtype=np.float64)
+        # (a0 b0 + a1 b1) + a2 b2 per entry: separate multiplies and adds, no fused rounding
+        out = out[:, 0:1] * B[0:1, :] + out[:, 1:2] * B[1:2, :] + out[:, 2:3] * B[2:3, :]
+    return out
+
+
+def affine_inverse(T: Transform) -> Transform:
+    """The inverse (3x3 float64) of a 2-D affine 3x3 transform (last row ``0 0 1``: rotation,
+    scale, shear and shift, e.g. a map -> world transform with its resolutions), by the closed
+    form with the determinant of its 2x2 part in a fixed order: the same bits on every CPU
+    (unlike ``np.linalg.inv``, which calls LAPACK). The last row is not read; no checks (see
+    :func:`invert_transform`).
+
+    >>> T = np.array([[2.0, 0.0, 4.0], [0.0, 0.5, 1.0], [0.0, 0.0, 1.0]])
+    >>> Ti = affine_inverse(T)
+    >>> Ti[:2, 2].tolist(), chain(T, Ti).tolist() == np.eye(3).tolist()
+    ([-2.0, -2.0], True)
+    """
+    T = np.asarray(T, dtype=np.float64)
+    a, b, c, d = float(T[0, 0]), float(T[0, 1]), float(T[1, 0]), float(T[1, 1])
+    det = a * d - b * c
+    ia, ib, ic, id_ = d / det, -b / det, -c / det, a / det
+    tx, ty = float(T[0, 2]), float(T[1, 2])
+    return np.array(
+        [[ia, ib, -(ia * tx + ib * ty)], [ic, id_, -(ic * tx + id_ * ty)], [0.0, 0.0, 1.0]]
+    )
+
+
+def rigid_inverse(T: Transform) -> Transform:
+    """The inverse of a rigid (or any affine) 3x3 transform: :func:`affine_inverse`, the name the
+    merger uses (the closed form, not the transpose, so its poses keep their bits).
+
+    >>> rigid_inverse(make_transform(0.0, 2, -1))[:2, 2].tolist()
+    [-2.0, 1.0]
+    """
+    return affine_inverse(T)
+
+
+def map_points(pts: NDArray[np.float64], T: Transform) -> tuple[NDArray[Any], NDArray[Any]]:
+    """Columns and rows (N,) of the points ``pts`` (N, 2) ``(col, row)`` mapped by ``T``, in
+    elementwise IEEE operations (the same bits on every CPU, unlike ``pts @ R.T``)."""
+    x, y = pts[:, 0], pts[:, 1]
+    return (
+        x * float(T[0, 0]) + y * float(T[0, 1]) + float(T[0, 2]),
+        x * float(T[1, 0]) + y * float(T[1, 1]) + float(T[1, 2]),
+    )
+
+
 def invert_transform(T: Transform) -> Transform:
-    """Inverse of a 3x3 homogeneous transform."""
-    return np.asarray(np.linalg.inv(np.asarray(T, dtype=np.float64)), dtype=np.float64)
+    """Inverse (3x3 float64) of a 2-D affine 3x3 transform: last row exactly ``0 0 1``, any
+    non-singular 2x2 part (rigid, or scaled like a map -> world transform). The closed form of
+    :func:`affine_inverse`, the same bits on every CPU.
+
+    Raises :class:`GridError` when ``T`` is not 3x3, not affine, not finite or singular.
+    """
+    A = np.asarray(T, dtype=np.float64)
+    if A.shape != (3, 3) or A[2].tolist() != [0.0, 0.0, 1.0]:
+        raise GridError(f"not a 2-D affine 3x3 transform (last row 0 0 1): {A.tolist()}")
+    det = float(A[0, 0]) * float(A[1, 1]) - float(A[0, 1]) * float(A[1, 0])
+    if not (np.isfinite(A).all() and det != 0.0):
+        raise GridError(f"a singular or non-finite transform has no inverse: {A.tolist()}")
+    return affine_inverse(A)
 
 
 def apply_transform(
     T: Transform, points: NDArray[np.floating] | NDArray[np.integer]
 ) -> NDArray[np.float64]:
-    """Map ``points`` of shape (N, 2) as ``(col, row)`` through ``T``; returns (N, 2) float64."""
+    """Map ``points`` of shape (N, 2) as ``(col, row)`` through ``T``; returns (N, 2) float64.
+
+    Elementwise ``x r00 + y r01 + t0`` in a fixed order (:func:`map_points`), not a matrix
+    product: the same bits on every CPU.
+    """
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    return pts @ np.asarray(T, dtype=np.float64)[:2, :2].T + np.asarray(T, dtype=np.float64)[:2, 2]
+    return np.stack(map_points(pts, np.asarray(T, dtype=np.float64)), axis=1)

@@ -24,6 +24,12 @@ from mrexplore.grid import (
     Transform,
     known_bbox,
 )
+
+# The CPU-independent transform arithmetic lives in mrexplore.grid (truth.py needs it too);
+# re-exported here, where the merger's modules have always imported it from.
+from mrexplore.grid import chain as chain
+from mrexplore.grid import map_points as map_points
+from mrexplore.grid import rigid_inverse as rigid_inverse
 from mrexplore.options import Check
 
 # The compiled verifier count (None without numba); used while mrexplore.kernels.enabled().
@@ -208,55 +214,6 @@ class MapCodes:
 def translation(dc: float, dr: float) -> Transform:
     """3x3 float64 translation by ``(dc, dr)`` cells."""
     return np.array([[1.0, 0.0, dc], [0.0, 1.0, dr], [0.0, 0.0, 1.0]])
-
-
-# The merger's poses are products and inverses of 3x3 transforms, fed to ICP, which amplifies a
-# difference in the last bit into a different pose on a poor hypothesis (traced: 1e-16 -> 1.6
-# cells in four ICP calls). numpy's ``@`` and ``linalg.inv`` call BLAS/LAPACK, whose kernels
-# (and their fused multiply-adds) depend on the CPU; these two use plain elementwise IEEE
-# operations in a fixed order, the same bits on every CPU.
-
-
-def chain(*transforms: Transform) -> Transform:
-    """The product ``T1 @ T2 @ ...`` of 3x3 transforms (left to right), the same bits on every
-    CPU (unlike ``@``, which calls BLAS).
-
-    >>> chain(translation(1, 2), translation(3, 4))[:2, 2].tolist()
-    [4.0, 6.0]
-    """
-    out = np.asarray(transforms[0], dtype=np.float64)
-    for T in transforms[1:]:
-        B = np.asarray(T, dtype=np.float64)
-        # (a0 b0 + a1 b1) + a2 b2 per entry: separate multiplies and adds, no fused rounding
-        out = out[:, 0:1] * B[0:1, :] + out[:, 1:2] * B[1:2, :] + out[:, 2:3] * B[2:3, :]
-    return out
-
-
-def rigid_inverse(T: Transform) -> Transform:
-    """The inverse of a 3x3 affine transform (last row 0 0 1), the same bits on every CPU
-    (unlike ``np.linalg.inv``, which calls LAPACK).
-
-    >>> rigid_inverse(translation(2, -1))[:2, 2].tolist()
-    [-2.0, 1.0]
-    """
-    T = np.asarray(T, dtype=np.float64)
-    a, b, c, d = float(T[0, 0]), float(T[0, 1]), float(T[1, 0]), float(T[1, 1])
-    det = a * d - b * c
-    ia, ib, ic, id_ = d / det, -b / det, -c / det, a / det
-    tx, ty = float(T[0, 2]), float(T[1, 2])
-    return np.array(
-        [[ia, ib, -(ia * tx + ib * ty)], [ic, id_, -(ic * tx + id_ * ty)], [0.0, 0.0, 1.0]]
-    )
-
-
-def map_points(pts: NDArray[np.float64], T: Transform) -> tuple[NDArray[Any], NDArray[Any]]:
-    """Columns and rows (N,) of the points ``pts`` (N, 2) ``(col, row)`` mapped by ``T``, in
-    elementwise IEEE operations (the same bits on every CPU, unlike ``pts @ R.T``)."""
-    x, y = pts[:, 0], pts[:, 1]
-    return (
-        x * float(T[0, 0]) + y * float(T[0, 1]) + float(T[0, 2]),
-        x * float(T[1, 0]) + y * float(T[1, 1]) + float(T[1, 2]),
-    )
 
 
 # --------------------------------------------------------------------------------------------

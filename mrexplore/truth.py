@@ -30,6 +30,8 @@ from mrexplore.grid import (
     Int8Grid,
     Transform,
     apply_transform,
+    chain,
+    invert_transform,
     transform_angle,
 )
 from mrexplore.robot import configuration_space, disc_kernel, largest_component
@@ -64,7 +66,8 @@ def T_world_from_map(
     world_m_to_cells = np.array(
         [[1.0 / rw, 0.0, -ox / rw - 0.5], [0.0, 1.0 / rw, -oy / rw - 0.5], [0.0, 0.0, 1.0]]
     )
-    return np.asarray(world_m_to_cells @ frame_to_world_m @ map_to_frame, dtype=np.float64)
+    # chain, not @: the product carries the resolutions' scale, the same bits on every CPU
+    return chain(world_m_to_cells, frame_to_world_m, map_to_frame)
 
 
 def true_transform(
@@ -78,7 +81,8 @@ def true_transform(
     """``T_ab``: robot b's map cells -> robot a's map cells (both maps at ``resolution_m``)."""
     t_wa = T_world_from_map(start_a, origin_cell_a, resolution_m, world)
     t_wb = T_world_from_map(start_b, origin_cell_b, resolution_m, world)
-    return np.asarray(np.linalg.inv(t_wa) @ t_wb, dtype=np.float64)
+    # t_wa scales (map and world resolutions): the affine inverse, not a rigid one; no LAPACK
+    return chain(invert_transform(t_wa), t_wb)
 
 
 def reachable_cspace(
@@ -143,7 +147,7 @@ def transform_error(
     if pts.shape[0] == 0:
         raise GridError("transform_error needs at least one point")
     disp = np.linalg.norm(apply_transform(T_est, pts) - apply_transform(T_true, pts), axis=1)
-    rot = abs(math.degrees(transform_angle(np.asarray(T_est) @ np.linalg.inv(T_true))))
+    rot = abs(math.degrees(transform_angle(chain(T_est, invert_transform(T_true)))))
     return float(disp.mean()), float(rot)
 
 

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from mrexplore.errors import GridError
-from mrexplore.grid import UNKNOWN, Int8Grid, MapChange, Transform, invert_transform
+from mrexplore.grid import UNKNOWN, Int8Grid, MapChange, Transform, chain, invert_transform
 from mrexplore.merge.common import known_bbox, translation, warp_into
 from mrexplore.types import Box
 
@@ -344,7 +344,7 @@ class MapCompositor:
                         s0, s1, t0, t1 = src
                         piece = warp_into(
                             mj[s0:s1, t0:t1],
-                            T @ translation(t0, s0),
+                            chain(T, translation(t0, s0)),  # no BLAS: same bits on any CPU
                             (dst[1] - dst[0], dst[3] - dst[2]),
                             dst_origin=(dst[2], dst[0]),
                         )
@@ -360,7 +360,7 @@ class MapCompositor:
         if cj is None:
             return old
         b, (cb, rb) = cj
-        T_crop = T @ translation(cb, rb)  # cropped j cells -> i cells
+        T_crop = chain(T, translation(cb, rb))  # cropped j cells -> i cells (chain: no BLAS)
         box = _clip(_map_box(T_crop, (0, b.shape[0], 0, b.shape[1])), own.shape)
         if box is None:
             return old  # j's known part falls outside i's canvas

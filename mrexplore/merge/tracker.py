@@ -45,8 +45,10 @@ from mrexplore.grid import (
     Int8Grid,
     MapChange,
     Transform,
+    chain,
     check_int8_map,
     invert_transform,
+    map_points,
 )
 from mrexplore.merge.api import METHODS, merge_maps
 from mrexplore.merge.common import MergeResult, Verifier, translation
@@ -313,7 +315,7 @@ class MapMergeTracker:
         old_now = None
         if kind == "recheck":
             assert T_old is not None
-            old_now = Verifier(a, b)(translation(-ca, -ra) @ T_old @ translation(cb, rb)).score
+            old_now = Verifier(a, b)(chain(translation(-ca, -ra), T_old, translation(cb, rb))).score
             if old_now < self.drop_below:
                 return _Outcome(None, None, old_now)
         # A merger that needs the robots' ids and crop offsets (the benchmark's oracle) says so.
@@ -321,11 +323,8 @@ class MapMergeTracker:
         res = pair(i, j, a, b, (ca, ra), (cb, rb)) if pair is not None else self._merge(a, b)
         T = None
         if res.matched and res.transform is not None:
-            T = (
-                translation(ca, ra)
-                @ np.asarray(res.transform, dtype=np.float64)
-                @ translation(-cb, -rb)
-            )
+            # crop -> canvas cells by chain, not @ (BLAS): the same bits on every CPU
+            T = chain(translation(ca, ra), res.transform, translation(-cb, -rb))
         return _Outcome(res, T, old_now)
 
     def _start(self, kind: str, i: int, j: int, step: int) -> None:
@@ -420,9 +419,11 @@ class MapMergeTracker:
         if bbox_j is None:
             return False
         r0, r1, c0, c1 = bbox_j
-        corners = np.array([[c0, r0, 1.0], [c1, r0, 1.0], [c0, r1, 1.0], [c1, r1, 1.0]]).T
-        d = (T1 @ corners - T2 @ corners)[:2]
-        return bool(np.sqrt((d**2).sum(axis=0)).max() <= self.confirm_tol_cells)
+        corners = np.array([[c0, r0], [c1, r0], [c0, r1], [c1, r1]], dtype=np.float64)
+        # elementwise, not T @ corners (BLAS): a decision on the threshold, the same on every CPU
+        (x1, y1), (x2, y2) = map_points(corners, T1), map_points(corners, T2)
+        dx, dy = x1 - x2, y1 - y2
+        return bool(np.sqrt(dx**2 + dy**2).max() <= self.confirm_tol_cells)
 
     def _recheck(self, step: int) -> None:
         for i, j in list(self._edges):
@@ -491,7 +492,7 @@ class MapMergeTracker:
                 u = q.popleft()
                 for v, T_uv in adj[u]:
                     if v not in seen:
-                        seen[v] = seen[u] @ T_uv  # T_sv = T_su @ T_uv
+                        seen[v] = chain(seen[u], T_uv)  # T_sv = T_su @ T_uv, without BLAS
                         q.append(v)
             for v, T in seen.items():
                 if v != s:

@@ -42,7 +42,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError, MrexploreError
-from mrexplore.grid import UNKNOWN, Int8Grid
+from mrexplore.grid import UNKNOWN, Int8Grid, chain
 from mrexplore.merge.common import MergeResult, translation, warp_into
 
 #: The worlds of the study (two symmetric generated floors, two real maps).
@@ -96,11 +96,11 @@ class OracleMerger:
         if sim is None:
             name = type(self).__name__
             raise ConfigError(f"{name} is not bound to a reset env: call bind(env) first")
-        return np.asarray(
-            translation(-offset_a[0], -offset_a[1])
-            @ sim.true_transform(i, j)
-            @ translation(offset_b[0], offset_b[1]),
-            dtype=np.float64,
+        # chain, not @ (BLAS): the oracle's poses have the same bits on every CPU
+        return chain(
+            translation(-offset_a[0], -offset_a[1]),
+            sim.true_transform(i, j),
+            translation(offset_b[0], offset_b[1]),
         )
 
     def merge_pair(

@@ -31,7 +31,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError
-from mrexplore.grid import UNKNOWN, Int8Grid, Transform, invert_transform, make_transform
+from mrexplore.grid import (
+    UNKNOWN,
+    Int8Grid,
+    Transform,
+    chain,
+    invert_transform,
+    make_transform,
+    map_points,
+)
 from mrexplore.merge.common import translation, warp_into
 
 #: Real maps used for cases (paths relative to the shared maps folder), with crop sizes in cells.
@@ -83,7 +91,8 @@ def overlap_share(a: Int8Grid, b: Int8Grid, T_ab: Transform) -> float:
     rows, cols = np.nonzero(b != UNKNOWN)
     if rows.size == 0:
         return 0.0
-    p = np.stack([cols, rows], axis=1).astype(np.float64) @ T_ab[:2, :2].T + T_ab[:2, 2]
+    # elementwise, not BLAS: the same cells on every CPU
+    p = np.stack(map_points(np.stack([cols, rows], axis=1).astype(np.float64), T_ab), axis=1)
     c, r = np.rint(p[:, 0]).astype(np.int64), np.rint(p[:, 1]).astype(np.int64)
     h, w = a.shape
     inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
@@ -98,9 +107,10 @@ def rotate_map(grid: Int8Grid, theta_rad: float) -> tuple[Int8Grid, Transform]:
     h, w = grid.shape
     R = make_transform(theta_rad, 0.0, 0.0)
     corners = np.array([[0, 0], [w - 1, 0], [0, h - 1], [w - 1, h - 1]], dtype=np.float64)
-    q = corners @ R[:2, :2].T
+    # chain/map_points, not BLAS: the case (canvas, warp) has the same bits on every CPU
+    q = np.stack(map_points(corners, R), axis=1)
     lo, hi = np.floor(q.min(axis=0)), np.ceil(q.max(axis=0))
-    T = translation(-lo[0] + 2, -lo[1] + 2) @ R
+    T = chain(translation(-lo[0] + 2, -lo[1] + 2), R)
     shape = (int(hi[1] - lo[1]) + 5, int(hi[0] - lo[0]) + 5)
     return warp_into(grid, T, shape), T
 
@@ -273,7 +283,7 @@ def symmetric_case(
         b, T_rot = rotate_map(bc, theta)
     else:
         b, T_rot = bc, np.eye(3)
-    T_ab = translation(cb - ca, rb - ra) @ invert_transform(T_rot)
+    T_ab = chain(translation(cb - ca, rb - ra), invert_transform(T_rot))
     twins = []
     for c0, r0, w, h in world.meta.get("twin_rooms", []):
         box = (slice(r0, r0 + h), slice(c0, c0 + w))
@@ -343,7 +353,7 @@ def real_map_case(
         b, T_rot = mb.copy(), np.eye(3)
     a = damage_borders(a, rng)
     b = damage_borders(b, rng)
-    T_ab = translation(cb - ca, rb - ra) @ invert_transform(T_rot)
+    T_ab = chain(translation(cb - ca, rb - ra), invert_transform(T_rot))
     return MergeCase(
         a=np.ascontiguousarray(a),
         b=b,
@@ -548,7 +558,7 @@ def _lidar_snapshot(env: Any, name: str) -> MergeCase | None:
         return None
     ac = np.ascontiguousarray(a[ba[0] : ba[1], ba[2] : ba[3]])
     bc = np.ascontiguousarray(b[bb[0] : bb[1], bb[2] : bb[3]])
-    T = translation(-ba[2], -ba[0]) @ sim.true_transform(0, 1) @ translation(bb[2], bb[0])
+    T = chain(translation(-ba[2], -ba[0]), sim.true_transform(0, 1), translation(bb[2], bb[0]))
     ov = overlap_share(ac, bc, T)
     if ov <= 0.0:
         return None

@@ -467,12 +467,12 @@ def compose(a: Int8Grid, b: Int8Grid, T_ab: Transform) -> tuple[Int8Grid, tuple[
         return a.copy(), (0, 0)
     r0, r1, c0, c1 = bb
     corners = np.array([[c0, r0], [c1 - 1, r0], [c0, r1 - 1], [c1 - 1, r1 - 1]], dtype=np.float64)
-    q = corners @ T_ab[:2, :2].T + T_ab[:2, 2]
+    qx, qy = map_points(corners, np.asarray(T_ab, dtype=np.float64))  # not BLAS: same bits
     # nearest-neighbour cells of the corners (a small epsilon keeps exact integers exact)
-    cmin = min(0, int(np.floor(q[:, 0].min() + 0.5 - 1e-6)))
-    rmin = min(0, int(np.floor(q[:, 1].min() + 0.5 - 1e-6)))
-    cmax = max(w, int(np.floor(q[:, 0].max() + 0.5 + 1e-6)) + 1)
-    rmax = max(h, int(np.floor(q[:, 1].max() + 0.5 + 1e-6)) + 1)
+    cmin = min(0, int(np.floor(qx.min() + 0.5 - 1e-6)))
+    rmin = min(0, int(np.floor(qy.min() + 0.5 - 1e-6)))
+    cmax = max(w, int(np.floor(qx.max() + 0.5 + 1e-6)) + 1)
+    rmax = max(h, int(np.floor(qy.max() + 0.5 + 1e-6)) + 1)
     shape = (rmax - rmin, cmax - cmin)
     canvas = np.full(shape, UNKNOWN, dtype=np.int8)
     canvas[-rmin : -rmin + h, -cmin : -cmin + w] = a

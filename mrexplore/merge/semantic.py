@@ -701,7 +701,7 @@ def merge_semantic(
     merged, offset = compose(a, b, T_full)
     # wall cells of b that land on a's walls: the point pairs that support the result (figures)
     pb_full = icp.pb + np.array([bbb[2], bbb[0]])
-    pa_full = pb_full @ T_full[:2, :2].T + T_full[:2, 2]
+    pa_full = np.stack(map_points(pb_full, T_full), axis=1)  # not BLAS: same cells on any CPU
     c, r = np.rint(pa_full[:, 0]).astype(np.int64), np.rint(pa_full[:, 1]).astype(np.int64)
     inside = (c >= 0) & (c < a.shape[1]) & (r >= 0) & (r < a.shape[0])
     on_wall = np.zeros(len(c), dtype=bool)

@@ -327,7 +327,9 @@ def _turn(points: NDArray[np.float64], phi: float) -> NDArray[np.float64]:
     if phi == 0.0:
         return points
     cs, sn = math.cos(phi), math.sin(phi)
-    return points @ np.array([[cs, sn], [-sn, cs]])
+    # elementwise, not points @ R (BLAS, CPU-dependent fused rounding): the same bits everywhere
+    x, y = points[:, 0], points[:, 1]
+    return np.stack([x * cs - y * sn, x * sn + y * cs], axis=1)
 
 
 class ObservationFormat:

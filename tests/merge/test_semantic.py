@@ -269,6 +269,23 @@ def test_consistency_polish_is_an_option_and_changes_only_refusals(
         merge_maps(a, b, consistency_polish="yes")
 
 
+def test_consistency_polish_may_not_shrink_the_overlap_below_the_floor() -> None:
+    """Two lidar maps of the twin-wings world (bench seed 3, episode 3005 at 100 s) that share
+    no place: b's wing matches a's twin wing. ICP's pose there is inconsistent (0.87 raw); a
+    pose 2 cells and a degree away was "consistent" only because 8 % of b's walls, not the 15 %
+    every hypothesis needs, still landed on a's known cells, and it was accepted, 163 cells off
+    the truth. The polish now keeps the overlap floor, and the pair is refused."""
+    data = np.load(Path(__file__).parent / "data" / "twin_wings_3005_100s.npz")
+    a, b, T_ab = data["a"], data["b"], data["T_ab"]
+    res = merge_maps(a, b, resolution_m=0.05)
+    assert not res.matched, merge_error(res.transform, T_ab, b)
+    assert "agrees only" in res.reason
+    # the pose the polish stood in for, as the search left it, is the one judged
+    info = res.info or {}
+    best = info["best_agreement"]
+    assert best.share >= 0.15 and info.get("consistency_polished") is None
+
+
 def test_cross_support_is_zero_along_one_wall_and_large_at_a_corner() -> None:
     """A pose resting on one straight wall (even a long, bumpy, slanted one) leaves a slide along
     it free; a corner pins it."""

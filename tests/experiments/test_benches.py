@@ -17,6 +17,8 @@ from mrexplore.cli import main
         (["merge", "--families", "moon"], "unknown family"),
         (["merge", "--n", "-1"], "n_cases must be >= 1"),
         (["merge", "--n", "0"], "--n 0 runs only --sizes or --tracker"),
+        (["merge", "--seeds", "0-x"], "--seeds: '0-x' is not a seed or a range"),
+        (["merge", "--seeds", "5-2"], "--seeds: '5-2' must be seeds >= 0"),
         (["env", "--steps", "0"], "--steps must be at least 1"),
         (["env", "--seed", "-1"], "--seed must be an integer >= 0"),
         (["env", "--merge-latency-steps", "x"], "--merge-latency-steps must be integers >= 0"),
@@ -76,3 +78,16 @@ def test_env_batched_rows_run_on_a_tiny_setting(tmp_path: Path, capsys) -> None:
     r = rows["batched, N = 2 worlds x 2 robots, merger semantic"]
     assert r["num_envs"] == 2 and r["n_robots"] == 2 and r["steps"] == 2
     assert r["robot_steps_per_s"] == pytest.approx(4 * r["batch_steps_per_s"])
+
+
+def test_merge_seeds_pool_the_cases_of_each_seed() -> None:
+    from mrexplore.experiments.merge_bench import run_bench
+
+    one = run_bench(2, methods=["semantic"], families=["real"], seed=1)[0]
+    pooled = run_bench(2, methods=["semantic"], families=["real"], seeds=[0, 1])[0]
+    assert pooled["n"] == 4
+    names = [c["case"] for c in pooled["cases"]]
+    assert names[2:] == [f"{c['case']} (seed 1)" for c in one["cases"]]
+    assert [c["kind"] for c in pooled["cases"][2:]] == [c["kind"] for c in one["cases"]]
+    assert all(n.endswith(" (seed 0)") for n in names[:2])
+    assert pooled["correct_overlap40"].count("/") == 1

@@ -411,6 +411,7 @@ class SemanticOptions(Options):
     min_run_cells: int = option(5, integer(1, 1000))
     consistency_polish: bool = option(True, boolean)
     min_cross_cells: float = option(10.0, number(0.0, math.inf))
+    rival_perfect_cells: int = option(250, integer(0))
 
     def check_together(self) -> None:
         if self.detector is not None and not self.paper_candidates:
@@ -426,7 +427,8 @@ def merge_semantic(
     - decision: ``min_score`` (0.97) on the noise-aware consistency index, with ``slack_cells``
       (2) and ``min_run_cells`` (5) defining the noise; ``min_margin`` (0.03) and
       ``min_evidence_cells`` (20) against every rival, a pose ``far_cells`` (5.0) cells away
-      on average with ``rival_support`` (0.5) of the best's agreeing wall cells;
+      on average with ``rival_support`` (0.5) of the best's agreeing wall cells, or with no
+      disagreeing wall cell and at least ``rival_perfect_cells`` (250; 0 = off) agreeing ones;
     - shared knowledge: ``min_overlap`` (0.15) of b's wall cells on a's known cells,
       ``min_overlap_cells`` (80), ``min_common_m2`` (10.0) m^2 known in both at
       ``resolution_m`` (0.05) m/cell (the every-step tracker asks for 20 m^2: a room);
@@ -641,12 +643,22 @@ def merge_semantic(
     # room corner does by coincidence; it does not make the best ambiguous. (Walls only, not the
     # shared-space credit of the ranking: with the credit, a pose laid on one of a warehouse's
     # repeated rack rows lost its rivals and merged wrongly in the loop; docs/merging.md.)
+    # A far pose the maps do not contradict at all, on 12.5 m of wall or more, is a rival
+    # however much more the best explains: b's rest may lie in a's unseen part (a warehouse
+    # shelf row explained 3x as much as the truth and was merged 342 cells off).
     rivals = [
         h
         for h in chosen[1:]
         if _mean_shift(h.T, best.T, pts) >= far_cells
         and h.agreement is not None
-        and h.agreement.agree >= rival_support * best.agreement.agree
+        and (
+            h.agreement.agree >= rival_support * best.agreement.agree
+            or (
+                o.rival_perfect_cells > 0
+                and h.agreement.disagree == 0
+                and h.agreement.agree * verify.cells_per_sample >= o.rival_perfect_cells
+            )
+        )
     ]
     runner = rivals[0].score if rivals else None
     info["best_agreement"] = best.agreement

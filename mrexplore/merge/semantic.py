@@ -646,20 +646,22 @@ def merge_semantic(
     # A far pose the maps do not contradict at all, on 12.5 m of wall or more, is a rival
     # however much more the best explains: b's rest may lie in a's unseen part (a warehouse
     # shelf row explained 3x as much as the truth and was merged 342 cells off).
+    def perfect(h: _Hypothesis) -> bool:
+        assert h.agreement is not None
+        return (
+            o.rival_perfect_cells > 0
+            and h.agreement.disagree == 0
+            and h.agreement.agree * verify.cells_per_sample >= o.rival_perfect_cells
+        )
+
     rivals = [
         h
         for h in chosen[1:]
         if _mean_shift(h.T, best.T, pts) >= far_cells
         and h.agreement is not None
-        and (
-            h.agreement.agree >= rival_support * best.agreement.agree
-            or (
-                o.rival_perfect_cells > 0
-                and h.agreement.disagree == 0
-                and h.agreement.agree * verify.cells_per_sample >= o.rival_perfect_cells
-            )
-        )
+        and (h.agreement.agree >= rival_support * best.agreement.agree or perfect(h))
     ]
+    rivals.sort(key=lambda h: not perfect(h))  # a perfect rival is the one to judge (stable)
     runner = rivals[0].score if rivals else None
     info["best_agreement"] = best.agreement
     info["runner_up_agreement"] = rivals[0].agreement if rivals else None

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from mrexplore.experiments.merge_cases import rotate_map
-from mrexplore.grid import OCCUPIED, UNKNOWN, invert_transform, transform_angle
+from mrexplore.grid import FREE, OCCUPIED, UNKNOWN, invert_transform, transform_angle
 from mrexplore.merge import merge_maps
 from mrexplore.merge.common import translation
 from mrexplore.merge.rotation import rotation_candidates
@@ -59,11 +59,33 @@ def test_accepts_once_b_sees_the_surroundings(
         b, T_rot = rotate_map(b0, np.radians(angle_deg))
     else:
         b, T_rot = b0, np.eye(3)
-    T_true = translation(100, 2) @ invert_transform(T_rot)
-    res = merge_maps(world, b)
+    # a also knows the open ground around the building: otherwise b turned 180 degrees with its
+    # outer wall on a's outer wall, the rest over a's unknown, contradicts nothing on 356 wall
+    # cells, a rival (``rival_perfect_cells``; the next test)
+    m = 30
+    a = np.full((world.shape[0] + 2 * m, world.shape[1] + 2 * m), FREE, dtype=np.int8)
+    a[m:-m, m:-m] = world
+    T_true = translation(100 + m, 2 + m) @ invert_transform(T_rot)
+    res = merge_maps(a, b)
     assert res.matched, res.reason
     assert res.transform is not None
     assert merge_error(res.transform, T_true, b)[0] < 1.0
+
+
+def test_a_pose_hanging_over_the_unknown_is_a_rival_when_nothing_contradicts_it(
+    twins: tuple[np.ndarray, list[tuple[int, int, int, int]]], cut: Callable[..., np.ndarray]
+) -> None:
+    """The same b against the building alone (nothing known outside its walls): a pose laying
+    b's outer wall on a's, turned 180 degrees, b's rooms over a's unknown outside, agrees on
+    356 wall cells with no contradiction. The maps cannot rule it out, so the merger refuses;
+    without the perfect-rival test (``rival_perfect_cells=0``) it merges."""
+    world, _ = twins
+    b = cut(world, 2, 110, 100, 188)
+    res = merge_maps(world, b)
+    assert not res.matched and res.reason.startswith("ambiguous"), res.reason
+    assert res.runner_up_score == 1.0
+    old = merge_maps(world, b, rival_perfect_cells=0)
+    assert old.matched and merge_error(old.transform, translation(100, 2), b)[0] < 1.0
 
 
 def test_partial_views_of_twin_room_with_unknown_rest(
@@ -284,6 +306,21 @@ def test_consistency_polish_may_not_shrink_the_overlap_below_the_floor() -> None
     info = res.info or {}
     best = info["best_agreement"]
     assert best.share >= 0.15 and info.get("consistency_polished") is None
+
+
+def test_a_perfect_far_pose_is_a_rival_however_little_it_explains() -> None:
+    """Two crops of the nav2 warehouse map (CC BY 4.0 via ../shared/maps; bench seed 12, case
+    27): a pose laying b's shelf rows on another row of a explains 863 wall cells against 7
+    contradicting, the truth 258 against none, a third as much, so it used to be no rival and
+    the shelf row was merged 342 cells off. A far pose the maps do not contradict at all, on
+    at least ``rival_perfect_cells`` wall cells, now makes the match ambiguous."""
+    data = np.load(Path(__file__).parent / "data" / "warehouse_seed12_27.npz")
+    a, b, T_ab = data["a"], data["b"], data["T_ab"]
+    res = merge_maps(a, b, resolution_m=0.05)
+    assert not res.matched and res.reason.startswith("ambiguous"), res.reason
+    assert res.runner_up_score == 1.0  # the truth, judged as the rival
+    old = merge_maps(a, b, resolution_m=0.05, rival_perfect_cells=0)
+    assert old.matched and merge_error(old.transform, T_ab, b)[0] > 300
 
 
 def test_cross_support_is_zero_along_one_wall_and_large_at_a_corner() -> None:

@@ -25,6 +25,8 @@ from mrexplore.types import Box, Merger
 #: room, so a match confined to one room (which an identical room elsewhere would explain as
 #: well) waits for more; measurements in docs/merging.md.
 IN_LOOP_MIN_COMMON_M2 = 20.0
+#: ``rival_perfect_cells`` of the semantic merger in the loop: off (the reason is at its use below).
+IN_LOOP_RIVAL_PERFECT_CELLS = 0
 
 
 class FusionStage:
@@ -77,6 +79,11 @@ class FusionStage:
                 # In the loop the maps grow, so asking for a room's worth of shared knowledge
                 # costs seconds, while a one-shot merge has no "later".
                 options.setdefault("min_common_m2", IN_LOOP_MIN_COMMON_M2)
+                # The perfect-rival test guards a one-shot merge against b's rest lying in a's
+                # unseen part; in the loop that part gets seen, and the re-check drops a pose
+                # the grown maps contradict. Here it only delayed merges (docs/merging.md,
+                # item 11: one depot episode of 20 never merged).
+                options.setdefault("rival_perfect_cells", IN_LOOP_RIVAL_PERFECT_CELLS)
                 if resolution_m is not None:
                     options.setdefault("resolution_m", float(resolution_m))
             self.tracker = MapMergeTracker(

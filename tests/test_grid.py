@@ -97,23 +97,20 @@ def test_the_helpers_give_the_same_bits_for_every_memory_layout() -> None:
     rng = np.random.default_rng(6)
     pts = rng.uniform(-1000, 1000, (257, 2))  # odd length: SIMD loops and their scalar tails
     Ts = _transforms(5, seed=7)
-    for T, U in zip(Ts, Ts[::-1], strict=True):
-        want = (
+
+    def answers(T: np.ndarray, U: np.ndarray, p: np.ndarray) -> tuple[bytes, ...]:
+        return (
             chain(T, U).tobytes(),
             affine_inverse(T).tobytes(),
             invert_transform(T).tobytes(),
-            apply_transform(T, pts).tobytes(),
-            np.stack(map_points(pts, T), axis=1).tobytes(),
+            apply_transform(T, p).tobytes(),
+            np.stack(map_points(p, T), axis=1).tobytes(),
         )
+
+    for T, U in zip(Ts, Ts[::-1], strict=True):
+        want = answers(T, U, pts)
         for Tl, Ul, pl in zip(_layouts(T), _layouts(U), _layouts(pts), strict=True):
-            got = (
-                chain(Tl, Ul).tobytes(),
-                affine_inverse(Tl).tobytes(),
-                invert_transform(Tl).tobytes(),
-                apply_transform(Tl, pl).tobytes(),
-                np.stack(map_points(pl, Tl), axis=1).tobytes(),
-            )
-            assert got == want
+            assert answers(Tl, Ul, pl) == want
 
 
 def test_merge_common_still_exports_the_helpers() -> None:

@@ -147,7 +147,7 @@ class SeededMerger(OracleMerger):
         """:func:`~mrexplore.merge.semantic.merge_semantic` of the crops, the true ``T_ab``
         between them handed in as an extra hypothesis, with the options the env gives the
         semantic merger in the loop (20 m² shared, no perfect-rival test, the map's resolution)."""
-        from mrexplore.merge.fusion import IN_LOOP_MIN_COMMON_M2, IN_LOOP_RIVAL_PERFECT_CELLS
+        from mrexplore.merge.fusion import IN_LOOP_SEMANTIC_OPTIONS
         from mrexplore.merge.semantic import merge_semantic
 
         T = self._true_pose(i, j, offset_a, offset_b)
@@ -155,9 +155,8 @@ class SeededMerger(OracleMerger):
             a,
             b,
             extra_hypotheses=[T],
-            min_common_m2=IN_LOOP_MIN_COMMON_M2,
-            rival_perfect_cells=IN_LOOP_RIVAL_PERFECT_CELLS,
             resolution_m=float(self._env.map_resolution_m),
+            **IN_LOOP_SEMANTIC_OPTIONS,
         )
 
 

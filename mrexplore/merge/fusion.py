@@ -25,8 +25,17 @@ from mrexplore.types import Box, Merger
 #: room, so a match confined to one room (which an identical room elsewhere would explain as
 #: well) waits for more; measurements in docs/merging.md.
 IN_LOOP_MIN_COMMON_M2 = 20.0
-#: ``rival_perfect_cells`` of the semantic merger in the loop: off (the reason is at its use below).
+#: ``rival_perfect_cells`` of the semantic merger in the loop: off. The perfect-rival test guards
+#: a one-shot merge against b's rest lying in a's unseen part; in the loop that part gets seen
+#: and the re-check drops a pose the grown maps contradict. There it only delayed merges
+#: (docs/merging.md, item 11: one depot episode of 20 never merged).
 IN_LOOP_RIVAL_PERFECT_CELLS = 0
+#: The semantic merger's options in the loop (the env's tracker and the loop study's seeded
+#: diagnostic); options the caller gives win.
+IN_LOOP_SEMANTIC_OPTIONS: dict[str, float] = {
+    "min_common_m2": IN_LOOP_MIN_COMMON_M2,
+    "rival_perfect_cells": IN_LOOP_RIVAL_PERFECT_CELLS,
+}
 
 
 class FusionStage:
@@ -78,12 +87,7 @@ class FusionStage:
             if isinstance(merger, str) and merger.lower() == "semantic":
                 # In the loop the maps grow, so asking for a room's worth of shared knowledge
                 # costs seconds, while a one-shot merge has no "later".
-                options.setdefault("min_common_m2", IN_LOOP_MIN_COMMON_M2)
-                # The perfect-rival test guards a one-shot merge against b's rest lying in a's
-                # unseen part; in the loop that part gets seen, and the re-check drops a pose
-                # the grown maps contradict. Here it only delayed merges (docs/merging.md,
-                # item 11: one depot episode of 20 never merged).
-                options.setdefault("rival_perfect_cells", IN_LOOP_RIVAL_PERFECT_CELLS)
+                options = {**IN_LOOP_SEMANTIC_OPTIONS, **options}
                 if resolution_m is not None:
                     options.setdefault("resolution_m", float(resolution_m))
             self.tracker = MapMergeTracker(

@@ -626,12 +626,13 @@ def merge_semantic(
             tuple(np.asarray(verify.points_b, dtype=np.float64).mean(axis=0)),
             start=best_consistency,
         )
-        ag_pol = verify(T_pol)
         # The polished pose stands in for the best, so it must pass the overlap floor every
         # hypothesis passed: a pose that buys consistency by leaving b's walls over a's unknown
         # is not the same match (a twin-wing pose went from 18 % to 8 % of b's walls and was
         # accepted, wrongly; docs/merging.md).
-        if c_pol >= min_score and verify.overlap_ok(ag_pol, min_overlap, min_overlap_cells):
+        if c_pol >= min_score and verify.overlap_ok(
+            ag_pol := verify(T_pol), min_overlap, min_overlap_cells
+        ):
             best.T, best_consistency = T_pol, c_pol
             best.agreement = ag_pol
             best.shared_cells = shared(T_pol)

@@ -29,7 +29,9 @@ __all__ = ["__version__", "env", "parallel_env", "raw_env", "vector_env"]
 
 #: Options of the goal level (``mrexplore.environment.goal_actions.GOAL_OPTIONS``, kept here so
 #: that the low-level path imports nothing more).
-_GOAL_KEYS = frozenset({"action_mode", "goal_candidates", "goal_max_steps", "goal_memory"})
+_GOAL_KEYS = frozenset(
+    {"action_mode", "goal_candidates", "goal_max_steps", "goal_memory", "goal_gain"}
+)
 
 
 def parallel_env(

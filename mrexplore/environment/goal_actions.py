@@ -57,8 +57,10 @@ from mrexplore.errors import ConfigError, WorldError
 from mrexplore.policies.candidates import (
     FEATURE_MAX,
     FEATURE_NAMES,
+    GAIN_FEATURE_NAMES,
     GoalExecutor,
     candidate_features,
+    gain_features,
     teammate_claims,
 )
 
@@ -67,7 +69,7 @@ ACTION_MODES = ("low", "goal")
 #: Draws of a random world tried at ``reset`` before a generator's error is passed on.
 WORLD_RETRIES = 3
 #: The ``parallel_env`` options that belong to the goal level (the rest go to the low level).
-GOAL_OPTIONS = ("goal_candidates", "goal_max_steps", "goal_memory")
+GOAL_OPTIONS = ("goal_candidates", "goal_max_steps", "goal_memory", "goal_gain")
 
 
 @dataclass(frozen=True)
@@ -82,16 +84,21 @@ class GoalConfig:
             also holds the features the same frontier (its target within 1 m) had at the
             previous decision (zeros when it is new), so the observation is ``(K, 2F)``: the
             policy sees frontiers shrink (a teammate is exploring there) or paths shorten.
+        goal_gain: 0 (default) or 1: append to every row the information-gain features
+            :data:`~mrexplore.policies.candidates.GAIN_FEATURE_NAMES` (share of unknown cells
+            around the target within 1 m and within the sensor range), before the memory
+            columns: ``F`` becomes 18.
     """
 
     goal_candidates: int = 8
     goal_max_steps: int = 10
     goal_memory: int = 0
+    goal_gain: int = 0
 
     def __post_init__(self) -> None:
         for name in GOAL_OPTIONS:
             v = getattr(self, name)
-            lo, hi = (0, 1) if name == "goal_memory" else (1, 10**6)
+            lo, hi = (0, 1) if name in ("goal_memory", "goal_gain") else (1, 10**6)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
                 raise ConfigError(f"{name} must be an integer in [{lo}, {hi}], got {v!r}")
 
@@ -143,7 +150,8 @@ class GoalActionEnv(ParallelEnv[AgentID, dict[str, NDArray[Any]], int]):
         self.render_mode = low.render_mode
         self.possible_agents: list[AgentID] = list(low.possible_agents)
         self.agents: list[AgentID] = []
-        k, f = self.config.goal_candidates, len(FEATURE_NAMES) * (1 + self.config.goal_memory)
+        f_row = len(FEATURE_NAMES) + len(GAIN_FEATURE_NAMES) * self.config.goal_gain
+        k, f = self.config.goal_candidates, f_row * (1 + self.config.goal_memory)
         self._obs_space = gymnasium.spaces.Dict(
             {
                 "observation": gymnasium.spaces.Box(0.0, FEATURE_MAX, (k, f), np.float32),
@@ -152,6 +160,8 @@ class GoalActionEnv(ParallelEnv[AgentID, dict[str, NDArray[Any]], int]):
         )
         self._act_space: gymnasium.spaces.Discrete = gymnasium.spaces.Discrete(k)
         self._executor_options = dict(executor_options or {})
+        # the square of the far gain feature: what one scan from the target could reveal
+        self._sensor_range_m = float(getattr(getattr(low, "config", None), "max_range_m", 4.0))
         self.executors: dict[AgentID, GoalExecutor] = {}
         self._obs: dict[AgentID, dict[str, NDArray[Any]]] = {}
         self._index: dict[AgentID, NDArray[np.int64]] = {}
@@ -313,6 +323,9 @@ class GoalActionEnv(ParallelEnv[AgentID, dict[str, NDArray[Any]], int]):
             cands = ex.propose(view)
             claims = teammate_claims(view, targets)
             feats, mask, index = candidate_features(cands, view, k, current, claims)
+            if self.config.goal_gain:
+                gain = gain_features(view, cands, index, self._sensor_range_m)
+                feats = np.concatenate([feats, gain], axis=1)
             if self.config.goal_memory:
                 feats = self._with_memory(a, feats, index, cands, float(view.resolution_m))
             self._obs[a] = {"observation": feats, "action_mask": mask}

@@ -34,6 +34,7 @@ OBSERVATION_OPTIONS = (
     "goal_candidates",
     "goal_max_steps",
     "goal_memory",
+    "goal_gain",
 )
 
 

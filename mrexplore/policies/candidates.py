@@ -19,6 +19,12 @@ teammates in radio range) - never from the ground truth.
 ('valid', 'path_m', 'straight_m')
 >>> len(FEATURE_NAMES)
 16
+>>> GAIN_FEATURE_NAMES
+('unknown_near', 'unknown_range')
+
+:func:`gain_features` adds, on request (``goal_gain=1`` of the goal-level env), what a frontier
+may reveal: the share of unknown cells around each candidate's target in the robot's
+own-or-fused map, within 1 m and within the sensor range.
 """
 
 from __future__ import annotations
@@ -37,8 +43,10 @@ from mrexplore.robot import Action
 __all__ = [
     "FEATURE_NAMES",
     "FEATURE_SCALE_M",
+    "GAIN_FEATURE_NAMES",
     "GoalExecutor",
     "candidate_features",
+    "gain_features",
     "teammate_claims",
 ]
 
@@ -64,6 +72,13 @@ FEATURE_NAMES: tuple[str, ...] = (
     "total_size",  # total frontier length of all candidates / 20 m
 )
 FEATURE_SCALE_M = 10.0
+#: The optional information-gain columns (:func:`gain_features`), each in [0, 1].
+GAIN_FEATURE_NAMES: tuple[str, ...] = (
+    "unknown_near",  # share of unknown cells in the square of half-side 1 m around the target
+    "unknown_range",  # the same within the sensor range (square of half-side sensor_range_m)
+)
+#: Half-side of the near square of :func:`gain_features`, metres.
+GAIN_NEAR_M = 1.0
 #: Value of a distance feature when nothing is known (30 m).
 FAR = 3.0
 #: Upper bound of every feature (the observation Box's high).
@@ -230,3 +245,44 @@ def candidate_features(
     mask[:m] = 1
     index[:m] = sel
     return feats, mask, index
+
+
+def gain_features(
+    view: RobotView,
+    cands: FrontierCandidates | None,
+    index: NDArray[np.int64],
+    sensor_range_m: float = 4.0,
+) -> NDArray[np.float32]:
+    """What each row's frontier may reveal: ``(k, 2)`` float32, columns
+    :data:`GAIN_FEATURE_NAMES`.
+
+    The share of unknown cells (value -1) of ``view.map`` in the axis-aligned squares of
+    half-side :data:`GAIN_NEAR_M` and ``sensor_range_m`` around the candidate's target cell; the
+    part of a square beyond the map's canvas counts as unknown. Frontier policies rank by
+    path length and frontier size only; a frontier into a large unseen room and one into a
+    closet look alike to them. Rows with ``index`` -1 (empty, or *wait*) are 0.
+
+    Args:
+        view: the robot's view (own or fused map, own cells).
+        cands: the proposal the rows index into.
+        index: ``(k,)`` candidate index per row (:func:`candidate_features`' third result).
+        sensor_range_m: half-side of the far square, metres (the lidar range).
+    """
+    out = np.zeros((index.size, len(GAIN_FEATURE_NAMES)), dtype=np.float32)
+    if cands is None:
+        return out
+    grid = view.map
+    h, w = grid.shape
+    res = float(view.resolution_m)
+    for col_out, half_m in enumerate((GAIN_NEAR_M, sensor_range_m)):
+        r = max(1, round(half_m / res))
+        side = 2 * r + 1
+        for row in np.flatnonzero(index >= 0):
+            c, rr = (int(v) for v in cands.targets[index[row]])
+            c0, c1, r0, r1 = max(c - r, 0), min(c + r + 1, w), max(rr - r, 0), min(rr + r + 1, h)
+            inside = max(c1 - c0, 0) * max(r1 - r0, 0)
+            unknown = side * side - inside  # off the canvas: never seen
+            if inside:
+                unknown += int(np.count_nonzero(grid[r0:r1, c0:c1] < 0))
+            out[row, col_out] = unknown / (side * side)
+    return out

@@ -66,6 +66,8 @@ def test_default_and_low_mode_are_the_low_level_env() -> None:
         ({"action_mode": "goal", "goal_candidates": 0}, "goal_candidates"),
         ({"action_mode": "goal", "goal_max_steps": 1.5}, "goal_max_steps"),
         ({"action_mode": "goal", "goal_memory": 2}, "goal_memory"),
+        ({"action_mode": "goal", "goal_gain": 2}, "goal_gain"),
+        ({"goal_gain": 1}, "goal_gain"),
         ({"action_mode": "goal", "no_such_option": 1}, "unknown option"),  # low-level check
     ],
 )
@@ -91,6 +93,15 @@ def test_spaces_and_observations() -> None:
     mem = _goal_env(goal_memory=1)
     obs, _ = mem.reset(seed=1)
     assert obs["robot_0"]["observation"].shape == (8, 2 * len(FEATURE_NAMES))
+    both = _goal_env(goal_memory=1, goal_gain=1)
+    obs, _ = both.reset(seed=1)
+    f = len(FEATURE_NAMES) + 2
+    feats = obs["robot_0"]["observation"]
+    assert feats.shape == (8, 2 * f) and both.observation_space("robot_0").contains(obs["robot_0"])
+    # the gain columns follow the base features; valid rows at a frontier see unknown cells
+    valid = obs["robot_0"]["action_mask"] == 1
+    assert (feats[valid, len(FEATURE_NAMES) : f] > 0).any()
+    assert not feats[~valid].any()
 
 
 def test_mask_marks_exactly_the_valid_candidates_and_masked_choices_fall_back() -> None:
@@ -149,8 +160,8 @@ class _ViewsOnly:
 
 def test_candidates_and_features_come_from_robot_views_alone() -> None:
     """No ground truth: proposals made from the RobotViews alone (no simulator, no world within
-    reach) equal the env's own, from the same executor state."""
-    env = _goal_env()
+    reach) equal the env's own, from the same executor state (the gain features too)."""
+    env = _goal_env(goal_gain=1)
     env.reset(seed=4)
     env.step(dict.fromkeys(env.agents, 0))
     saved = copy.deepcopy(env.executors)

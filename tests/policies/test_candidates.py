@@ -10,8 +10,10 @@ from mrexplore.grid import FREE, OCCUPIED, UNKNOWN
 from mrexplore.policies.candidates import (
     FAR,
     FEATURE_NAMES,
+    GAIN_FEATURE_NAMES,
     GoalExecutor,
     candidate_features,
+    gain_features,
     teammate_claims,
 )
 from mrexplore.policies.explorers import FrontierCandidates
@@ -105,3 +107,29 @@ def test_executor_drives_to_the_committed_goal() -> None:
     assert ex.next_action(view) == 0  # FORWARD along +col
     ex.commit(-1, view)  # wait
     assert ex.path is None and ex.done
+
+
+def test_gain_features_count_the_unknown_around_each_target() -> None:
+    # 0.05 m cells: the near square is 41 x 41 cells, the range square (1 m here) the same;
+    # a 2 m range gives 81 x 81.
+    m = np.full((200, 300), FREE, dtype=np.int8)
+    m[:, 150:] = UNKNOWN  # the right half never seen
+    cands = FrontierCandidates(
+        targets=np.array([[60, 100], [150, 100], [290, 5]], dtype=np.int64),
+        size_m=np.ones(3),
+        dist_m=np.array([1.0, 2.0, 3.0]),
+        goals=np.zeros((3, 2), dtype=np.int64),
+    )
+    index = np.array([0, 1, 2, -1], dtype=np.int64)
+    g = gain_features(_view(m), cands, index, sensor_range_m=2.0)
+    assert g.shape == (4, len(GAIN_FEATURE_NAMES)) and g.dtype == np.float32
+    assert g[0].tolist() == [0.0, 0.0]  # deep in the known part
+    # on the boundary: the target's column and the 20 right of it are unknown
+    assert g[1, 0] == pytest.approx(21 / 41)
+    assert g[1, 1] == pytest.approx(41 / 81)
+    # at the canvas corner: the part off the canvas counts as unknown
+    near = 41 * 41
+    inside = (300 - 270) * (5 + 21)  # cols 270..299, rows 0..25, all unknown
+    assert g[2, 0] == pytest.approx(1.0) and inside < near
+    assert g[3].tolist() == [0.0, 0.0]  # an empty row
+    assert not gain_features(_view(m), None, index).any()

@@ -309,12 +309,17 @@ class Simulation:
         drift alone can move a correct merge of j's map into i's away from the start-frame truth:
         both robots' position drift plus their heading drift times the mean distance of the cells
         from j's start. 0 with exact odometry (evaluation only)."""
-        own = self.own_frame_truth()
-        pos = np.hypot(*(self.est_poses[:, :2] - own[:, :2]).T) / self.resolution_m
-        hdg = np.abs(np.angle(np.exp(1j * (self.est_poses[:, 2] - own[:, 2]))))
         origin = np.asarray(self.maps[j].origin_cell, dtype=np.float64)
         cells = np.asarray(cells_j, dtype=np.float64).reshape(-1, 2)
         radius = float(np.linalg.norm(cells - origin, axis=1).mean()) if len(cells) else 0.0
+        return self.drift_allowance_at(i, j, radius)
+
+    def drift_allowance_at(self, i: int, j: int, radius: float) -> float:
+        """:meth:`drift_allowance` for cells at mean distance ``radius`` (cells) from j's start
+        (``maps[j].origin_cell``); evaluation only."""
+        own = self.own_frame_truth()
+        pos = np.hypot(*(self.est_poses[:, :2] - own[:, :2]).T) / self.resolution_m
+        hdg = np.abs(np.angle(np.exp(1j * (self.est_poses[:, 2] - own[:, 2]))))
         return float(pos[i] + pos[j] + (hdg[i] + hdg[j]) * radius)
 
     def own_frame_truth(self) -> NDArray[np.float64]:

@@ -147,8 +147,13 @@ def transform_error(
     if pts.shape[0] == 0:
         raise GridError("transform_error needs at least one point")
     disp = np.linalg.norm(apply_transform(T_est, pts) - apply_transform(T_true, pts), axis=1)
-    rot = abs(math.degrees(transform_angle(chain(T_est, invert_transform(T_true)))))
-    return float(disp.mean()), float(rot)
+    return float(disp.mean()), rotation_error_deg(T_est, T_true)
+
+
+def rotation_error_deg(T_est: Transform, T_true: Transform) -> float:
+    """How far the rotation of ``T_est`` is from that of ``T_true``: ``|angle|`` in degrees of
+    ``T_est T_true^-1`` (:func:`transform_error`'s second figure)."""
+    return float(abs(math.degrees(transform_angle(chain(T_est, invert_transform(T_true))))))
 
 
 def known_cells(

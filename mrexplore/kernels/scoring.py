@@ -95,3 +95,59 @@ def score_region(
                 counts[0] += 1
                 counts[1] += not near_wall[r, c]
             cls[r, c] = new
+
+
+@numba.njit(cache=True, nogil=True)
+def sampled_displacements(
+    grid: NDArray[np.int8],
+    r0: int,
+    r1: int,
+    c0: int,
+    c1: int,
+    max_points: int,
+    t_est: NDArray[np.float64],
+    t_true: NDArray[np.float64],
+    ox: float,
+    oy: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Per sampled known cell of ``grid[r0:r1, c0:c1]``: how far ``t_est`` puts it from where
+    ``t_true`` does (cells), and its distance from ``(ox, oy)`` (cells).
+
+    The sample is :func:`mrexplore.truth.known_cells`' (row-major, every k-th known cell,
+    ``k = max(1, n // max_points)``), and each figure is computed with the same IEEE operations
+    as :func:`mrexplore.truth.transform_error` and :meth:`mrexplore.sim.Simulation.
+    drift_allowance` (``x r00 + y r01 + t0``, then ``sqrt(dx dx + dy dy)``), so the means
+    numpy takes of the two (M,) float64 arrays are theirs bit for bit, without the (N, 2)
+    intermediate arrays.
+    """
+    n = 0
+    for r in range(r0, r1):
+        for c in range(c0, c1):
+            if grid[r, c] != -1:
+                n += 1
+    step = max(1, n // max_points)
+    m = (n + step - 1) // step
+    disp = np.empty(m, dtype=np.float64)
+    rad = np.empty(m, dtype=np.float64)
+    a0, a1, a2 = t_est[0, 0], t_est[0, 1], t_est[0, 2]
+    b0, b1, b2 = t_est[1, 0], t_est[1, 1], t_est[1, 2]
+    p0, p1, p2 = t_true[0, 0], t_true[0, 1], t_true[0, 2]
+    q0, q1, q2 = t_true[1, 0], t_true[1, 1], t_true[1, 2]
+    idx = 0
+    k = 0
+    for r in range(r0, r1):
+        for c in range(c0, c1):
+            if grid[r, c] == -1:
+                continue
+            if idx % step == 0:
+                x = float(c)
+                y = float(r)
+                dx = (x * a0 + y * a1 + a2) - (x * p0 + y * p1 + p2)
+                dy = (x * b0 + y * b1 + b2) - (x * q0 + y * q1 + q2)
+                disp[k] = np.sqrt(dx * dx + dy * dy)
+                ex = x - ox
+                ey = y - oy
+                rad[k] = np.sqrt(ex * ex + ey * ey)
+                k += 1
+            idx += 1
+    return disp, rad

@@ -36,7 +36,8 @@ WRONG_MERGE_CELLS = 5.0
 ERROR_SAMPLE_POINTS = 4096
 #: Steps a merge error stays cached while its transform is unchanged (the known cells grow
 #: slowly; the error is asked for every step). Each ordered pair refreshes on its own phase of
-#: this period, so the pairs' refreshes (~0.15 ms each compiled, ~0.5 ms in numpy) do not pile up in one step.
+#: this period, so the pairs' refreshes (~0.15 ms each compiled, ~0.5 ms in numpy) do not pile
+#: up in one step.
 ERROR_REFRESH_STEPS = 10
 
 MergeError = dict[str, float]

@@ -35,6 +35,8 @@ class EpisodeResult:
         merged_wrongly_s: the largest, over robots, ``merged_wrongly_s`` at the end: simulated
             seconds a robot held a transform >= 5 cells off the truth.
         wrong_merge: some robot held a transform >= 5 cells off the truth at some step.
+        merges_lost: the most times any robot went from merged to not merged (a re-check
+            dropped its transform); 0 if it never merged or kept its merge.
         frames: rendered frames when recording, else empty.
         merge_frame: the frame rendered at the first merge, when recording.
     """
@@ -52,6 +54,7 @@ class EpisodeResult:
     max_fused_contradiction: float = math.nan
     merged_wrongly_s: float = 0.0
     wrong_merge: bool = False
+    merges_lost: int = 0
 
     def summary(self) -> dict[str, Any]:
         """JSON-friendly fields (no frames; NaN becomes None)."""
@@ -66,6 +69,7 @@ class EpisodeResult:
             "max_fused_contradiction": None if math.isnan(c) else c,
             "merged_wrongly_s": self.merged_wrongly_s,
             "wrong_merge": self.wrong_merge,
+            "merges_lost": self.merges_lost,
         }
 
 
@@ -76,9 +80,20 @@ class _MapQuality:
         self.max_contradiction = math.nan
         self.wrong = False
         self.wrong_s = 0.0
+        self._merged: dict[str, bool] = {}
+        self._lost: dict[str, int] = {}
+
+    @property
+    def merges_lost(self) -> int:
+        """The most merged -> not merged changes of any robot so far."""
+        return max(self._lost.values(), default=0)
 
     def add(self, infos: Mapping[str, Mapping[str, Any]]) -> None:
-        for info in infos.values():
+        for agent, info in infos.items():
+            merged = bool(info.get("merged", False))
+            if self._merged.get(agent, False) and not merged:
+                self._lost[agent] = self._lost.get(agent, 0) + 1
+            self._merged[agent] = merged
             c = float(info.get("fused_contradiction", -1.0))  # -1: no claim yet
             if c >= 0 and not c <= self.max_contradiction:
                 self.max_contradiction = c
@@ -170,4 +185,5 @@ def run_episode(
         max_fused_contradiction=quality.max_contradiction,
         merged_wrongly_s=quality.wrong_s,
         wrong_merge=quality.wrong,
+        merges_lost=quality.merges_lost,
     )

@@ -145,12 +145,13 @@ def _ep(variant: str, seed: int, t: float, merged_at: float | None, **kw: Any) -
         "wrong_merge": kw.get("wrong", False),
         "merged_wrongly_s": kw.get("wrong_s", 0.0),
         "max_fused_contradiction": kw.get("contr"),
+        "merges_lost": kw.get("lost", 0),
     }
 
 
 def test_summary_and_tables() -> None:
     eps = [
-        _ep("semantic", 0, 300.0, 100.0, wrong=True, wrong_s=12.5, contr=0.2),
+        _ep("semantic", 0, 300.0, 100.0, wrong=True, wrong_s=12.5, contr=0.2, lost=2),
         _ep("semantic", 1, 600.0, None, contr=0.01),
         _ep("oracle", 0, 200.0, 20.0, contr=0.01),
         _ep("oracle", 1, 400.0, 30.0),
@@ -162,6 +163,15 @@ def test_summary_and_tables() -> None:
     assert s["semantic"]["max_fused_contradiction"] == 0.2
     assert s["semantic"]["vs_oracle"] == pytest.approx(0.5)
     assert s["oracle"]["median_first_merge_s"] == 25.0 and s["oracle"]["vs_oracle"] == 0.0
+    assert s["semantic"]["merges_lost"] == 2 and s["oracle"]["merges_lost"] == 0
+    # paired on the same seeds: +100 and +200 s; t(1) = 12.706, sd 70.7 -> +-635.3
+    p = s["semantic"]["minus_oracle_s"]
+    assert p["mean"] == 150.0 and p["ci_low"] == pytest.approx(150.0 - 635.31, abs=0.01)
+    assert s["oracle"]["minus_oracle_s"] is None
+    old = summarize(
+        [{k: v for k, v in e.items() if k != "merges_lost"} for e in eps], ["w"], ["semantic"]
+    )["w"]["semantic"]
+    assert old["merges_lost"] is None and old["minus_oracle_s"] is None  # no oracle asked for
     doc = {
         "policy": "p",
         "seeds": [0, 1],
@@ -176,6 +186,7 @@ def test_summary_and_tables() -> None:
         "summary": {"w": s},
     }
     text = format_tables(doc)
+    assert "+150.0 s [-485.3, +785.3]" in text
     assert "+50.0%" in text and "450.0 +- 150.0 s" in text and "1/2" in text
     assert "| semantic | 1/2 |" in format_tables(doc, markdown=True)
     assert not math.isnan(s["oracle"]["task_time_std_s"])

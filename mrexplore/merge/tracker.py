@@ -14,7 +14,11 @@ Each step the caller hands over the robots' own-frame maps. The tracker
   and replaces the transform only when the new one scores clearly better (by
   ``replace_margin``) than the kept one does *on the same current maps*: no flip-flopping;
   and drops it when, on the current maps, it agrees less than ``drop_below`` (new evidence
-  contradicts it: a wrong merge is worse than no merge);
+  contradicts it: a wrong merge is worse than no merge). The agreement that decides a drop
+  discounts the maps' noise as the default merger's acceptance does (walls within
+  ``recheck_slack_cells`` of each other agree, lone contradictions under
+  ``recheck_min_run_cells`` cells do not count), so a pose accepted as consistent is not
+  dropped for the noise and drift it was accepted with;
 - chains transforms through merged pairs (0-1 and 1-2 merged => 0-2 known);
 - hands the pixels to :class:`~mrexplore.merge.compositor.MapCompositor`: change detection,
   each teammate's map warped into i's frame, and robot i's fused map ("occupied beats free
@@ -76,7 +80,8 @@ class _Outcome:
 
     result: MergeResult | None  # None: a re-check that dropped without running the merger
     T: Transform | None  # T_ij in full-canvas cells, None when refused
-    old_now: float | None = None  # re-check: the kept transform's agreement on those maps
+    old_now: float | None = None  # re-check: the kept transform's raw index on those maps
+    held_now: float | None = None  # re-check: its noise-aware agreement (what a drop judges)
 
 
 @dataclass
@@ -150,8 +155,16 @@ class MapMergeTracker:
             (default 2; 1 accepts the first match).
         confirm_tol_cells: two attempts agree when the corners of b's known box land within
             this many cells of each other (default 2.0).
-        drop_below: a re-check drops the kept transform when its agreement on the current maps
-            falls below this (default 0.85; 0 never drops).
+        drop_below: a re-check drops the kept transform when its noise-aware agreement on the
+            current maps falls below this (default 0.85; 0 never drops).
+        recheck_slack_cells: in that agreement, a wall of one map within this many cells
+            beyond the one-cell tolerance of the other's walls agrees (default 2: the semantic
+            merger's ``slack_cells``, the same wall seen from its two sides or eroded).
+        recheck_min_run_cells: in that agreement, contradicting cells count only in 8-connected
+            groups of at least this many (default 5: the semantic merger's ``min_run_cells``;
+            a wall laid across open space, not speckle). With 0 and 1 a drop judges the raw
+            acceptance index, as before 2026-11-26 (correct merges of long, drifting episodes
+            were dropped at raw 0.76-0.84 while their noise-aware agreement was 0.95-0.99).
         retry_growth: an unmerged pair is tried again only once the two maps together know this
             share more cells than at the last attempt (default 0.02; 0 = any change).
         confirm_growth: an agreeing attempt confirms the pending transform only when the shared
@@ -186,6 +199,8 @@ class MapMergeTracker:
         confirmations: int = 2,
         confirm_tol_cells: float = 2.0,
         drop_below: float = 0.85,
+        recheck_slack_cells: int = 2,
+        recheck_min_run_cells: int = 5,
         retry_growth: float = 0.02,
         confirm_growth: float = 0.0,
         merge_latency_steps: int = 0,
@@ -200,6 +215,8 @@ class MapMergeTracker:
             ("confirmations", confirmations, integer(1)),
             ("confirm_tol_cells", confirm_tol_cells, positive),
             ("drop_below", drop_below, number(0.0, 1.0)),
+            ("recheck_slack_cells", recheck_slack_cells, integer(0, 10)),
+            ("recheck_min_run_cells", recheck_min_run_cells, integer(1, 1000)),
             ("retry_growth", retry_growth, number(0.0, 10.0)),
             ("confirm_growth", confirm_growth, number(0.0, 10.0)),
             ("merge_latency_steps", merge_latency_steps, MERGE_LATENCY_CHECK),
@@ -212,6 +229,8 @@ class MapMergeTracker:
         self.confirmations = int(confirmations)
         self.confirm_tol_cells = float(confirm_tol_cells)
         self.drop_below = float(drop_below)
+        self.recheck_slack_cells = int(recheck_slack_cells)
+        self.recheck_min_run_cells = int(recheck_min_run_cells)
         self.retry_growth = float(retry_growth)
         self.confirm_growth = float(confirm_growth)
         self.merge_latency_steps = int(merge_latency_steps)
@@ -312,12 +331,17 @@ class MapMergeTracker:
         is at ``offsets`` (col, row) in the canvases. Pure: reads no tracker state that the
         main thread changes, so it may run in the worker thread."""
         (ca, ra), (cb, rb) = offsets
-        old_now = None
+        old_now = held_now = None
         if kind == "recheck":
             assert T_old is not None
-            old_now = Verifier(a, b)(chain(translation(-ca, -ra), T_old, translation(cb, rb))).score
-            if old_now < self.drop_below:
-                return _Outcome(None, None, old_now)
+            T_crop = chain(translation(-ca, -ra), T_old, translation(cb, rb))
+            old_now = Verifier(a, b)(T_crop).score
+            held_now = old_now
+            if self.recheck_slack_cells > 0 or self.recheck_min_run_cells > 1:
+                noisy = Verifier(a, b, slack=self.recheck_slack_cells)
+                held_now = noisy.structured(T_crop, self.recheck_min_run_cells).score
+            if held_now < self.drop_below:
+                return _Outcome(None, None, old_now, held_now)
         # A merger that needs the robots' ids and crop offsets (the benchmark's oracle) says so.
         pair = getattr(self._merger_obj, "merge_pair", None)
         res = pair(i, j, a, b, (ca, ra), (cb, rb)) if pair is not None else self._merge(a, b)
@@ -325,7 +349,7 @@ class MapMergeTracker:
         if res.matched and res.transform is not None:
             # crop -> canvas cells by chain, not @ (BLAS): the same bits on every CPU
             T = chain(translation(ca, ra), res.transform, translation(-cb, -rb))
-        return _Outcome(res, T, old_now)
+        return _Outcome(res, T, old_now, held_now)
 
     def _start(self, kind: str, i: int, j: int, step: int) -> None:
         """Start an attempt or re-check of (i, j) on the current maps; apply it now (latency 0)
@@ -441,8 +465,8 @@ class MapMergeTracker:
         kept = self._edges.get((i, j))
         if kept is None or T_old is None or not np.array_equal(kept, T_old):
             return  # dropped or replaced since the re-check started
-        assert out.old_now is not None
-        if out.old_now < self.drop_below:
+        assert out.old_now is not None and out.held_now is not None
+        if out.held_now < self.drop_below:
             # The maps grew and now contradict the kept transform: un-merge this pair.
             del self._edges[(i, j)]
             self._edge_score.pop((i, j), None)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -298,6 +299,42 @@ def test_recheck_drops_a_transform_the_grown_maps_contradict(
     for step in range(2, 11):
         tr.update([ca, moved], step=step)
     assert not tr.merged(0) and tr.transform(0, 1) is None
+
+
+@pytest.mark.parametrize("noise_aware", [True, False])
+def test_recheck_keeps_a_transform_the_maps_contradict_only_within_their_noise(
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray], noise_aware: bool
+) -> None:
+    """Speckles (two wall cells each, in open space) pull the raw index under ``drop_below``;
+    the drop judges the noise-aware agreement, as acceptance does, and keeps the true
+    transform. The raw judgement (slack 0, runs of 1) drops it."""
+    ca, cb, T_true = robots
+    from mrexplore.merge.common import Verifier, known_bbox
+
+    ra0, _, ca0, _ = known_bbox(ca)  # type: ignore[misc]
+    rb0, _, cb0, _ = known_bbox(cb)  # type: ignore[misc]
+    T_crop = translation(-ca0, -ra0) @ T_true @ translation(cb0, rb0)
+    noisy = cb.copy()
+    free = np.zeros(cb.shape, dtype=bool)
+    free[::4, ::4] = True  # pairs 2 cells apart: every speckle is its own group
+    free &= (cb == 0) & (np.roll(cb, -1, axis=1) == 0)
+    walls = (cb >= 50).astype(np.uint8)
+    near = cv2.dilate(walls, np.ones((9, 9), np.uint8)).astype(bool)  # 4 cells from a wall
+    speckle = free & ~near
+    noisy[speckle] = OCC
+    noisy[np.roll(speckle, 1, axis=1)] = OCC
+    raw = Verifier(ca, noisy)(T_true).score
+    held = Verifier(ca, noisy, slack=2).structured(T_true, 5).score
+    assert raw < 0.85 <= held  # the case the test is about
+    opts = {} if noise_aware else {"recheck_slack_cells": 0, "recheck_min_run_cells": 1}
+    tr = MapMergeTracker(
+        2, merger=_Seq([T_crop]), merge_every=1, recheck_every=5, confirmations=1, **opts
+    )
+    tr.update([ca, cb], step=1)
+    assert tr.merged(0)
+    for step in range(2, 11):
+        tr.update([ca, noisy], step=step)
+    assert tr.merged(0) is noise_aware
 
 
 def test_tracker_fed_map_changes_equals_the_scanning_tracker() -> None:

@@ -18,7 +18,9 @@ Each step the caller hands over the robots' own-frame maps. The tracker
   discounts the maps' noise as the default merger's acceptance does (walls within
   ``recheck_slack_cells`` of each other agree, lone contradictions under
   ``recheck_min_run_cells`` cells do not count), so a pose accepted as consistent is not
-  dropped for the noise and drift it was accepted with;
+  dropped for the noise and drift it was accepted with; and a contradicted transform is
+  replaced instead of dropped when the merger, run on the same maps, accepts one within
+  ``relocate_tol_cells`` of it (the same place, refitted to maps that drift has bent);
 - chains transforms through merged pairs (0-1 and 1-2 merged => 0-2 known);
 - hands the pixels to :class:`~mrexplore.merge.compositor.MapCompositor`: change detection,
   each teammate's map warped into i's frame, and robot i's fused map ("occupied beats free
@@ -165,6 +167,10 @@ class MapMergeTracker:
             a wall laid across open space, not speckle). With 0 and 1 a drop judges the raw
             acceptance index, as before 2026-11-26 (correct merges of long, drifting episodes
             were dropped at raw 0.76-0.84 while their noise-aware agreement was 0.95-0.99).
+        relocate_tol_cells: a re-check that finds the kept transform contradicted keeps the
+            pair merged, with the merger's new transform, when the merger accepts one whose
+            placement of b's known box is within this many cells of the kept one's (default
+            5.0; 0 = always drop). Farther, or refused: dropped.
         retry_growth: an unmerged pair is tried again only once the two maps together know this
             share more cells than at the last attempt (default 0.02; 0 = any change).
         confirm_growth: an agreeing attempt confirms the pending transform only when the shared
@@ -201,6 +207,7 @@ class MapMergeTracker:
         drop_below: float = 0.85,
         recheck_slack_cells: int = 2,
         recheck_min_run_cells: int = 5,
+        relocate_tol_cells: float = 5.0,
         retry_growth: float = 0.02,
         confirm_growth: float = 0.0,
         merge_latency_steps: int = 0,
@@ -217,6 +224,7 @@ class MapMergeTracker:
             ("drop_below", drop_below, number(0.0, 1.0)),
             ("recheck_slack_cells", recheck_slack_cells, integer(0, 10)),
             ("recheck_min_run_cells", recheck_min_run_cells, integer(1, 1000)),
+            ("relocate_tol_cells", relocate_tol_cells, number(0.0, 1000.0)),
             ("retry_growth", retry_growth, number(0.0, 10.0)),
             ("confirm_growth", confirm_growth, number(0.0, 10.0)),
             ("merge_latency_steps", merge_latency_steps, MERGE_LATENCY_CHECK),
@@ -231,6 +239,7 @@ class MapMergeTracker:
         self.drop_below = float(drop_below)
         self.recheck_slack_cells = int(recheck_slack_cells)
         self.recheck_min_run_cells = int(recheck_min_run_cells)
+        self.relocate_tol_cells = float(relocate_tol_cells)
         self.retry_growth = float(retry_growth)
         self.confirm_growth = float(confirm_growth)
         self.merge_latency_steps = int(merge_latency_steps)
@@ -340,7 +349,7 @@ class MapMergeTracker:
             if self.recheck_slack_cells > 0 or self.recheck_min_run_cells > 1:
                 noisy = Verifier(a, b, slack=self.recheck_slack_cells)
                 held_now = noisy.structured(T_crop, self.recheck_min_run_cells).score
-            if held_now < self.drop_below:
+            if held_now < self.drop_below and self.relocate_tol_cells <= 0:
                 return _Outcome(None, None, old_now, held_now)
         # A merger that needs the robots' ids and crop offsets (the benchmark's oracle) says so.
         pair = getattr(self._merger_obj, "merge_pair", None)
@@ -386,7 +395,7 @@ class MapMergeTracker:
         if job.kind == "attempt":
             self._decide_attempt(i, j, out, job.bbox_j)
         else:
-            self._decide_recheck(i, j, out, job.T_old)
+            self._decide_recheck(i, j, out, job.T_old, job.bbox_j)
 
     def _attempt_merges(self, step: int) -> None:
         busy = {(jb.i, jb.j) for jb in self._jobs} | {(q[1], q[2]) for q in self._queue}
@@ -438,7 +447,9 @@ class MapMergeTracker:
         else:
             self._pending[(i, j)] = (T, count, evidence)
 
-    def _same(self, T1: Transform, T2: Transform, bbox_j: Box | None) -> bool:
+    def _same(
+        self, T1: Transform, T2: Transform, bbox_j: Box | None, tol: float | None = None
+    ) -> bool:
         """Do two estimates of T_ij put robot j's known box in the same place (within tolerance)?"""
         if bbox_j is None:
             return False
@@ -447,7 +458,8 @@ class MapMergeTracker:
         # elementwise, not T @ corners (BLAS): a decision on the threshold, the same on every CPU
         (x1, y1), (x2, y2) = map_points(corners, T1), map_points(corners, T2)
         dx, dy = x1 - x2, y1 - y2
-        return bool(np.sqrt(dx**2 + dy**2).max() <= self.confirm_tol_cells)
+        limit = self.confirm_tol_cells if tol is None else tol
+        return bool(np.sqrt(dx**2 + dy**2).max() <= limit)
 
     def _recheck(self, step: int) -> None:
         for i, j in list(self._edges):
@@ -459,14 +471,30 @@ class MapMergeTracker:
             else:
                 self._start("recheck", i, j, step)
 
-    def _decide_recheck(self, i: int, j: int, out: _Outcome, T_old: Transform | None) -> None:
-        """Drop the kept transform the maps now contradict, or replace it by a clearly better
-        one; otherwise keep it (a failed re-check never drops an accepted transform)."""
+    def _decide_recheck(
+        self, i: int, j: int, out: _Outcome, T_old: Transform | None, bbox_j: Box | None
+    ) -> None:
+        """Drop the kept transform the maps now contradict (unless the merger found it again,
+        refitted, on the same maps), or replace it by a clearly better one; otherwise keep it
+        (a failed re-check never drops an accepted transform)."""
         kept = self._edges.get((i, j))
         if kept is None or T_old is None or not np.array_equal(kept, T_old):
             return  # dropped or replaced since the re-check started
         assert out.old_now is not None and out.held_now is not None
         if out.held_now < self.drop_below:
+            if (
+                out.result is not None
+                and out.T is not None
+                and self.relocate_tol_cells > 0
+                and self._same(T_old, out.T, bbox_j, self.relocate_tol_cells)
+            ):
+                # The same place, refitted to maps that odometry drift has bent: keep the pair
+                # merged with the merger's new pose (it passed every rule on these maps).
+                self._edges[(i, j)] = out.T
+                self._edge_score[(i, j)] = out.result.score
+                self._paths = None
+                self._px.forget_pair(i, j)
+                return
             # The maps grew and now contradict the kept transform: un-merge this pair.
             del self._edges[(i, j)]
             self._edge_score.pop((i, j), None)

@@ -326,7 +326,11 @@ def test_recheck_keeps_a_transform_the_maps_contradict_only_within_their_noise(
     raw = Verifier(ca, noisy)(T_true).score
     held = Verifier(ca, noisy, slack=2).structured(T_true, 5).score
     assert raw < 0.85 <= held  # the case the test is about
-    opts = {} if noise_aware else {"recheck_slack_cells": 0, "recheck_min_run_cells": 1}
+    opts = (
+        {}
+        if noise_aware
+        else {"recheck_slack_cells": 0, "recheck_min_run_cells": 1, "relocate_tol_cells": 0.0}
+    )
     tr = MapMergeTracker(
         2, merger=_Seq([T_crop]), merge_every=1, recheck_every=5, confirmations=1, **opts
     )
@@ -335,6 +339,42 @@ def test_recheck_keeps_a_transform_the_maps_contradict_only_within_their_noise(
     for step in range(2, 11):
         tr.update([ca, noisy], step=step)
     assert tr.merged(0) is noise_aware
+
+
+@pytest.mark.parametrize(("tol", "kept"), [(8.0, True), (5.0, False)])
+def test_recheck_refits_a_contradicted_transform_the_merger_finds_again_nearby(
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray], tol: float, kept: bool
+) -> None:
+    """Robot 1's map moves 6 cells (as drift moves a map): the kept transform is contradicted,
+    and the merger, run on the same maps, accepts the refitted one 6 cells away. Within
+    ``relocate_tol_cells`` the pair stays merged with the new pose; beyond it, it is dropped."""
+    ca, cb, T_true = robots
+    from mrexplore.merge.common import Verifier, known_bbox
+
+    ra0, _, ca0, _ = known_bbox(ca)  # type: ignore[misc]
+    rb0, _, cb0, _ = known_bbox(cb)  # type: ignore[misc]
+    # in crop cells the refitted pose of the moved map is the same matrix (its crop moved too)
+    T_crop = translation(-ca0, -ra0) @ T_true @ translation(cb0, rb0)
+    moved = np.full_like(cb, UNKNOWN)
+    moved[:, 6:] = cb[:, :-6]
+    assert Verifier(ca, moved, slack=2).structured(T_true, 5).score < 0.85  # contradicted
+    tr = MapMergeTracker(
+        2,
+        merger=_Seq([T_crop]),
+        merge_every=1,
+        recheck_every=5,
+        confirmations=1,
+        relocate_tol_cells=tol,
+    )
+    tr.update([ca, cb], step=1)
+    assert tr.merged(0)
+    for step in range(2, 11):
+        tr.update([ca, moved], step=step)
+    assert tr.merged(0) is kept
+    if kept:
+        T = tr.transform(0, 1)
+        assert T is not None
+        np.testing.assert_allclose(T, T_true @ translation(-6, 0), atol=1e-6)
 
 
 def test_tracker_fed_map_changes_equals_the_scanning_tracker() -> None:

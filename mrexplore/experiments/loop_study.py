@@ -361,11 +361,15 @@ def summarize(
                 ),
             }
         oracle = out[w].get("oracle", {}).get("task_time_mean_s")
-        by_seed = {
-            (e["variant"], e["seed"]): float(e["task_time_s"])
-            for e in episodes
-            if e["world"] == w and e["variant"] in variants and "oracle" in variants
-        }
+        by_seed = (
+            {
+                (e["variant"], e["seed"]): float(e["task_time_s"])
+                for e in episodes
+                if e["world"] == w and e["variant"] in variants
+            }
+            if "oracle" in variants
+            else {}
+        )
         for v in variants:
             m = out[w][v]["task_time_mean_s"]
             out[w][v]["vs_oracle"] = float(m / oracle - 1.0) if oracle and m is not None else None

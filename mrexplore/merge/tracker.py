@@ -57,7 +57,7 @@ from mrexplore.grid import (
     map_points,
 )
 from mrexplore.merge.api import METHODS, merge_maps
-from mrexplore.merge.common import MergeResult, Verifier, translation
+from mrexplore.merge.common import MapCodes, MergeResult, Verifier, translation
 from mrexplore.merge.compositor import MapCompositor
 from mrexplore.options import (
     MERGE_EVERY_CHECK,
@@ -164,9 +164,8 @@ class MapMergeTracker:
             merger's ``slack_cells``, the same wall seen from its two sides or eroded).
         recheck_min_run_cells: in that agreement, contradicting cells count only in 8-connected
             groups of at least this many (default 5: the semantic merger's ``min_run_cells``;
-            a wall laid across open space, not speckle). With 0 and 1 a drop judges the raw
-            acceptance index, as before 2026-11-26 (correct merges of long, drifting episodes
-            were dropped at raw 0.76-0.84 while their noise-aware agreement was 0.95-0.99).
+            a wall laid across open space, not speckle). Slack 0 and runs of 1: a drop judges
+            the raw acceptance index (why not: ``docs/merging.md``, item 12).
         relocate_tol_cells: a re-check that finds the kept transform contradicted keeps the
             pair merged, with the merger's new transform, when the merger accepts one whose
             placement of b's known box is within this many cells of the kept one's (default
@@ -344,10 +343,11 @@ class MapMergeTracker:
         if kind == "recheck":
             assert T_old is not None
             T_crop = chain(translation(-ca, -ra), T_old, translation(cb, rb))
-            old_now = Verifier(a, b)(T_crop).score
+            codes_a, codes_b = MapCodes(a), MapCodes(b)  # shared by both verifiers
+            old_now = Verifier(codes_a, codes_b)(T_crop).score
             held_now = old_now
             if self.recheck_slack_cells > 0 or self.recheck_min_run_cells > 1:
-                noisy = Verifier(a, b, slack=self.recheck_slack_cells)
+                noisy = Verifier(codes_a, codes_b, slack=self.recheck_slack_cells)
                 held_now = noisy.structured(T_crop, self.recheck_min_run_cells).score
             if held_now < self.drop_below and self.relocate_tol_cells <= 0:
                 return _Outcome(None, None, old_now, held_now)
@@ -490,10 +490,7 @@ class MapMergeTracker:
             ):
                 # The same place, refitted to maps that odometry drift has bent: keep the pair
                 # merged with the merger's new pose (it passed every rule on these maps).
-                self._edges[(i, j)] = out.T
-                self._edge_score[(i, j)] = out.result.score
-                self._paths = None
-                self._px.forget_pair(i, j)
+                self._replace_edge(i, j, out.T, out.result.score)
                 return
             # The maps grew and now contradict the kept transform: un-merge this pair.
             del self._edges[(i, j)]
@@ -504,10 +501,14 @@ class MapMergeTracker:
         if out.result is None or out.T is None:
             return
         if out.result.score >= out.old_now + self.replace_margin:
-            self._edges[(i, j)] = out.T
-            self._edge_score[(i, j)] = out.result.score
-            self._paths = None
-            self._px.forget_pair(i, j)
+            self._replace_edge(i, j, out.T, out.result.score)
+
+    def _replace_edge(self, i: int, j: int, T: Transform, score: float) -> None:
+        """Keep pair (i, j) merged with the new transform ``T`` (its fused pixels redone)."""
+        self._edges[(i, j)] = T
+        self._edge_score[(i, j)] = score
+        self._paths = None
+        self._px.forget_pair(i, j)
 
     def __getstate__(self) -> dict[str, Any]:
         """Pickle without the worker thread: jobs under way are waited for and kept as done."""

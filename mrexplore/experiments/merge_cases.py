@@ -479,6 +479,50 @@ def noisy_real_cases(
 
 
 # --------------------------------------------------------------------------------------------
+# large maps: where the merger's cost bounds (coarse_max_blocks, hough_max_cells) act
+# --------------------------------------------------------------------------------------------
+
+#: Crop sizes (cells) of the large family: 500-900 cells a side, so that b, rotated, spans up
+#: to ~1,270 cells, past the semantic merger's 640 x 640 cells where its large-map rules start.
+LARGE_CROP: tuple[int, int] = (500, 900)
+
+
+def large_cases(n: int, seed: int, maps_dir: Path = SHARED_MAPS) -> list[MergeCase]:
+    """``n`` large-map cases, cycling over five kinds: generated ``symmetric_office`` and
+    ``twin_wings`` floors (fully known, 0.05 m/cell, with their identical rooms), crops of the
+    real ``nav2/warehouse`` map (0.03 m/cell, rows of identical racks), and noisy versions
+    (:func:`add_map_noise`) of a generated floor and of the warehouse. Crops of
+    :data:`LARGE_CROP` cells, b rotated at random."""
+    if n < 0:
+        raise ConfigError(f"large_cases: n must be >= 0, got {n}")
+    from mrexplore.world import symmetric_office, twin_wings
+    from mrexplore.world.map_io import read_map_yaml
+
+    rng = np.random.default_rng(seed)
+    warehouse = read_map_yaml(maps_dir / "nav2/warehouse.yaml")
+    kinds = ("symmetric_office", "twin_wings", "warehouse", "noisy_office", "noisy_warehouse")
+    out: list[MergeCase] = []
+    for i in range(n):
+        kind = kinds[i % len(kinds)]
+        resolution = 0.05
+        if kind.endswith("warehouse"):
+            full, resolution = warehouse.grid, warehouse.resolution_m
+        else:
+            gen = twin_wings if kind == "twin_wings" else symmetric_office
+            side_m = round(float(rng.uniform(1.0, 1.4)) * LARGE_CROP[1] * 0.05, 1)
+            world = gen(rng, width_m=side_m, height_m=side_m)
+            full = np.where(world.walls, 100, 0).astype(np.int8)
+        case = real_map_case(full, rng, LARGE_CROP, rotate=True, name=f"{kind}#{i}")
+        if kind.startswith("noisy"):
+            case.a, case.b = add_map_noise(case.a, rng), add_map_noise(case.b, rng)
+            case.overlap = overlap_share(case.a, case.b, case.T_ab)
+        case.family = "large"
+        case.resolution_m = resolution
+        out.append(case)
+    return out
+
+
+# --------------------------------------------------------------------------------------------
 # lidar pairs from our simulator (own-frame maps, random headings, noise on)
 # --------------------------------------------------------------------------------------------
 

@@ -31,13 +31,17 @@ def _pool(grid: Int8Grid, s: int) -> tuple[F32, F32]:
     h, w = grid.shape
     H, W = -(-h // s), -(-w // s)
     cells = grid.view(np.uint8)  # unknown (-1) is 255, above every occupancy value (<= 100)
+    if (H * s, W * s) != (h, w):  # padded with unknown, which is neither wall nor free
+        cells = np.asarray(
+            cv2.copyMakeBorder(cells, 0, H * s - h, 0, W * s - w, cv2.BORDER_CONSTANT, value=255),
+            dtype=np.uint8,
+        )
     masks = cv2.inRange(cells, OCCUPIED_THRESHOLD, 127), cv2.inRange(cells, 0, FREE_THRESHOLD)
     small = s <= 16
     means = []
     for mask in masks:
-        padded = np.zeros((H * s, W * s), dtype=np.uint8 if small else np.float32)
-        padded[:h, :w] = mask if small else mask / np.float32(255.0)
-        means.append(cv2.resize(padded, (W, H), interpolation=cv2.INTER_AREA))
+        block = mask if small else mask.astype(np.float32) / np.float32(255.0)
+        means.append(cv2.resize(block, (W, H), interpolation=cv2.INTER_AREA))
     full = 255.0 if small else 1.0
     wall = means[0] > (0.5 if small else 1e-6)
     free = means[1] > full - (0.5 if small else 1e-4)
@@ -121,7 +125,14 @@ class CoarseMatcher:
             # last bits are not), and so is the score computed from them
             ag = np.maximum(np.rint(_correlation((self.FAW, FB1))), 0.0)
             ds = np.maximum(np.rint(_correlation((self.FAF, FB1), (self.FAWW, FB2))), 0.0)
-            S = np.round(ag * (ag / (ag + ds + 2.0)) ** self.p, SCORE_DECIMALS)
+            # S = agree * (agree / (agree + dis + 2))^p, in place (the same operations in the
+            # same order as the plain expression, so the same bits)
+            ds += ag
+            ds += 2.0
+            np.divide(ag, ds, out=ds)
+            np.power(ds, self.p, out=ds)
+            np.multiply(ag, ds, out=ds)
+            S = np.round(ds, SCORE_DECIMALS, out=ds)
             return self._top(S.astype(np.float32), wb.shape, k, nms)
         FB2 = _spectrum(fb, shape)
         S = np.round(_correlation((self.FA1, FB1), (self.FA2, FB2)), SCORE_DECIMALS)

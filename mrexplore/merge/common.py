@@ -169,6 +169,22 @@ def cell_codes(grid: Int8Grid, tolerance: int = 1, slack: int = 0) -> NDArray[np
     return MapCodes(grid).codes(tolerance, slack)
 
 
+def _code_table() -> NDArray[np.uint8]:
+    """:meth:`MapCodes.codes`' lookup table: index ``8 wall + 4 free + 2 near + far`` (``near``:
+    within the tolerance of an occupied cell; ``far``: within tolerance + slack) -> code. A
+    wall is a wall; a free cell near a wall is near a wall, one only within the slack is
+    unknown, the rest free; anything else (unknown, lone occupied cells) is unknown."""
+    table = np.full(256, CODE_UNKNOWN, dtype=np.uint8)
+    table[8:16] = CODE_WALL
+    table[4] = CODE_FREE
+    table[5] = CODE_UNKNOWN
+    table[6:8] = CODE_FREE_NEAR_WALL
+    return table
+
+
+_CODE_TABLE = _code_table()
+
+
 class MapCodes:
     """One map's verifier inputs, made once and shared by every :class:`Verifier` of a merge:
     its occupied, reliable-wall and free masks (H, W), its codes per ``(tolerance, slack)``
@@ -183,24 +199,29 @@ class MapCodes:
         self.occupied = (grid >= OCCUPIED_THRESHOLD).view(np.uint8)
         self.wall = _reliable(self.occupied)
         self.free = (grid >= 0) & (grid <= FREE_THRESHOLD)
+        self._wall_bit = self.wall.view(np.uint8) << 3
+        self._free_bit = self.free.view(np.uint8) << 2
+        self._near_masks: dict[int, NDArray[np.uint8]] = {}
         self._codes: dict[tuple[int, int], NDArray[np.uint8]] = {}
         self._wall_cells: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None
 
-    def _near(self, radius: int) -> NDArray[np.bool_]:
-        k = 2 * radius + 1
-        return cv2.dilate(self.occupied, np.ones((k, k), np.uint8)).astype(bool)
+    def _near(self, radius: int) -> NDArray[np.uint8]:
+        """0/1 (H, W): within ``radius`` cells (square window) of an occupied cell (cached)."""
+        if radius not in self._near_masks:
+            k = 2 * radius + 1
+            near = cv2.dilate(self.occupied, np.ones((k, k), np.uint8))
+            self._near_masks[radius] = np.asarray(near, dtype=np.uint8)
+        return self._near_masks[radius]
 
     def codes(self, tolerance: int = 1, slack: int = 0) -> NDArray[np.uint8]:
         """The codes (H, W) uint8 of :func:`cell_codes` (cached; do not modify)."""
         key = (int(tolerance), int(slack))
         if key not in self._codes:
-            codes = np.zeros(self.shape, dtype=np.uint8)
-            codes[self.free] = CODE_FREE
-            if slack > 0:
-                codes[self.free & self._near(key[0] + key[1])] = CODE_UNKNOWN
-            codes[self.free & self._near(key[0])] = CODE_FREE_NEAR_WALL
-            codes[self.wall] = CODE_WALL
-            self._codes[key] = codes
+            # one table lookup of the four masks' bits: wall, free, near, within the slack
+            far = self._near(key[0] + key[1]) if slack > 0 else self._near(key[0])
+            bits = self._wall_bit | (self._free_bit | ((self._near(key[0]) << 1) | far))
+            codes = cv2.LUT(bits, _CODE_TABLE).reshape(self.shape)
+            self._codes[key] = np.asarray(codes, dtype=np.uint8)
         return self._codes[key]
 
     def wall_cells(self) -> tuple[NDArray[np.intp], NDArray[np.intp]]:

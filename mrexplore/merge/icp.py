@@ -33,6 +33,7 @@ class WallICP:
         self.labels = labels
         self.labels_flat = np.ascontiguousarray(labels.ravel(), dtype=np.int32)
         rb, cb = np.nonzero(wall_b)
+        self.cells_b = (rb, cb)  # all of b's wall cells (row, col), row-major: for the caller
         if max_points and rb.size > max_points:
             stride = int(np.ceil(rb.size / max_points))
             rb, cb = rb[::stride], cb[::stride]

@@ -287,7 +287,11 @@ def _consistency_polish(
 
 
 def cross_support(
-    wall_a: NDArray[np.bool_], wall_b: NDArray[np.bool_], T: Transform, precise: bool = False
+    wall_a: NDArray[np.bool_],
+    wall_b: NDArray[np.bool_],
+    T: Transform,
+    precise: bool = False,
+    cells_b: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None,
 ) -> float:
     """How firmly a pose is pinned along its weakest direction, in wall cells: the smaller
     eigenvalue of ``sum n n^T`` over b's wall cells that land within a cell of a's walls under
@@ -302,8 +306,9 @@ def cross_support(
     In float32 (OpenCV's fast filters) unless ``precise``: float32's last bits differ between
     CPUs' SIMD paths, by far less than a thousandth of a cell here, so a caller comparing the
     answer with a threshold recomputes it with ``precise=True`` (float64) when it lies near.
+    ``cells_b``: ``np.nonzero(wall_b)``, when the caller has it.
     """
-    rb, cb = np.nonzero(wall_b)
+    rb, cb = np.nonzero(wall_b) if cells_b is None else cells_b
     T = np.asarray(T, dtype=np.float64)
     c = np.rint(T[0, 0] * cb + T[0, 1] * rb + T[0, 2]).astype(np.int64)
     r = np.rint(T[1, 0] * cb + T[1, 1] * rb + T[1, 2]).astype(np.int64)
@@ -394,6 +399,7 @@ class SemanticOptions(Options):
     min_overlap: float = option(0.15, number(0.0, 1.0))
     min_overlap_cells: int = option(80, integer(0))
     scale: int = option(4, integer(1, 32))
+    hough_max_cells: int = option(409_600, integer(0))
     peaks_per_rotation: int = option(12, integer(1, 1000))
     max_rotation_peaks: int = option(3, integer(1, 45))
     rotation_step_deg: float = option(0.0, number(0.0, 360.0))
@@ -434,7 +440,9 @@ def merge_semantic(
       ``resolution_m`` (0.05) m/cell (the every-step tracker asks for 20 m^2: a room);
     - search: ``max_rotation_peaks`` (3: a hexagonal map's spectrum folds into three equal
       peaks modulo 90 degrees) per rotation spectrum, ``rotation_step_deg`` (0 = no
-      sweep), ``scale`` (4) cells per coarse block, ``peaks_per_rotation`` (12), ``n_polish``
+      sweep), ``hough_max_cells`` (409,600: 640 x 640; 0 = never) beyond which the wall
+      segments of the rotation spectrum come from walls pooled to fit (its cost on large maps),
+      ``scale`` (4) cells per coarse block, ``peaks_per_rotation`` (12), ``n_polish``
       (24) and ``n_refine`` (8) hypotheses polished and refined, ``slide_step`` (8.0) cells
       (0 = no slide search), ``max_samples`` (20000) wall cells per map in the verifier;
     - coarse score: ``ratio_power`` (2.0), or the linear score with ``w_free`` (0.2) and
@@ -497,7 +505,9 @@ def merge_semantic(
 
     # --- 1. rotations ---
     normals_a = wall_normals(wall_a)  # a's wall directions: the rotation spectrum and the slide
-    thetas = rotation_candidates(wall_a, wall_b, max_rot_peaks, rot_step, normals_a)
+    thetas = rotation_candidates(
+        wall_a, wall_b, max_rot_peaks, rot_step, normals_a, hough_max_cells=o.hough_max_cells
+    )
     info["rotations_deg"] = [round(float(np.degrees(t)), 2) for t in thetas]
     if not thetas:
         return refuse("no wall edges to estimate a rotation from (add rotation_step_deg to sweep)")
@@ -704,10 +714,10 @@ def merge_semantic(
     if o.min_cross_cells > 0:
         # a slide along one straight wall (or a corridor) explains the maps as well as the pose:
         # its walls must also pin the pose across that direction
-        cross = cross_support(wall_a, wall_b, best.T)
+        cross = cross_support(wall_a, wall_b, best.T, cells_b=icp.cells_b)
         if abs(cross - o.min_cross_cells) < _CROSS_GUARD_CELLS or cross < o.min_cross_cells:
             # near the threshold, or refused (its figure is printed): the CPU-independent value
-            cross = cross_support(wall_a, wall_b, best.T, precise=True)
+            cross = cross_support(wall_a, wall_b, best.T, precise=True, cells_b=icp.cells_b)
         cross = round(cross, 2)
         info["cross_cells"] = cross
         if cross < o.min_cross_cells:

@@ -91,3 +91,25 @@ def test_merge_seeds_pool_the_cases_of_each_seed() -> None:
     assert [c["kind"] for c in pooled["cases"][2:]] == [c["kind"] for c in one["cases"]]
     assert all(n.endswith(" (seed 0)") for n in names[:2])
     assert pooled["correct_overlap40"].count("/") == 1
+
+
+def test_large_cases_reach_past_the_large_map_bound() -> None:
+    """The large family's maps are where the merger's large-map rule acts (b, rotated, beyond
+    640 x 640 cells), with the truth known and the resolution of their source."""
+    from mrexplore.experiments.merge_cases import LARGE_CROP, large_cases
+    from mrexplore.merge.rotation import hough_pool
+
+    cases = large_cases(5, seed=0)
+    assert [c.name.split("#")[0] for c in cases] == [
+        "symmetric_office",
+        "twin_wings",
+        "warehouse",
+        "noisy_office",
+        "noisy_warehouse",
+    ]
+    assert {c.family for c in cases} == {"large"}
+    assert {c.resolution_m for c in cases} == {0.05, 0.03}
+    for c in cases:
+        assert LARGE_CROP[0] <= min(c.a.shape) and max(c.a.shape) <= LARGE_CROP[1]
+        assert 0.0 <= c.overlap <= 1.0
+    assert sum(hough_pool(c.a.shape, c.b.shape, 409_600) > 1 for c in cases) >= 3

@@ -210,6 +210,42 @@ def test_lone_occupied_cells_are_neither_wall_nor_free() -> None:
     assert cell_codes(g, slack=1)[8, 5] == CODE_UNKNOWN and codes[8, 5] == CODE_FREE
 
 
+@pytest.mark.parametrize(("tolerance", "slack"), [(1, 0), (3, 0), (1, 2), (2, 3)])
+def test_cell_codes_follow_their_rules_cell_by_cell(tolerance: int, slack: int) -> None:
+    """The codes (one table lookup of the masks' bits) against the rules written out with
+    boolean masks, in the order they override each other, on random maps."""
+    import cv2
+
+    from mrexplore.grid import FREE_THRESHOLD, OCCUPIED_THRESHOLD
+    from mrexplore.merge.common import (
+        CODE_FREE,
+        CODE_FREE_NEAR_WALL,
+        CODE_UNKNOWN,
+        CODE_WALL,
+        cell_codes,
+        reliable_walls,
+    )
+
+    rng = np.random.default_rng(tolerance * 10 + slack)
+    values = np.array([UNKNOWN, FREE, FREE_THRESHOLD, FREE_THRESHOLD + 1, OCCUPIED_THRESHOLD, 100])
+    for _ in range(4):
+        g = rng.choice(values, size=(40, 57), p=[0.2, 0.6, 0.05, 0.05, 0.03, 0.07]).astype(np.int8)
+        occupied = (g >= OCCUPIED_THRESHOLD).astype(np.uint8)
+        free = (g >= 0) & (g <= FREE_THRESHOLD)
+
+        def near(radius: int, occupied: np.ndarray = occupied) -> np.ndarray:
+            k = np.ones((2 * radius + 1, 2 * radius + 1), np.uint8)
+            return cv2.dilate(occupied, k).astype(bool)
+
+        want = np.full(g.shape, CODE_UNKNOWN, dtype=np.uint8)
+        want[free] = CODE_FREE
+        if slack:
+            want[free & near(tolerance + slack)] = CODE_UNKNOWN
+        want[free & near(tolerance)] = CODE_FREE_NEAR_WALL
+        want[reliable_walls(g)] = CODE_WALL
+        np.testing.assert_array_equal(cell_codes(g, tolerance, slack), want)
+
+
 def test_consistency_forgives_lone_contradictions_but_not_a_misplaced_wall(
     office_pair: tuple[np.ndarray, np.ndarray, np.ndarray],
 ) -> None:

@@ -1,0 +1,56 @@
+"""Rotation candidates on large maps: the pooled walls of the segment spectrum."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mrexplore.experiments.merge_cases import rotate_map
+from mrexplore.grid import OCCUPIED_THRESHOLD
+from mrexplore.merge.rotation import hough_pool, pool_any, rotation_candidates
+
+
+@pytest.mark.parametrize("f", [1, 2, 3, 5, 16])
+def test_pool_any_marks_every_block_holding_a_wall(f: int) -> None:
+    rng = np.random.default_rng(f)
+    for _ in range(5):
+        h, w = (int(x) for x in rng.integers(1, 3 * f + 30, 2))
+        wall = rng.random((h, w)) < 0.02
+        want = np.zeros((-(-h // f), -(-w // f)), dtype=bool)
+        for r, c in zip(*np.nonzero(wall), strict=True):
+            want[r // f, c // f] = True
+        np.testing.assert_array_equal(pool_any(wall, f), want)
+
+
+def test_hough_pool_is_the_smallest_factor_that_fits() -> None:
+    assert hough_pool((640, 640), (600, 600), 409_600) == 1  # at the bound: as before
+    assert hough_pool((641, 640), (10, 10), 409_600) == 2
+    assert hough_pool((1414, 1414), (1000, 1000), 409_600) == 3  # the larger map decides
+    assert hough_pool((5000, 5000), (1, 1), 0) == 1  # 0: never pooled
+
+
+@pytest.mark.parametrize(("turn_deg", "rel_deg"), [(23.0, 71.0), (-41.0, 12.5), (8.0, -133.0)])
+def test_pooled_segments_still_contain_the_truth(turn_deg: float, rel_deg: float) -> None:
+    """Noisy crops of a real map turned off the grid axes (as in test_semantic's test of the
+    unpooled candidates), with the bound set so low that the walls are pooled 2 x 2 or more:
+    the truth is still within 1.5 degrees of a candidate."""
+    from mrexplore.experiments.merge_cases import add_map_noise
+    from mrexplore.world.map_io import read_map_yaml
+
+    rng = np.random.default_rng(int(abs(turn_deg) * 10))
+    envs = Path(__file__).resolve().parents[2] / "envs"
+    full, _ = rotate_map(read_map_yaml(envs / "tb3_office.yaml").grid, np.radians(turn_deg))
+    h, w = full.shape
+    a = add_map_noise(full[h // 4 : 3 * h // 4, w // 4 : 3 * w // 4].copy(), rng)
+    b, _ = rotate_map(
+        add_map_noise(full[h // 3 : 5 * h // 6, w // 5 : 3 * w // 4].copy(), rng),
+        np.radians(rel_deg),
+    )
+    wa, wb = a >= OCCUPIED_THRESHOLD, b >= OCCUPIED_THRESHOLD
+    cap = max(wa.size, wb.size) // 4 - 1
+    assert hough_pool(wa.shape, wb.shape, cap) >= 2
+    cands = np.degrees(rotation_candidates(wa, wb, hough_max_cells=cap))
+    err = np.abs((cands + rel_deg + 180.0) % 360.0 - 180.0)
+    assert err.min() <= 1.5, (cands, -rel_deg)

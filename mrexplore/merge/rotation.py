@@ -130,18 +130,16 @@ def pool_any(wall: NDArray[np.bool_], f: int) -> NDArray[np.bool_]:
 
 
 def hough_pool(shape_a: tuple[int, int], shape_b: tuple[int, int], max_cells: int) -> int:
-    """The pooling factor of :func:`segment_histogram` for two maps: the smallest f >= 1 (at
-    most 16) that leaves the larger map at most ``max_cells`` f x f blocks (0: always 1).
+    """The pooling factor of :func:`segment_histogram` for two maps: 2 when the larger one has
+    more than ``max_cells`` cells, else 1 (``max_cells`` 0: always 1). Never more than 2: walls
+    pooled 3 x 3 put a 1000-cell floor's candidate 0.2 degrees off, and its merge was lost
+    (docs/merging.md, item 13).
 
     >>> hough_pool((500, 500), (400, 600), 409_600), hough_pool((1000, 1000), (10, 10), 409_600)
     (1, 2)
     """
-    f = 1
-    while max_cells > 0 and f < 16:
-        if max(-(-h // f) * -(-w // f) for h, w in (shape_a, shape_b)) <= max_cells:
-            break
-        f += 1
-    return f
+    cells = max(h * w for h, w in (shape_a, shape_b))
+    return 2 if 0 < max_cells < cells else 1
 
 
 def segment_histogram(
@@ -243,7 +241,7 @@ def rotation_candidates(
     the verifier decides which. ``step_deg > 0`` appends a uniform sweep (maps with no straight
     walls; the ICP refinement then closes the remaining gap). ``normals_a``: a's
     :func:`wall_normals`, when the caller has them. ``hough_max_cells`` > 0: the segments of
-    maps larger than this many cells come from their pooled walls (:func:`hough_pool`).
+    maps larger than this many cells come from their walls pooled 2 x 2 (:func:`hough_pool`).
     """
     bins = 180  # half-degree bins
     f = hough_pool(wall_a.shape, wall_b.shape, hough_max_cells)

@@ -441,7 +441,7 @@ def merge_semantic(
     - search: ``max_rotation_peaks`` (3: a hexagonal map's spectrum folds into three equal
       peaks modulo 90 degrees) per rotation spectrum, ``rotation_step_deg`` (0 = no
       sweep), ``hough_max_cells`` (409,600: 640 x 640; 0 = never) beyond which the wall
-      segments of the rotation spectrum come from walls pooled to fit (its cost on large maps),
+      segments of the rotation spectrum come from walls pooled 2 x 2 (its cost on large maps),
       ``scale`` (4) cells per coarse block, ``peaks_per_rotation`` (12), ``n_polish``
       (24) and ``n_refine`` (8) hypotheses polished and refined, ``slide_step`` (8.0) cells
       (0 = no slide search), ``max_samples`` (20000) wall cells per map in the verifier;

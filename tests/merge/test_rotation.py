@@ -24,17 +24,17 @@ def test_pool_any_marks_every_block_holding_a_wall(f: int) -> None:
         np.testing.assert_array_equal(pool_any(wall, f), want)
 
 
-def test_hough_pool_is_the_smallest_factor_that_fits() -> None:
+def test_hough_pool_halves_only_maps_past_the_bound() -> None:
     assert hough_pool((640, 640), (600, 600), 409_600) == 1  # at the bound: as before
-    assert hough_pool((641, 640), (10, 10), 409_600) == 2
-    assert hough_pool((1414, 1414), (1000, 1000), 409_600) == 3  # the larger map decides
+    assert hough_pool((641, 640), (10, 10), 409_600) == 2  # the larger map decides
+    assert hough_pool((10, 10), (3000, 3000), 409_600) == 2  # never coarser than 2 x 2
     assert hough_pool((5000, 5000), (1, 1), 0) == 1  # 0: never pooled
 
 
 @pytest.mark.parametrize(("turn_deg", "rel_deg"), [(23.0, 71.0), (-41.0, 12.5), (8.0, -133.0)])
 def test_pooled_segments_still_contain_the_truth(turn_deg: float, rel_deg: float) -> None:
     """Noisy crops of a real map turned off the grid axes (as in test_semantic's test of the
-    unpooled candidates), with the bound set so low that the walls are pooled 2 x 2 or more:
+    unpooled candidates), with the bound set so low that the walls are pooled 2 x 2:
     the truth is still within 1.5 degrees of a candidate."""
     from mrexplore.experiments.merge_cases import add_map_noise
     from mrexplore.world.map_io import read_map_yaml
@@ -49,8 +49,8 @@ def test_pooled_segments_still_contain_the_truth(turn_deg: float, rel_deg: float
         np.radians(rel_deg),
     )
     wa, wb = a >= OCCUPIED_THRESHOLD, b >= OCCUPIED_THRESHOLD
-    cap = max(wa.size, wb.size) // 4 - 1
-    assert hough_pool(wa.shape, wb.shape, cap) >= 2
+    cap = max(wa.size, wb.size) - 1
+    assert hough_pool(wa.shape, wb.shape, cap) == 2
     cands = np.degrees(rotation_candidates(wa, wb, hough_max_cells=cap))
     err = np.abs((cands + rel_deg + 180.0) % 360.0 - 180.0)
     assert err.min() <= 1.5, (cands, -rel_deg)

@@ -2,7 +2,9 @@
 # Regenerate the result files behind the README's tables, in docs/results/:
 #   1. merge_table.{json,md}: the merge table (method x detector over four case families; the
 #      paper's Table 1/2 and more); merge_ablation.{json,md}: what each part of the default buys;
-#      merge_seeds.{json,md}: the default merger on eleven seeds' cases (1,320), the rates
+#      merge_seeds.{json,md}: the default merger on eleven seeds' cases (1,320), the rates;
+#      merge_large.{json,md}: large maps (500-900 cells a side, 300 cases), with and without
+#      the pooled rotation spectrum of large maps
 #   2. loop_study.{json,md}: merging in the exploration loop against an oracle merger;
 #      loop_seeded.{json,md}: the semantic merger with the true pose among its hypotheses
 #      (the four worlds), which tells the search's share of the gap from the rules'
@@ -32,6 +34,8 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
   --out "$out/merge_ablation" --force
 mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
   --seeds 0-9,12 --out "$out/merge_seeds" --force
+mrexplore bench merge --methods semantic,orb --n 30 --families large --seeds 0-9 \
+  --semantic-variant hough_max_cells=0 --out "$out/merge_large" --force
 mrexplore bench loop --seeds 20 --jobs 2 --out "$out/loop_study" --force
 mrexplore bench loop --variants seeded --seeds 20 --jobs 2 --out "$out/loop_seeded" --force
 mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --out "$out" --force

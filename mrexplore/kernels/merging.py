@@ -18,7 +18,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["count_both_ways", "wall_icp"]
+__all__ = ["count_both_ways", "count_shifted", "wall_icp"]
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -73,6 +73,38 @@ def count_both_ways(
     ab, db, nb = _count(points_b, a, b, tx, c, d, ty, codes_a)
     aa, da, _ = _count(points_a, ia, ib, itx, ic, id_, ity, codes_b)
     return ab, db, nb, aa, da
+
+
+@numba.njit(cache=True, nogil=True)
+def count_shifted(
+    base: NDArray[np.float64], offsets: NDArray[np.float64], codes: NDArray[np.uint8]
+) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Agree / disagree counts (K,) of the points ``base`` (N, 2) ``(col, row)`` moved by each
+    of the K ``offsets`` (K, 2) on ``codes`` (H, W): the numpy reference
+    :meth:`mrexplore.merge.common.Verifier._count_many` (one rounded sum per coordinate, the
+    same bits) without its K x N temporaries."""
+    h, w = codes.shape
+    k_n = offsets.shape[0]
+    agree = np.zeros(k_n, dtype=np.int64)
+    disagree = np.zeros(k_n, dtype=np.int64)
+    for k in range(k_n):
+        ox = offsets[k, 0]
+        oy = offsets[k, 1]
+        n_agree = 0
+        n_disagree = 0
+        for n in range(base.shape[0]):
+            c = np.rint(base[n, 0] + ox)
+            r = np.rint(base[n, 1] + oy)
+            if c < 0 or c >= w or r < 0 or r >= h:
+                continue
+            code = codes[int(r), int(c)]
+            if code >= 2:
+                n_agree += 1
+            elif code == 1:
+                n_disagree += 1
+        agree[k] = n_agree
+        disagree[k] = n_disagree
+    return agree, disagree
 
 
 @numba.njit(cache=True, nogil=True)

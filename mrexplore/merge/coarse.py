@@ -145,7 +145,9 @@ class CoarseMatcher:
         s = self.s
         # Only translations where the maps can overlap: t in (-hb, ha) x (-wb, wa), circular.
         hb, wbw = b_shape
-        S = np.roll(S, (hb, wbw), axis=(0, 1))[: hb + self.ha, : wbw + self.wa]
+        # (np.roll's window, copied once: rows -hb..ha-1 and columns -wb..wa-1, circularly)
+        S = np.concatenate((S[self.H - hb :], S[: self.ha]), axis=0)
+        S = np.ascontiguousarray(np.concatenate((S[:, self.W - wbw :], S[:, : self.wa]), axis=1))
         mx = cv2.dilate(S, np.ones((2 * nms + 1, 2 * nms + 1), np.uint8))
         cand = np.flatnonzero((mx <= S).ravel() & (S.ravel() > 0))
         if cand.size == 0:

@@ -357,11 +357,17 @@ class Verifier:
         sa = max(1, -(-self.points_a.shape[0] // max_points))
         pb = np.stack(map_points(self.points_b[::sb], T), axis=1)
         pa = np.stack(map_points(self.points_a[::sa], Ti), axis=1)
-        ab, db = self._count_many(pb, shifts, self.codes_a)
         # translation(s) @ T maps a's points back by T^-1 (p - s) = T^-1 p - R^-1 s
         Ri = Ti.copy()
         Ri[:2, 2] = 0.0  # the rotation part alone
-        aa, da = self._count_many(pa, -np.stack(map_points(shifts, Ri), axis=1), self.codes_b)
+        back = -np.stack(map_points(shifts, Ri), axis=1)
+        if kernels.enabled():
+            assert _merging is not None
+            ab, db = _merging.count_shifted(pb, shifts, self.codes_a)
+            aa, da = _merging.count_shifted(pa, back, self.codes_b)
+        else:  # the numpy reference: the same counts (tests/merge/test_verifier_kernel.py)
+            ab, db = self._count_many(pb, shifts, self.codes_a)
+            aa, da = self._count_many(pa, back, self.codes_b)
         return ab + aa, db + da
 
     def overlap_ok(self, ag: Agreement, min_share: float, min_cells: int) -> bool:

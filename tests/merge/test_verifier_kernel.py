@@ -28,3 +28,28 @@ def test_compiled_count_equals_numpy_reference(
         ab, db, nb = Verifier._count(ver.points_b, T, ver.codes_a)
         aa, da, _ = Verifier._count(ver.points_a, np.linalg.inv(T), ver.codes_b)
         assert got == (ab, db, nb, aa, da)
+
+
+def test_compiled_shifted_count_equals_numpy_reference(
+    office_pair: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    """The slide search's counts of many shifts of one pose, compiled against numpy; half-cell
+    shifts put points on rounding ties (round half to even either way)."""
+    from mrexplore.kernels.merging import count_shifted
+
+    a, b, T_true = office_pair
+    ver = Verifier(a, b)
+    rng = np.random.default_rng(1)
+    shifts = np.concatenate(
+        [rng.uniform(-60, 60, (40, 2)), np.round(rng.uniform(-9, 9, (20, 2))) + 0.5]
+    )
+    from mrexplore.grid import map_points, rigid_inverse
+
+    pb = np.stack(map_points(ver.points_b, T_true), axis=1)  # b's walls in a, as the slide has
+    pa = np.stack(map_points(ver.points_a, rigid_inverse(T_true)), axis=1)
+    for pts, codes in ((pb, ver.codes_a), (pa, ver.codes_b)):
+        got = count_shifted(pts, shifts, codes)
+        want = Verifier._count_many(pts, shifts, codes)
+        np.testing.assert_array_equal(got[0], want[0])
+        np.testing.assert_array_equal(got[1], want[1])
+        assert got[0].sum() > 0 and got[1].sum() > 0

@@ -23,6 +23,11 @@ robot's own-or-fused map (``fused_contradiction``): see
 and ``<out>.md``. ``--jobs N`` runs episodes in N processes; every episode depends only on its
 world, variant and seed, so the results equal a serial run.
 
+``--task navigate`` runs the navigation task instead (the team explores for ``nav_warmup_s``,
+120 s, then ``robot_0`` drives to a goal, ``--nav-goal far`` or ``teammate``, while its teammate
+keeps exploring; the task time is the time after the warm-up, as in ``mrexplore task-time``):
+what the merger buys a robot that must reach a place, against the oracle's.
+
 Run: ``mrexplore bench loop --seeds 20 --jobs 2 --out results/loop_study``.
 """
 
@@ -171,17 +176,35 @@ NOISE_OFF: dict[str, Any] = {
 }
 
 
-def study_env_options(noise: bool = True) -> dict[str, Any]:
+#: Tasks of the study: exploration (the default) or navigation after a warm-up.
+TASKS: tuple[str, ...] = ("explore", "navigate")
+#: Where robot_0's navigation goal lies (the env's ``nav_goal``).
+NAV_GOALS: tuple[str, ...] = ("far", "teammate")
+#: Seconds the team explores before robot_0 gets its navigation goal (as ``task-time``).
+NAV_WARMUP_S = 120.0
+
+
+def study_env_options(
+    noise: bool = True, task: str = "explore", nav_goal: str = "far"
+) -> dict[str, Any]:
     """The env options shared by every episode of the study."""
-    return {**LOOP_ENV_OPTIONS, **({} if noise else NOISE_OFF)}
+    opts = {**LOOP_ENV_OPTIONS, **({} if noise else NOISE_OFF)}
+    if task == "navigate":
+        opts.update(task="navigate", nav_goal=nav_goal, nav_warmup_s=NAV_WARMUP_S)
+    return opts
 
 
 def episode_options(
-    world: str, variant: str, max_time_s: float, noise: bool = True
+    world: str,
+    variant: str,
+    max_time_s: float,
+    noise: bool = True,
+    task: str = "explore",
+    nav_goal: str = "far",
 ) -> dict[str, Any]:
     """Env options of one episode of ``variant`` (the oracle's merger object not included)."""
     opts: dict[str, Any] = {
-        **study_env_options(noise),
+        **study_env_options(noise, task, nav_goal),
         "world": world,
         "max_time_s": float(max_time_s),
     }
@@ -191,19 +214,25 @@ def episode_options(
 
 
 def run_loop_episode(
-    world: str, variant: str, seed: int, max_time_s: float, noise: bool = True
+    world: str,
+    variant: str,
+    seed: int,
+    max_time_s: float,
+    noise: bool = True,
+    task: str = "explore",
+    nav_goal: str = "far",
 ) -> dict[str, Any]:
     """One episode of the study; a JSON-friendly record (simulated seconds, NaN -> None)."""
     from mrexplore.experiments.episode import run_episode
     from mrexplore.experiments.task_time import make_team
 
-    opts = episode_options(world, variant, max_time_s, noise)
+    opts = episode_options(world, variant, max_time_s, noise, task, nav_goal)
     oracle = None
     if variant in ("oracle", "seeded"):
         oracle = OracleMerger() if variant == "oracle" else SeededMerger()
         opts["merger"] = oracle
     agents = [f"robot_{k}" for k in range(opts["n_robots"])]
-    team = make_team(POLICY, agents, "explore")
+    team = make_team(POLICY, agents, task)
     r = run_episode(opts, team, seed, prepare=None if oracle is None else oracle.bind)
     s = r.summary()
     return {
@@ -222,7 +251,7 @@ def run_loop_episode(
     }
 
 
-def _run_task(task: tuple[str, str, int, float, bool]) -> dict[str, Any]:
+def _run_task(task: tuple[str, str, int, float, bool, str, str]) -> dict[str, Any]:
     import cv2
 
     cv2.setNumThreads(1)  # one core per process: --jobs decides the parallelism
@@ -236,6 +265,8 @@ def validate(
     variants: Sequence[str],
     max_time_s: float,
     jobs: int,
+    task: str = "explore",
+    nav_goal: str = "far",
 ) -> None:
     """Check every option before any work; a bad one is a :class:`ConfigError` naming it."""
     from mrexplore.world import load_world
@@ -264,6 +295,17 @@ def validate(
         raise ConfigError(f"loop study: --max-time-s must be a positive number, got {max_time_s!r}")
     if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
         raise ConfigError(f"loop study: --jobs must be an integer >= 1, got {jobs!r}")
+    if task not in TASKS:
+        raise ConfigError(f"loop study: --task must be one of {list(TASKS)}, got {task!r}")
+    if nav_goal not in NAV_GOALS:
+        raise ConfigError(
+            f"loop study: --nav-goal must be one of {list(NAV_GOALS)}, got {nav_goal!r}"
+        )
+    if task == "navigate" and max_time_s <= NAV_WARMUP_S:
+        raise ConfigError(
+            f"loop study: --max-time-s ({max_time_s}) must exceed the navigation warm-up "
+            f"({NAV_WARMUP_S} s)"
+        )
 
 
 def run_study(
@@ -275,16 +317,18 @@ def run_study(
     jobs: int = 1,
     progress: bool = True,
     noise: bool = True,
+    task: str = "explore",
+    nav_goal: str = "far",
 ) -> dict[str, Any]:
-    """Run every (world, variant, seed) episode; returns the JSON document.
+    """Run every (world, variant, seed) episode of ``task``; returns the JSON document.
 
     With ``jobs > 1`` the episodes run in that many processes (spawned, so no state is shared);
     the records come back in the serial order, identical to a serial run.
     """
-    validate(worlds, seeds, first_seed, variants, max_time_s, jobs)
+    validate(worlds, seeds, first_seed, variants, max_time_s, jobs, task, nav_goal)
     seed_list = list(range(first_seed, first_seed + seeds))
     tasks = [
-        (w, v, s, float(max_time_s), bool(noise))
+        (w, v, s, float(max_time_s), bool(noise), task, nav_goal)
         for w in worlds
         for v in variants
         for s in seed_list
@@ -308,7 +352,10 @@ def run_study(
     episodes = [r for r in records if r is not None]
     return {
         "policy": POLICY,
-        "env_options": {**study_env_options(noise), "max_time_s": float(max_time_s)},
+        "env_options": {
+            **study_env_options(noise, task, nav_goal),
+            "max_time_s": float(max_time_s),
+        },
         "worlds": list(worlds),
         "variants": list(variants),
         "seeds": seed_list,
@@ -328,8 +375,11 @@ def summarize(
     """Per world and variant: episodes, share merged, median first merge, mean and std of the
     task time, share reached, wrong-merge episodes, seconds merged wrongly, the largest fused
     contradiction, merges lost (summed; None for records made before they were counted), the
-    mean task time relative to the oracle's, and the paired difference to the oracle's task time
-    on the same seeds (mean, 95 % CI, s; None without an oracle)."""
+    mean task time relative to the oracle's, the paired difference to the oracle's task time
+    on the same seeds (mean, 95 % CI, s; None without an oracle), and the share of the
+    oracle's gain a merging variant takes: ``(base - variant) / (base - oracle)`` in mean task time,
+    against never merging (``gain_vs_none``) and against one robot (``gain_vs_single``); None
+    when a variant is missing or the oracle gains nothing."""
     from mrexplore.experiments.evaluate import paired
 
     out: dict[str, dict[str, dict[str, Any]]] = {}
@@ -373,6 +423,13 @@ def summarize(
         for v in variants:
             m = out[w][v]["task_time_mean_s"]
             out[w][v]["vs_oracle"] = float(m / oracle - 1.0) if oracle and m is not None else None
+            for base in ("none", "single"):
+                b = out[w].get(base, {}).get("task_time_mean_s")
+                share = None
+                merging = v not in ("oracle", "none", "single")  # what a merger takes
+                if merging and b is not None and oracle and m is not None:
+                    share = float((b - m) / (b - oracle)) if b != oracle else None
+                out[w][v][f"gain_vs_{base}"] = share
             seeds = sorted(s for (v2, s) in by_seed if v2 == v and ("oracle", s) in by_seed)
             out[w][v]["minus_oracle_s"] = (
                 paired([by_seed[(v, s)] for s in seeds], [by_seed[("oracle", s)] for s in seeds])
@@ -390,15 +447,29 @@ def _paired_text(p: Mapping[str, Any] | None) -> str:
     return f"{p['mean']:+.1f} s [{p['ci_low']:+.1f}, {p['ci_high']:+.1f}]"
 
 
+def _gain_text(s: Mapping[str, Any]) -> str:
+    shares = [s.get("gain_vs_none"), s.get("gain_vs_single")]
+    if all(x is None for x in shares):
+        return "-"
+    return " / ".join("-" if x is None else f"{x:.0%}" for x in shares)
+
+
 def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
     """One table per world (text as printed, or markdown)."""
     n = len(doc["seeds"])
     o = doc["env_options"]
+    if o.get("task") == "navigate":
+        what = (
+            f"explore {o['nav_warmup_s']:.0f} s, then robot_0 drives to a goal "
+            f"(nav_goal {o['nav_goal']}) within {o['max_time_s']:.0f} s; task time = the time "
+            "after the warm-up (simulated s)"
+        )
+    else:
+        what = f"explore to {o['target_coverage']:.0%} within {o['max_time_s']:.0f} s (simulated s)"
     head = (
         f"In-loop study: policy {doc['policy']}, {n} seeds from {doc['seeds'][0]}, random "
         f"headings, range noise {o['range_noise_m']} m, odometry noise {o['odom_noise_trans']} "
-        f"/ {o['odom_noise_rot']} rad/rad / {o['odom_noise_rot_per_m']} rad/m; explore to "
-        f"{o['target_coverage']:.0%} within {o['max_time_s']:.0f} s (simulated s)"
+        f"/ {o['odom_noise_rot']} rad/rad / {o['odom_noise_rot_per_m']} rad/m; {what}"
     )
     cols = (
         "variant",
@@ -412,6 +483,7 @@ def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
         "lost",
         "vs oracle",
         "minus oracle, paired [95% CI]",
+        "oracle's gain taken",
     )
     lines = [head, ""]
     for w, rows in doc["summary"].items():
@@ -435,6 +507,7 @@ def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
                     "-" if s.get("merges_lost") is None or not two else str(s["merges_lost"]),
                     "-" if s["vs_oracle"] is None else f"{s['vs_oracle']:+.1%}",
                     _paired_text(s.get("minus_oracle_s")),
+                    _gain_text(s),
                 )
             )
         if markdown:
@@ -454,14 +527,17 @@ def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
         "over episodes; max contr: largest share of a robot's own-or-fused map contradicting the "
         "truth; lost: times a robot's merge was dropped by a re-check, summed over episodes; "
         "vs oracle: mean task time relative to the oracle's; minus oracle: the task time minus "
-        "the oracle's on the same seed, mean and 95 % confidence interval (Student's t), s."
+        "the oracle's on the same seed, mean and 95 % confidence interval (Student's t), s; "
+        "oracle's gain taken: (base - variant) / (base - oracle) in mean task time, against "
+        "never merging / against one robot."
     )
     return "\n".join(lines)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """CLI: ``mrexplore bench loop [--worlds ..] [--seeds N] [--first-seed S] [--variants ..]
-    [--max-time-s T] [--jobs N] [--out STEM] [--force]``; returns the exit code."""
+    [--max-time-s T] [--jobs N] [--task T] [--nav-goal G] [--out STEM] [--force]``; returns the
+    exit code."""
     p = argparse.ArgumentParser(
         prog="mrexplore bench loop", description=__doc__.split("\n\n")[0] if __doc__ else None
     )
@@ -479,6 +555,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--out", default="results/loop_study", help="writes OUT.json and OUT.md")
     p.add_argument("--force", action="store_true", help="overwrite existing outputs")
     p.add_argument(
+        "--task",
+        default="explore",
+        help=f"of {list(TASKS)} (default explore); navigate: {NAV_WARMUP_S:.0f} s of "
+        "exploring, then robot_0 drives to a goal",
+    )
+    p.add_argument(
+        "--nav-goal", default="far", help=f"navigate: of {list(NAV_GOALS)} (default far)"
+    )
+    p.add_argument(
         "--noise",
         choices=("on", "off"),
         default="on",
@@ -490,7 +575,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     outputs = [Path(f"{stem}.json"), Path(f"{stem}.md")]
     try:
         validate(
-            args.worlds, args.seeds, args.first_seed, args.variants, args.max_time_s, args.jobs
+            args.worlds,
+            args.seeds,
+            args.first_seed,
+            args.variants,
+            args.max_time_s,
+            args.jobs,
+            args.task,
+            args.nav_goal,
         )
         existing = [str(f) for f in outputs if f.exists()]
         if existing and not args.force:
@@ -503,6 +595,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             args.max_time_s,
             args.jobs,
             noise=args.noise == "on",
+            task=args.task,
+            nav_goal=args.nav_goal,
         )
     except ConfigError as exc:
         print(f"mrexplore bench loop: error: {exc}")

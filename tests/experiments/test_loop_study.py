@@ -107,6 +107,9 @@ def test_seeded_merger_judges_the_truth_by_the_semantic_rules() -> None:
         ["--max-time-s", "-5"],
         ["--max-time-s", "nan"],
         ["--jobs", "0"],
+        ["--task", "dance"],
+        ["--task", "navigate", "--nav-goal", "moon"],
+        ["--task", "navigate", "--max-time-s", "100"],
     ],
 )
 def test_bad_options_fail_before_any_work(
@@ -206,3 +209,29 @@ def test_jobs_give_the_serial_results() -> None:
     parallel = run_study(jobs=2, **kw)
     assert parallel == serial
     assert len(serial["episodes"]) == 4
+
+
+def test_gain_shares_compare_with_the_oracle_against_both_baselines() -> None:
+    eps = [_ep(v, 0, t, None) for v, t in (("semantic", 60.0), ("oracle", 40.0))]
+    eps += [_ep("none", 0, 80.0, None), _ep("single", 0, 140.0, None)]
+    s = summarize(eps, ["w"], ["semantic", "oracle", "none", "single"])["w"]
+    # never merging 80 s, the oracle 40 s, the merger 60 s: half the gain; one robot 140 s: 80 %
+    assert s["semantic"]["gain_vs_none"] == pytest.approx(0.5)
+    assert s["semantic"]["gain_vs_single"] == pytest.approx(0.8)
+    assert all(s[v]["gain_vs_none"] is None for v in ("oracle", "none", "single"))
+    assert (
+        summarize(eps[:2], ["w"], ["semantic", "oracle"])["w"]["semantic"]["gain_vs_none"] is None
+    )
+
+
+def test_navigation_times_the_drive_after_the_warm_up(tmp_path: Path) -> None:
+    """``--task navigate``: the team explores 120 s, then robot_0 drives to its goal; the task
+    time counts from the goal, and the head of the table says so."""
+    out = tmp_path / "nav"
+    argv = ["--worlds", "small_office", "--seeds", "1", "--variants", "none", "single"]
+    argv += ["--task", "navigate", "--max-time-s", "125", "--out", str(out)]
+    assert main(argv) == 0
+    doc = json.loads(Path(f"{out}.json").read_text())
+    assert doc["env_options"]["task"] == "navigate" and doc["env_options"]["nav_goal"] == "far"
+    assert all(0.0 < e["task_time_s"] <= 5.0 for e in doc["episodes"])
+    assert "then robot_0 drives to a goal" in Path(f"{out}.md").read_text()

@@ -236,6 +236,8 @@ class Simulation:
         self._world_from_map = [None] * self.n_robots
         self.true_poses = poses.copy()
         self.est_poses = np.zeros_like(poses)
+        # drift a placement erased from the estimate but not from the map (drift_allowance_at)
+        self._placed_drift = np.zeros((self.n_robots, 2))
         self.maps = [
             OccupancyMap(self.canvas_shape, self.resolution_m, self.canvas_origin)
             for _ in range(self.n_robots)
@@ -316,11 +318,19 @@ class Simulation:
 
     def drift_allowance_at(self, i: int, j: int, radius: float) -> float:
         """:meth:`drift_allowance` for cells at mean distance ``radius`` (cells) from j's start
-        (``maps[j].origin_cell``); evaluation only."""
+        (``maps[j].origin_cell``); evaluation only. The drift a :meth:`place` erased from a
+        robot's estimate is added: its map still holds it."""
+        pos, hdg = self._pose_drift()
+        pos = pos + self._placed_drift[:, 0]
+        hdg = hdg + self._placed_drift[:, 1]
+        return float(pos[i] + pos[j] + (hdg[i] + hdg[j]) * radius)
+
+    def _pose_drift(self) -> NDArray[np.float64]:
+        """(2, R): each robot's position drift (cells) and heading drift (rad) now."""
         own = self.own_frame_truth()
         pos = np.hypot(*(self.est_poses[:, :2] - own[:, :2]).T) / self.resolution_m
         hdg = np.abs(np.angle(np.exp(1j * (self.est_poses[:, 2] - own[:, 2]))))
-        return float(pos[i] + pos[j] + (hdg[i] + hdg[j]) * radius)
+        return np.stack([pos, hdg])
 
     def own_frame_truth(self) -> NDArray[np.float64]:
         """The robots' true poses (R, 3) in their own start frames: what ``est_poses`` would be
@@ -385,6 +395,8 @@ class Simulation:
         pose = np.asarray(pose_world, dtype=np.float64).reshape(3)
         if not self.motion.is_free(pose[None, :2])[0]:
             raise ConfigError(f"cannot place robot {i} at {pose.tolist()}: not free for its body")
+        # the map keeps the drift it was built with: the merge-error allowance keeps it too
+        self._placed_drift[i] += self._pose_drift()[:, i]
         self.true_poses = self.true_poses.copy()
         self.true_poses[i] = pose
         self.est_poses = self.est_poses.copy()

@@ -182,3 +182,25 @@ def test_drift_allowance_is_zero_with_exact_odometry_and_grows_with_drift() -> N
         assert env.sim is not None
         cells = np.array([[10.0, 10.0], [60.0, 40.0]])
         assert check(env.sim.drift_allowance(0, 1, cells))
+
+
+def test_a_placement_keeps_the_drift_its_map_was_built_with() -> None:
+    """``place`` makes the robot's estimate exact, but its map keeps the drift it was built
+    with: the merge-error allowance must not fall (a navigation protocol puts robot_0 back at its
+    start; a correct merge of the bent maps then read as a wrong one)."""
+    import mrexplore
+
+    env = mrexplore.parallel_env(
+        world="small_office", n_robots=2, merger=None, odom_noise_trans=0.05, odom_noise_rot=0.05
+    )
+    env.reset(seed=3)
+    for k in range(40):
+        env.step({a: (0 if k % 5 else 1) for a in env.agents})
+    sim = env.sim
+    assert sim is not None
+    cells = np.array([[10.0, 10.0], [60.0, 40.0]])
+    before = sim.drift_allowance(0, 1, cells)
+    sim.place(0, sim.start_poses[0])
+    pos, hdg = sim._pose_drift()
+    assert pos[0] == pytest.approx(0.0, abs=1e-9) and hdg[0] == pytest.approx(0.0, abs=1e-9)
+    assert sim.drift_allowance(0, 1, cells) == pytest.approx(before)

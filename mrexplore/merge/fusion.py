@@ -30,6 +30,14 @@ IN_LOOP_MIN_COMMON_M2 = 20.0
 #: and the re-check drops a pose the grown maps contradict. There it only delayed merges
 #: (docs/merging.md, item 11: one depot episode of 20 never merged).
 IN_LOOP_RIVAL_PERFECT_CELLS = 0
+#: ``min_accept_cells`` of the tracker for the semantic merger: an attempt's pose counts only
+#: when it rests on this many wall cells of both maps (``MergeResult.overlap_cells``), 250
+#: (the scale of the one-shot perfect-rival test) where the merger asks 80. Early in an episode
+#: two robots in two look-alike warehouse aisles whose maps shared no wall at all were matched
+#: on 104-164 such cells and merged wrongly; every correct first merge of 73 traced rested on
+#: 299 or more (docs/merging.md, item 14). A floor on the accepted pose only: the merger still
+#: weighs smaller poses as rivals.
+IN_LOOP_MIN_ACCEPT_CELLS = 250
 #: The semantic merger's options in the loop (the env's tracker and the loop study's seeded
 #: diagnostic); options the caller gives win.
 IN_LOOP_SEMANTIC_OPTIONS: dict[str, float] = {
@@ -90,9 +98,11 @@ class FusionStage:
                 options = {**IN_LOOP_SEMANTIC_OPTIONS, **options}
                 if resolution_m is not None:
                     options.setdefault("resolution_m", float(resolution_m))
+            semantic = isinstance(merger, str) and merger.lower() == "semantic"
             self.tracker = MapMergeTracker(
                 len(self.agents),
                 merger=merger,
+                min_accept_cells=IN_LOOP_MIN_ACCEPT_CELLS if semantic else 0,
                 merge_every=merge_every,
                 recheck_every=recheck_every,
                 merge_latency_steps=merge_latency_steps,

@@ -674,6 +674,10 @@ def merge_semantic(
     ]
     rivals.sort(key=lambda h: not perfect(h))  # a perfect rival is the one to judge (stable)
     runner = rivals[0].score if rivals else None
+    # every rival's pose (b's cells -> a's), for a caller that weighs them over time (the tracker)
+    info["rivals"] = [
+        chain(translation(bba[2], bba[0]), h.T, translation(-bbb[2], -bbb[0])) for h in rivals
+    ]
     info["best_agreement"] = best.agreement
     info["runner_up_agreement"] = rivals[0].agreement if rivals else None
     T_full = chain(translation(bba[2], bba[0]), best.T, translation(-bbb[2], -bbb[0]))

@@ -75,6 +75,15 @@ from mrexplore.types import Box, Merger
 #: A merge function ``(a, b) -> MergeResult`` (a named method, or a Merger's ``merge``).
 MergeFn = Callable[[Int8Grid, Int8Grid], MergeResult]
 
+#: A remembered rival still stands against an accepted pose on the current maps when it is
+#: this far from it (b's known box corners, cells) and, as the semantic merger judges a rival,
+#: explains at least ``_RIVAL_SUPPORT`` of its agreeing wall cells while the accepted pose does
+#: not beat it by ``_RIVAL_MARGIN`` in index and ``_RIVAL_EVIDENCE`` contradicting wall cells.
+_RIVAL_FAR_CELLS = 5.0
+_RIVAL_SUPPORT = 0.5
+_RIVAL_MARGIN = 0.03
+_RIVAL_EVIDENCE = 20
+
 
 @dataclass(frozen=True)
 class _Outcome:
@@ -84,6 +93,10 @@ class _Outcome:
     T: Transform | None  # T_ij in full-canvas cells, None when refused
     old_now: float | None = None  # re-check: the kept transform's raw index on those maps
     held_now: float | None = None  # re-check: its noise-aware agreement (what a drop judges)
+    # attempt: rival poses the merger reported (canvas cells), and the remembered rivals that
+    # still stand against the accepted pose on these maps (None: none were checked)
+    rivals: tuple[Transform, ...] = ()
+    standing: tuple[Transform, ...] | None = None
 
 
 @dataclass
@@ -170,6 +183,15 @@ class MapMergeTracker:
             pair merged, with the merger's new transform, when the merger accepts one whose
             placement of b's known box is within this many cells of the kept one's (default
             5.0; 0 = always drop). Farther, or refused: dropped.
+        rival_memory: rivals remembered per unmerged pair (default 8; 0 = none): a pose an
+            attempt found nearly as good as its best, far from it. A later attempt's pose is
+            accepted only when the maps now rule out every remembered rival (it explains less
+            than half as much, or is beaten by the merger's margin; the rivals the merger no
+            longer finds are checked too): evidence over time, not the search's memory.
+        min_accept_cells: an attempt's pose counts towards acceptance only when it rests on at
+            least this many cells (``MergeResult.overlap_cells``; the semantic merger's wall
+            cells of both maps under the pose); below, it is a refusal (default 0; the env asks
+            250 of the semantic merger: a few metres of look-alike wall are not a place).
         retry_growth: an unmerged pair is tried again only once the two maps together know this
             share more cells than at the last attempt (default 0.02; 0 = any change).
         confirm_growth: an agreeing attempt confirms the pending transform only when the shared
@@ -207,6 +229,8 @@ class MapMergeTracker:
         recheck_slack_cells: int = 2,
         recheck_min_run_cells: int = 5,
         relocate_tol_cells: float = 5.0,
+        rival_memory: int = 8,
+        min_accept_cells: int = 0,
         retry_growth: float = 0.02,
         confirm_growth: float = 0.0,
         merge_latency_steps: int = 0,
@@ -224,6 +248,8 @@ class MapMergeTracker:
             ("recheck_slack_cells", recheck_slack_cells, integer(0, 10)),
             ("recheck_min_run_cells", recheck_min_run_cells, integer(1, 1000)),
             ("relocate_tol_cells", relocate_tol_cells, number(0.0, 1000.0)),
+            ("rival_memory", rival_memory, integer(0, 1000)),
+            ("min_accept_cells", min_accept_cells, integer(0)),
             ("retry_growth", retry_growth, number(0.0, 10.0)),
             ("confirm_growth", confirm_growth, number(0.0, 10.0)),
             ("merge_latency_steps", merge_latency_steps, MERGE_LATENCY_CHECK),
@@ -239,6 +265,8 @@ class MapMergeTracker:
         self.recheck_slack_cells = int(recheck_slack_cells)
         self.recheck_min_run_cells = int(recheck_min_run_cells)
         self.relocate_tol_cells = float(relocate_tol_cells)
+        self.rival_memory = int(rival_memory)
+        self.min_accept_cells = int(min_accept_cells)
         self.retry_growth = float(retry_growth)
         self.confirm_growth = float(confirm_growth)
         self.merge_latency_steps = int(merge_latency_steps)
@@ -262,6 +290,8 @@ class MapMergeTracker:
         self._edge_score: dict[tuple[int, int], float] = {}
         # (i, j) -> (T_ij candidate, agreeing attempts so far, shared wall cells it rested on)
         self._pending: dict[tuple[int, int], tuple[Transform, int, int]] = {}
+        # (i, j) -> rival poses T_ij (canvas cells) of earlier attempts, newest last
+        self._rivals: dict[tuple[int, int], list[Transform]] = {}
         # (i, j) -> known cells of both maps at the last merge attempt
         self._last_attempt_known: dict[tuple[int, int], int] = {}
         self._results: dict[tuple[int, int], MergeResult] = {}
@@ -334,6 +364,7 @@ class MapMergeTracker:
         b: Int8Grid,
         offsets: tuple[tuple[int, int], tuple[int, int]],
         T_old: Transform | None,
+        rivals: Sequence[Transform] = (),
     ) -> _Outcome:
         """Run the merger on cropped maps ``a`` (robot i) and ``b`` (robot j) whose cell (0, 0)
         is at ``offsets`` (col, row) in the canvases. Pure: reads no tracker state that the
@@ -358,7 +389,48 @@ class MapMergeTracker:
         if res.matched and res.transform is not None:
             # crop -> canvas cells by chain, not @ (BLAS): the same bits on every CPU
             T = chain(translation(ca, ra), res.transform, translation(-cb, -rb))
-        return _Outcome(res, T, old_now, held_now)
+        if kind != "attempt":
+            return _Outcome(res, T, old_now, held_now)
+        found = tuple(
+            chain(translation(ca, ra), np.asarray(R, dtype=np.float64), translation(-cb, -rb))
+            for R in res.info.get("rivals", ())
+        )
+        standing = None
+        if T is not None and rivals:
+            box_j = (rb, rb + b.shape[0], cb, cb + b.shape[1])
+            standing = tuple(self._standing(a, b, offsets, T, rivals, box_j))
+        return _Outcome(res, T, old_now, held_now, found, standing)
+
+    def _standing(
+        self,
+        a: Int8Grid,
+        b: Int8Grid,
+        offsets: tuple[tuple[int, int], tuple[int, int]],
+        T: Transform,
+        rivals: Sequence[Transform],
+        box_j: Box,
+    ) -> list[Transform]:
+        """The remembered ``rivals`` (canvas cells) that still stand against the accepted ``T``
+        on the cropped maps ``a``, ``b``: far from it, explaining at least half as much, and not
+        beaten by the merger's margin (raw index, contradicting wall cells). Pure."""
+        (ca, ra), (cb, rb) = offsets
+        verify = Verifier(MapCodes(a), MapCodes(b))
+
+        def crop(X: Transform) -> Transform:
+            return chain(translation(-ca, -ra), X, translation(cb, rb))
+
+        best = verify(crop(T))
+        out = []
+        for R in rivals:
+            if self._same(R, T, box_j, _RIVAL_FAR_CELLS):
+                continue  # the same place: no rival
+            r = verify(crop(R))
+            if r.agree < _RIVAL_SUPPORT * best.agree:
+                continue
+            excess = (r.disagree - best.disagree) * verify.cells_per_sample
+            if best.score - r.score < _RIVAL_MARGIN or excess < _RIVAL_EVIDENCE:
+                out.append(R)
+        return out
 
     def _start(self, kind: str, i: int, j: int, step: int) -> None:
         """Start an attempt or re-check of (i, j) on the current maps; apply it now (latency 0)
@@ -370,14 +442,17 @@ class MapMergeTracker:
         if kind == "recheck" and T_old is None:
             return  # dropped or replaced since it was queued
         (a, oa), (b, ob) = ci, cj
+        rivals = [R.copy() for R in self._rivals.get((i, j), [])] if kind == "attempt" else []
         if self.merge_latency_steps == 0:
-            out = self._compute(kind, i, j, a, b, (oa, ob), T_old)
+            out = self._compute(kind, i, j, a, b, (oa, ob), T_old, rivals)
             self._apply(_Job(kind, i, j, step, self._px.bbox(j), T_old, out))
             return
         if self._pool is None:
             self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mrexplore-merge")
         # copies: the caller may update its maps in place while the worker reads them
-        fut = self._pool.submit(self._compute, kind, i, j, a.copy(), b.copy(), (oa, ob), T_old)
+        fut = self._pool.submit(
+            self._compute, kind, i, j, a.copy(), b.copy(), (oa, ob), T_old, rivals
+        )
         due = step + self.merge_latency_steps
         self._jobs.append(_Job(kind, i, j, due, self._px.bbox(j), T_old, fut))
 
@@ -424,8 +499,13 @@ class MapMergeTracker:
         if self.transform(i, j) is not None:
             return  # connected meanwhile (through a chain of other pairs)
         pending = self._pending.get((i, j))
-        if out.result is None or out.T is None:
-            self._pending.pop((i, j), None)  # a refusal breaks the run of agreements
+        standing = self._remember_rivals(i, j, out)
+        thin = out.result is not None and out.result.overlap_cells < self.min_accept_cells
+        if out.result is None or out.T is None or standing or thin:
+            # a refusal breaks the run of agreements; so does a pose a remembered rival, which
+            # the maps do not rule out yet, explains as well (an aisle like another aisle), or
+            # one resting on too little wall to tell a place from a look-alike
+            self._pending.pop((i, j), None)
             return
         T = out.T
         evidence = int(out.result.overlap_cells)
@@ -446,6 +526,22 @@ class MapMergeTracker:
             self._paths = None
         else:
             self._pending[(i, j)] = (T, count, evidence)
+
+    def _remember_rivals(self, i: int, j: int, out: _Outcome) -> bool:
+        """Update pair (i, j)'s remembered rivals with one attempt's outcome (the checked ones
+        that no longer stand are forgotten, the merger's new ones added, the newest
+        ``rival_memory`` kept); True when a remembered rival stands against its pose."""
+        if self.rival_memory == 0:
+            return False
+        mem = self._rivals.get((i, j), [])
+        if out.standing is not None:
+            mem = list(out.standing)
+        mem = (mem + list(out.rivals))[-self.rival_memory :]
+        if mem:
+            self._rivals[(i, j)] = mem
+        else:
+            self._rivals.pop((i, j), None)
+        return bool(out.standing)
 
     def _same(
         self, T1: Transform, T2: Transform, bbox_j: Box | None, tol: float | None = None

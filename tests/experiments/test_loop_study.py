@@ -18,6 +18,7 @@ from mrexplore.experiments.loop_study import (
     SeededMerger,
     format_tables,
     main,
+    run_loop_episode,
     run_study,
     summarize,
 )
@@ -235,3 +236,13 @@ def test_navigation_times_the_drive_after_the_warm_up(tmp_path: Path) -> None:
     assert doc["env_options"]["task"] == "navigate" and doc["env_options"]["nav_goal"] == "far"
     assert all(0.0 < e["task_time_s"] <= 5.0 for e in doc["episodes"])
     assert "then robot_0 drives to a goal" in Path(f"{out}.md").read_text()
+
+
+@pytest.mark.parametrize("seed", [1004, 1007])
+def test_two_look_alike_aisles_are_not_merged(seed: int) -> None:
+    """Depot, exact odometry: early on the two robots map different aisles whose maps share no
+    wall at all; the merger matched them on a few metres of look-alike racks (seed 1004: 104-164
+    wall cells, merged wrongly at 12 s; seed 1007: after a run of ambiguous refusals, once the
+    search stopped finding the rival, at 37 s). Neither may merge wrongly now."""
+    rec = run_loop_episode("depot", "semantic", seed, 45.0, noise=False)
+    assert not rec["wrong_merge"] and rec["merged_wrongly_s"] == 0.0

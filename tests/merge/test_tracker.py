@@ -443,3 +443,81 @@ def test_warp_into_equals_a_shifted_uint8_warp() -> None:
             warp_into(src, T, (80, 100), dst_origin=origin),
             shifted_warp(src, T, (80, 100), origin),
         )
+
+
+class _WithRivals:
+    """A merger answering with scripted (transform or None, rivals) pairs, in crop cells."""
+
+    def __init__(self, answers: list[tuple[np.ndarray | None, list[np.ndarray]]]) -> None:
+        self.answers = answers
+        self.calls = 0
+
+    def merge(self, a: np.ndarray, b: np.ndarray) -> MergeResult:
+        T, rivals = self.answers[min(self.calls, len(self.answers) - 1)]
+        self.calls += 1
+        info = {"rivals": rivals}
+        if T is None:
+            return MergeResult(False, None, 0.9, reason="scripted: ambiguous", info=info)
+        return MergeResult(True, T, 0.99, overlap_cells=500, info=info)
+
+
+@pytest.mark.parametrize(("memory", "merged"), [(8, False), (0, True)])
+def test_a_remembered_rival_the_maps_still_support_blocks_a_look_alike(
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray], memory: int, merged: bool
+) -> None:
+    """An attempt is refused as ambiguous between two poses; later attempts offer only the
+    wrong one (the search no longer finds the other). The remembered rival, which the maps
+    support better, keeps the pair apart; without the memory the wrong pose is accepted."""
+    from mrexplore.merge.common import known_bbox
+
+    ca, cb, T_true = robots
+    ra0, _, ca0, _ = known_bbox(ca)  # type: ignore[misc]
+    rb0, _, cb0, _ = known_bbox(cb)  # type: ignore[misc]
+    truth = translation(-ca0, -ra0) @ T_true @ translation(cb0, rb0)
+    wrong = translation(40.0, 0.0) @ truth
+    merger = _WithRivals([(None, [truth]), (wrong, []), (wrong, []), (wrong, [])])
+    tr = MapMergeTracker(
+        2, merger=merger, merge_every=1, recheck_every=0, confirmations=2, retry_growth=0.0,
+        rival_memory=memory,
+    )  # fmt: skip
+    for step in range(4):
+        tr.update([ca, cb], step=step)
+    assert tr.merged(0) is merged and merger.calls == (3 if merged else 4)
+
+
+def test_a_remembered_rival_the_maps_rule_out_is_forgotten(
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    """The other way round: the remembered rival is the wrong pose; the maps contradict it, so
+    the true pose is accepted after its two agreeing attempts, and the rival is forgotten."""
+    from mrexplore.merge.common import known_bbox
+
+    ca, cb, T_true = robots
+    ra0, _, ca0, _ = known_bbox(ca)  # type: ignore[misc]
+    rb0, _, cb0, _ = known_bbox(cb)  # type: ignore[misc]
+    truth = translation(-ca0, -ra0) @ T_true @ translation(cb0, rb0)
+    wrong = translation(40.0, 0.0) @ truth
+    merger = _WithRivals([(None, [wrong]), (truth, []), (truth, [])])
+    tr = MapMergeTracker(2, merger=merger, merge_every=1, recheck_every=0, retry_growth=0.0)
+    for step in range(3):
+        tr.update([ca, cb], step=step)
+    assert tr.merged(0)
+    assert merge_error(tr.transform(0, 1), T_true, cb)[0] < 0.5  # type: ignore[arg-type,index]
+    assert not tr._rivals  # ruled out: nothing left to remember
+
+
+@pytest.mark.parametrize(("cells", "merged"), [(100, False), (500, True)])
+def test_a_pose_resting_on_too_little_wall_is_not_accepted(cells: int, merged: bool) -> None:
+    """``min_accept_cells``: agreeing attempts whose pose rests on fewer wall cells than the
+    floor count as refusals."""
+
+    class _Thin(_Seq):
+        def merge(self, a: np.ndarray, b: np.ndarray) -> MergeResult:
+            self.calls += 1
+            return MergeResult(True, translation(3.0, 0.0), 0.99, overlap_cells=cells)
+
+    seq = _Thin([])
+    tr = MapMergeTracker(2, merger=seq, merge_every=1, recheck_every=0, min_accept_cells=250)
+    for k in range(4):
+        tr.update(_growing_maps(k), step=k)
+    assert seq.calls == (2 if merged else 4) and tr.merged(0) is merged

@@ -6,6 +6,8 @@
 #      merge_large.{json,md}: large maps (500-900 cells a side, 300 cases), with and without
 #      the pooled rotation spectrum of large maps
 #   2. loop_study.{json,md}: merging in the exploration loop against an oracle merger;
+#      loop_exact.{json,md}: the same with exact odometry (a merge error is then a wrong place);
+#      loop_nav.{json,md}: the navigation task (exact odometry) against the oracle;
 #      loop_seeded.{json,md}: the semantic merger with the true pose among its hypotheses
 #      (the four worlds), which tells the search's share of the gap from the rules'
 #   3. task_time.{json,csv,png}: single- vs multi-robot task time (the paper's 105 s -> 65 s and
@@ -37,6 +39,9 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
 mrexplore bench merge --methods semantic,orb --n 30 --families large --seeds 0-9 \
   --semantic-variant hough_max_cells=0 --out "$out/merge_large" --force
 mrexplore bench loop --seeds 20 --jobs 2 --out "$out/loop_study" --force
+mrexplore bench loop --noise off --variants semantic oracle --seeds 20 --jobs 2 \
+  --out "$out/loop_exact" --force
+mrexplore bench loop --task navigate --noise off --seeds 20 --jobs 2 --out "$out/loop_nav" --force
 mrexplore bench loop --variants seeded --seeds 20 --jobs 2 --out "$out/loop_seeded" --force
 mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --out "$out" --force
 mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --tasks navigate \

@@ -176,32 +176,47 @@ class GoalPolicy(Policy):
             for c, r in self.bumped:
                 c0, r0 = round(c), round(r)
                 m[max(r0 - 1, 0) : r0 + 2, max(c0 - 1, 0) : c0 + 2] = OCCUPIED
-        grid = PlanningGrid.build(
-            m,
-            float(view.resolution_m),
-            float(view.robot_radius_m),
-            pose[:2],
-            factor=self.plan_factor,
-            unknown_is_free=True,
-            extra_cells=np.array([goal]),
-            margin_m=self.margin_m,
-        )
         self.path = None
-        if grid.start is not None:
+        # Rounds as the frontier explorer's: coarse cells, then the map's own cells, then the
+        # simulator's own collision rule (no clearance). Coarse cells and the clearance close
+        # gaps the robot fits through; on tb3_office a robot put back at its start found its
+        # own cell enclosed and stood there for the rest of the episode.
+        best: tuple[float, int, PlanningGrid, tuple[int, int], bool] | None = None
+        for k, (factor, clearance) in enumerate(((self.plan_factor, 0.5), (1, 0.5), (1, 0.0))):
+            if k == 1 and factor == self.plan_factor:
+                continue  # the first round was on the map's own cells already
+            grid = PlanningGrid.build(
+                m,
+                float(view.resolution_m),
+                float(view.robot_radius_m),
+                pose[:2],
+                factor=factor,
+                unknown_is_free=True,
+                extra_cells=np.array([goal]),
+                margin_m=self.margin_m,
+                clearance_cells=clearance,
+            )
+            if grid.start is None:
+                continue
             g = grid.to_plan(np.array([goal]))[0]
             h, w = grid.shape
             if 0 <= g[0] < w and 0 <= g[1] < h and np.isfinite(grid.field[g[1], g[0]]):
-                target = (int(g[0]), int(g[1]))
-            else:
-                # Goal enclosed or blocked: the reachable cell nearest to it (ties: shorter path).
-                rows, cols = np.nonzero(np.isfinite(grid.field))
-                d2 = (cols - g[0]) ** 2 + (rows - g[1]) ** 2
-                k = int(np.lexsort((grid.field[rows, cols], d2))[0])
-                target = (int(cols[k]), int(rows[k]))
+                best = (0.0, k, grid, (int(g[0]), int(g[1])), True)
+                break
+            # Goal enclosed or blocked: the reachable cell nearest to it (ties: shorter path);
+            # a later round is used only when its nearest cell is nearer (in fine cells).
+            rows, cols = np.nonzero(np.isfinite(grid.field))
+            d2 = (cols - g[0]) ** 2 + (rows - g[1]) ** 2
+            j = int(np.lexsort((grid.field[rows, cols], d2))[0])
+            gap = float(np.sqrt(d2[j])) * grid.factor
+            if best is None or gap < best[0] - 1e-9:
+                best = (gap, k, grid, (int(cols[j]), int(rows[j])), False)
+        if best is not None:
+            _, _, grid, target, at_goal = best
             path = grid.path_to(target)
             if path is not None:
                 # End exactly at the goal when its cell is the target, so arrival is measured there.
-                if target == (int(g[0]), int(g[1])):
+                if at_goal:
                     path = np.vstack([path, np.array([goal])])
                 self.path = densify_path(path)
         self.plan_time_s += time.perf_counter() - t0

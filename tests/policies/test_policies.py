@@ -250,6 +250,19 @@ def test_goal_policy_enclosed_goal_goes_near() -> None:
     assert np.hypot(end[0] - 40.0, end[1] - 40.0) < 12.0  # as close as the inflation allows
 
 
+def test_goal_policy_plans_through_a_door_only_the_fine_rounds_see() -> None:
+    """The goal lies beyond a 7-cell door (a 0.3 m robot fits; 2x2 planning cells lose it): the
+    coarse round reaches only room A, so the policy plans again on the map's own cells and goes
+    through (on tb3_office a robot put back at its start stood there for 480 s)."""
+    m = _room_door_room(7, door_row0=17)
+    m[1:39, 70] = FREE
+    pol = GoalPolicy()
+    pol.reset(np.random.default_rng(0))
+    action = pol.act(_view(m, (10.0, 20.0, 0.0), goal=(60.0, 20.0)))
+    assert action != Action.STAY and pol.path is not None
+    assert np.hypot(*(pol.path[-1] - (60.0, 20.0))) < 1e-9  # it ends at the goal itself
+
+
 # -- issue 11: stalls on real maps' narrow gaps --------------------------------------------------
 
 

@@ -4,7 +4,8 @@
 #      paper's Table 1/2 and more); merge_ablation.{json,md}: what each part of the default buys;
 #      merge_seeds.{json,md}: the default merger on eleven seeds' cases (1,320), the rates;
 #      merge_large.{json,md}: large maps (500-900 cells a side, 300 cases), with and without
-#      the pooled rotation spectrum of large maps
+#      the pooled rotation spectrum of large maps; merge_aliased.{json,md}: crops of repetitive
+#      real maps that do not overlap (the right answer is a refusal)
 #   2. loop_study.{json,md}: merging in the exploration loop against an oracle merger;
 #      loop_exact.{json,md}: the same with exact odometry (a merge error is then a wrong place);
 #      loop_nav.{json,md}: the navigation task (exact odometry) against the oracle;
@@ -38,6 +39,8 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
   --seeds 0-9,12 --out "$out/merge_seeds" --force
 mrexplore bench merge --methods semantic,orb --n 30 --families large --seeds 0-9 \
   --semantic-variant hough_max_cells=0 --out "$out/merge_large" --force
+mrexplore bench merge --methods semantic,orb --n 30 --families aliased --seeds 0-9 \
+  --out "$out/merge_aliased" --force
 mrexplore bench loop --seeds 20 --jobs 2 --out "$out/loop_study" --force
 mrexplore bench loop --noise off --variants semantic oracle --seeds 20 --jobs 2 \
   --out "$out/loop_exact" --force

@@ -35,6 +35,7 @@ import numpy as np
 from mrexplore.errors import ConfigError, MrexploreError
 from mrexplore.experiments.merge_cases import (
     MergeCase,
+    aliased_cases,
     large_cases,
     lidar_cases,
     noisy_real_cases,
@@ -136,8 +137,9 @@ def evaluate(
 
 #: Case families: generated symmetric worlds, real-map crops, noisy non-Manhattan real-map crops
 #: (overlap >= 0.4), our simulator's own-frame lidar maps with noise, large maps (500-900
-#: cells a side: the merger's large-map rules).
-FAMILIES: tuple[str, ...] = ("symmetric", "real", "noisy", "lidar", "large")
+#: cells a side: the merger's large-map rules), crops of repetitive real maps that do not
+#: overlap (aliased: the right answer is a refusal).
+FAMILIES: tuple[str, ...] = ("symmetric", "real", "noisy", "lidar", "large", "aliased")
 
 
 def make_cases(family: str, n: int, seed: int) -> list[MergeCase]:
@@ -152,6 +154,8 @@ def make_cases(family: str, n: int, seed: int) -> list[MergeCase]:
         return lidar_cases(n, seed)
     if family == "large":
         return large_cases(n, seed)
+    if family == "aliased":
+        return aliased_cases(n, seed)
     raise ConfigError(f"unknown case family {family!r}; choose from {FAMILIES}")
 
 

@@ -523,6 +523,67 @@ def large_cases(n: int, seed: int, maps_dir: Path = SHARED_MAPS) -> list[MergeCa
 
 
 # --------------------------------------------------------------------------------------------
+# look-alike places that do not overlap: the right answer is a refusal
+# --------------------------------------------------------------------------------------------
+
+#: Real maps of the aliased family (rows of identical racks) and their crop sizes in cells.
+ALIASED_MAPS: dict[str, tuple[int, int]] = {
+    "nav2/depot.yaml": (100, 150),
+    "nav2/warehouse.yaml": (150, 300),
+}
+
+
+def aliased_cases(n: int, seed: int, maps_dir: Path = SHARED_MAPS) -> list[MergeCase]:
+    """``n`` pairs of crops of one repetitive real map (:data:`ALIASED_MAPS`) that do **not**
+    overlap (disjoint rectangles, at least 10 cells apart), b rotated at random: two robots in
+    two look-alike aisles. The truth places b away from a, so any accepted transform is wrong
+    (``classify`` reads it as such); the right answer is a refusal. Crops are re-drawn until
+    each is at least a quarter known."""
+    if n < 0:
+        raise ConfigError(f"aliased_cases: n must be >= 0, got {n}")
+    from mrexplore.world.map_io import read_map_yaml
+
+    rng = np.random.default_rng(seed)
+    files = {k: read_map_yaml(maps_dir / k) for k in ALIASED_MAPS}
+    keys = list(ALIASED_MAPS)
+    out: list[MergeCase] = []
+    for i in range(n):
+        k = keys[i % len(keys)]
+        full = files[k].grid
+        H, W = full.shape
+        lo, hi = ALIASED_MAPS[k]
+        for _ in range(200):
+            ha, wa, hb, wb = (int(x) for x in rng.integers(lo, min(hi, H, W) + 1, size=4))
+            ra, ca = int(rng.integers(0, H - ha + 1)), int(rng.integers(0, W - wa + 1))
+            rb, cb = int(rng.integers(0, H - hb + 1)), int(rng.integers(0, W - wb + 1))
+            apart = (
+                rb >= ra + ha + 10 or ra >= rb + hb + 10 or cb >= ca + wa + 10 or ca >= cb + wb + 10
+            )
+            a = full[ra : ra + ha, ca : ca + wa]
+            mb = full[rb : rb + hb, cb : cb + wb]
+            if apart and (a != UNKNOWN).mean() >= 0.25 and (mb != UNKNOWN).mean() >= 0.25:
+                break
+        else:
+            raise ConfigError(f"aliased_cases: no two disjoint known crops of {k} found")
+        theta = float(rng.uniform(-np.pi, np.pi))
+        b, T_rot = rotate_map(mb, theta)
+        T_ab = chain(translation(cb - ca, rb - ra), invert_transform(T_rot))
+        out.append(
+            MergeCase(
+                a=np.ascontiguousarray(damage_borders(a, rng)),
+                b=damage_borders(b, rng),
+                T_ab=T_ab,
+                overlap=0.0,
+                family="aliased",
+                name=f"{k}@apart#{i}",
+                meta={"rotation_deg": float(np.degrees(theta))},
+                resolution_m=files[k].resolution_m,
+            )
+        )
+    return out
+
+
+# --------------------------------------------------------------------------------------------
 # lidar pairs from our simulator (own-frame maps, random headings, noise on)
 # --------------------------------------------------------------------------------------------
 

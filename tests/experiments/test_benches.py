@@ -113,3 +113,19 @@ def test_large_cases_reach_past_the_large_map_bound() -> None:
         assert LARGE_CROP[0] <= min(c.a.shape) and max(c.a.shape) <= LARGE_CROP[1]
         assert 0.0 <= c.overlap <= 1.0
     assert sum(hough_pool(c.a.shape, c.b.shape, 409_600) > 1 for c in cases) >= 3
+
+
+def test_aliased_cases_do_not_overlap() -> None:
+    """The aliased family's two crops are disjoint: b under the truth lands on none of a's
+    cells, so a refusal is the right answer and any merge is counted wrong."""
+    import numpy as np
+
+    from mrexplore.experiments.merge_bench import classify
+    from mrexplore.experiments.merge_cases import aliased_cases, overlap_share
+
+    cases = aliased_cases(4, seed=0)
+    assert {c.family for c in cases} == {"aliased"}
+    for c in cases:
+        assert overlap_share(c.a, c.b, c.T_ab) == 0.0
+        assert classify(c, False, None)[0] == "refused"
+        assert classify(c, True, np.eye(3))[0] == "wrong"

@@ -47,6 +47,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError, MrexploreError
+from mrexplore.experiments.task_time import NAV_WARMUP_S
 from mrexplore.grid import UNKNOWN, Int8Grid, chain
 from mrexplore.merge.common import MergeResult, translation, warp_into
 
@@ -180,8 +181,6 @@ NOISE_OFF: dict[str, Any] = {
 TASKS: tuple[str, ...] = ("explore", "navigate")
 #: Where robot_0's navigation goal lies (the env's ``nav_goal``).
 NAV_GOALS: tuple[str, ...] = ("far", "teammate")
-#: Seconds the team explores before robot_0 gets its navigation goal (as ``task-time``).
-NAV_WARMUP_S = 120.0
 
 
 def study_env_options(

@@ -32,6 +32,8 @@ from mrexplore.types import RobotView
 #: The seed paper's figures (Durdu & Korkmaz 2019, section 4): seconds.
 PAPER = {"explore": {"single": 105.0, "multi": 65.0}, "navigate": {"single": 125.0, "multi": 85.0}}
 TASKS = ("explore", "navigate")
+#: Seconds the team explores before robot_0 is given its navigation goal.
+NAV_WARMUP_S = 120.0
 
 
 class NavigateTeam:
@@ -220,7 +222,7 @@ def run_task_time(
     tasks: Sequence[str] = TASKS,
     env_options: Mapping[str, Any] | None = None,
     progress: bool = True,
-    nav_warmup_s: float = 120.0,
+    nav_warmup_s: float = NAV_WARMUP_S,
     force: bool = False,
     workers: int = 1,
     address: str | None = None,

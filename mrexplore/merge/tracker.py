@@ -59,6 +59,7 @@ from mrexplore.grid import (
 from mrexplore.merge.api import METHODS, merge_maps
 from mrexplore.merge.common import MapCodes, MergeResult, Verifier, translation
 from mrexplore.merge.compositor import MapCompositor
+from mrexplore.merge.semantic import SemanticOptions
 from mrexplore.options import (
     MERGE_EVERY_CHECK,
     MERGE_EVERY_DEFAULT,
@@ -75,14 +76,11 @@ from mrexplore.types import Box, Merger
 #: A merge function ``(a, b) -> MergeResult`` (a named method, or a Merger's ``merge``).
 MergeFn = Callable[[Int8Grid, Int8Grid], MergeResult]
 
-#: A remembered rival still stands against an accepted pose on the current maps when it is
-#: this far from it (b's known box corners, cells) and, as the semantic merger judges a rival,
-#: explains at least ``_RIVAL_SUPPORT`` of its agreeing wall cells while the accepted pose does
-#: not beat it by ``_RIVAL_MARGIN`` in index and ``_RIVAL_EVIDENCE`` contradicting wall cells.
-_RIVAL_FAR_CELLS = 5.0
-_RIVAL_SUPPORT = 0.5
-_RIVAL_MARGIN = 0.03
-_RIVAL_EVIDENCE = 20
+#: A remembered rival still stands against an accepted pose on the current maps as the
+#: semantic merger's defaults judge a rival: ``far_cells`` from it (here b's known box corners),
+#: explaining at least ``rival_support`` of its agreeing wall cells, and not beaten by
+#: ``min_margin`` in index and ``min_evidence_cells`` contradicting wall cells.
+_RIVAL_RULE = SemanticOptions.from_kwargs()
 
 
 @dataclass(frozen=True)
@@ -419,16 +417,17 @@ class MapMergeTracker:
         def crop(X: Transform) -> Transform:
             return chain(translation(-ca, -ra), X, translation(cb, rb))
 
+        rule = _RIVAL_RULE
         best = verify(crop(T))
         out = []
         for R in rivals:
-            if self._same(R, T, box_j, _RIVAL_FAR_CELLS):
+            if self._same(R, T, box_j, rule.far_cells):
                 continue  # the same place: no rival
             r = verify(crop(R))
-            if r.agree < _RIVAL_SUPPORT * best.agree:
+            if r.agree < rule.rival_support * best.agree:
                 continue
             excess = (r.disagree - best.disagree) * verify.cells_per_sample
-            if best.score - r.score < _RIVAL_MARGIN or excess < _RIVAL_EVIDENCE:
+            if best.score - r.score < rule.min_margin or excess < rule.min_evidence_cells:
                 out.append(R)
         return out
 

@@ -57,6 +57,8 @@ from mrexplore.grid import (
 )
 from mrexplore.merge.coarse import CoarseMatcher
 from mrexplore.merge.common import (
+    CODE_FREE_NEAR_WALL,
+    CODE_WALL,
     Agreement,
     MapCodes,
     MergeResult,
@@ -340,6 +342,32 @@ def cross_support(
     return float(np.linalg.eigvalsh(u.T @ u)[0])
 
 
+def agreeing_span(
+    cells_b: tuple[NDArray[np.intp], NDArray[np.intp]], T: Transform, codes_a: NDArray[np.uint8]
+) -> float:
+    """How far apart the evidence of a pose lies, in cells: the diagonal of the bounding box
+    (in a's frame) of b's wall cells ``cells_b`` (rows, cols) that land on a wall of a or on
+    free space within a cell of one under ``T`` (b cells -> a cells), the cells the verifier
+    counts as agreeing (``codes_a``: :meth:`MapCodes.codes`). 0 when none agrees.
+
+    A rack or a pillar of a warehouse gives a metre or two however well it matches, and every
+    copy of it matches as well; a room's or a corridor's walls give its size.
+    """
+    rb, cb = cells_b
+    T = np.asarray(T, dtype=np.float64)
+    c = np.rint(T[0, 0] * cb + T[0, 1] * rb + T[0, 2]).astype(np.int64)
+    r = np.rint(T[1, 0] * cb + T[1, 1] * rb + T[1, 2]).astype(np.int64)
+    h, w = codes_a.shape
+    inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
+    c, r = c[inside], r[inside]
+    got = codes_a[r, c]
+    on = (got == CODE_WALL) | (got == CODE_FREE_NEAR_WALL)
+    if not on.any():
+        return 0.0
+    c, r = c[on], r[on]
+    return float(np.hypot(int(c.max() - c.min()), int(r.max() - r.min())))
+
+
 #: Within this many cells of ``min_cross_cells`` the cross support is recomputed in float64
 #: before it decides: float32's CPU-dependent last bits move it by far less.
 _CROSS_GUARD_CELLS = 1.0
@@ -418,6 +446,7 @@ class SemanticOptions(Options):
     consistency_polish: bool = option(True, boolean)
     min_cross_cells: float = option(10.0, number(0.0, math.inf))
     rival_perfect_cells: int = option(250, integer(0))
+    min_span_m: float = option(3.0, number(0.0, math.inf))
 
     def check_together(self) -> None:
         if self.detector is not None and not self.paper_candidates:
@@ -452,6 +481,9 @@ def merge_semantic(
     - ``min_cross_cells`` (10; 0 = off): refuse a pose whose agreeing walls pin it less than this
       (:func:`cross_support`, wall cells) across their direction: one straight wall or a
       corridor slides;
+    - ``min_span_m`` (3.0; 0 = off): refuse a pose whose agreeing walls span less than this
+      (:func:`agreeing_span`, the diagonal of their bounding box, m): one object, a rack or a
+      pillar, fits every copy of it;
     - ``paper_candidates`` (False): add the seed paper's trusted-point matches as hypotheses
       (``detector``, default harris, picks their keypoints; 3-4x slower, one more correct merge
       in 166 bench pairs).
@@ -729,6 +761,16 @@ def merge_semantic(
                 f"the agreeing walls do not pin the pose along them (cross support {cross:.1f} "
                 f"wall cells < {o.min_cross_cells:g}): a slide along one wall or corridor fits "
                 "as well",
+                score=best.score,
+                **common,
+            )
+    if o.min_span_m > 0:
+        span_m = round(agreeing_span(icp.cells_b, best.T, verify.codes_a) * resolution_m, 2)
+        info["span_m"] = span_m
+        if span_m < o.min_span_m:
+            return refuse(
+                f"the agreeing walls span only {span_m:.1f} m (need {o.min_span_m:g} m): one "
+                "object, a rack or a pillar, fits every copy of it",
                 score=best.score,
                 **common,
             )

@@ -456,3 +456,37 @@ def test_min_cross_cells_refuses_a_match_on_one_wall(
     assert merge_maps(a, b, min_cross_cells=10).matched  # a room's walls pin the pose
     res = merge_maps(a, b, min_cross_cells=1e6)
     assert not res.matched and "pin the pose" in res.reason
+
+
+@pytest.mark.parametrize(("seed", "index"), [(5, 16), (6, 1), (6, 2)])
+def test_min_span_m_refuses_a_match_on_one_object(seed: int, index: int) -> None:
+    """Two disjoint crops of the depot or the warehouse (the bench's aliased family), each with
+    a rack or a pillar of one repeated kind: without the span rule the merger lays one copy on
+    the other (a wrong merge), with it the pose is refused for the size of its evidence."""
+    from mrexplore.experiments.merge_bench import classify
+    from mrexplore.experiments.merge_cases import aliased_cases
+
+    case = aliased_cases(index + 1, seed)[index]
+    loose = merge_maps(case.a, case.b, resolution_m=case.resolution_m, min_span_m=0)
+    assert classify(case, loose.matched, loose.transform)[0] == "wrong"
+    res = merge_maps(case.a, case.b, resolution_m=case.resolution_m)
+    assert not res.matched and "span only" in res.reason
+    assert res.info["span_m"] < 3.0
+
+
+def test_agreeing_span_is_the_diagonal_of_the_agreeing_walls() -> None:
+    """b's walls that land on a's walls (or within a cell of them) count; those on a's open
+    floor or unknown cells do not."""
+    from mrexplore.merge.common import MapCodes
+    from mrexplore.merge.semantic import agreeing_span
+
+    a = np.full((60, 60), FREE, dtype=np.int8)
+    a[10, 10:41] = OCCUPIED  # a 30-cell wall along row 10
+    a[:, 50:] = UNKNOWN
+    codes_a = MapCodes(a).codes(1)
+    rows = np.array([10, 10, 11, 30, 10], dtype=np.intp)  # 11: a cell off the wall, agrees
+    cols = np.array([12, 40, 25, 20, 55], dtype=np.intp)  # (30, 20): open floor; (10, 55): unknown
+    span = agreeing_span((rows, cols), np.eye(3), codes_a)
+    assert span == pytest.approx(np.hypot(40 - 12, 11 - 10))
+    shifted = agreeing_span((rows, cols), translation(0.0, 25.0), codes_a)
+    assert shifted == 0.0  # every cell moved onto open floor

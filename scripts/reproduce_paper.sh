@@ -33,14 +33,14 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
   --semantic-variant max_rotation_peaks=3,peaks_per_rotation=6,n_polish=12,n_refine=5 \
   --semantic-variant paper_candidates=true \
   --semantic-variant shared_weight=0 --semantic-variant consistency_polish=false \
-  --semantic-variant min_cross_cells=0 --semantic-variant min_span_m=0 \
+  --semantic-variant min_cross_cells=0 --semantic-variant min_wall_area_m2=0 \
   --out "$out/merge_ablation" --force
 mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
   --seeds 0-9,12 --out "$out/merge_seeds" --force
 mrexplore bench merge --methods semantic,orb --n 30 --families large --seeds 0-9 \
   --semantic-variant hough_max_cells=0 --out "$out/merge_large" --force
 mrexplore bench merge --methods semantic,orb --n 30 --families aliased --seeds 0-9 \
-  --semantic-variant min_span_m=0 --out "$out/merge_aliased" --force
+  --semantic-variant min_wall_area_m2=0 --out "$out/merge_aliased" --force
 mrexplore bench loop --seeds 20 --jobs 2 --out "$out/loop_study" --force
 mrexplore bench loop --noise off --variants semantic oracle --seeds 20 --jobs 2 \
   --out "$out/loop_exact" --force

@@ -342,16 +342,19 @@ def cross_support(
     return float(np.linalg.eigvalsh(u.T @ u)[0])
 
 
-def agreeing_span(
+def agreeing_area(
     cells_b: tuple[NDArray[np.intp], NDArray[np.intp]], T: Transform, codes_a: NDArray[np.uint8]
 ) -> float:
-    """How far apart the evidence of a pose lies, in cells: the diagonal of the bounding box
-    (in a's frame) of b's wall cells ``cells_b`` (rows, cols) that land on a wall of a or on
-    free space within a cell of one under ``T`` (b cells -> a cells), the cells the verifier
-    counts as agreeing (``codes_a``: :meth:`MapCodes.codes`). 0 when none agrees.
+    """How much of the map the evidence of a pose covers, in cells^2: the area of the smallest
+    rectangle, at any angle, around b's wall cells ``cells_b`` (rows, cols) that land on a wall
+    of a or on free space within a cell of one under ``T`` (b cells -> a cells; the cells the
+    verifier counts as agreeing, ``codes_a``: :meth:`MapCodes.codes`). 0 when fewer than three
+    agree or they lie on one line.
 
-    A rack or a pillar of a warehouse gives a metre or two however well it matches, and every
-    copy of it matches as well; a room's or a corridor's walls give its size.
+    A rack or a pillar gives a square metre or a few however well it matches, and every copy of
+    it matches as well; a room's walls cover the room. Exact on any CPU: the rectangle's sides
+    run along the edges of the cells' convex hull (integer vectors), so its extents are integer
+    dot products and its area one division.
     """
     rb, cb = cells_b
     T = np.asarray(T, dtype=np.float64)
@@ -362,10 +365,18 @@ def agreeing_span(
     c, r = c[inside], r[inside]
     got = codes_a[r, c]
     on = (got == CODE_WALL) | (got == CODE_FREE_NEAR_WALL)
-    if not on.any():
+    if np.count_nonzero(on) < 3:
         return 0.0
-    c, r = c[on], r[on]
-    return float(np.hypot(int(c.max() - c.min()), int(r.max() - r.min())))
+    pts = np.stack([c[on], r[on]], axis=1)
+    hull = cv2.convexHull(pts.astype(np.int32)).reshape(-1, 2).astype(np.int64)
+    if hull.shape[0] < 3:
+        return 0.0
+    edges = np.roll(hull, -1, axis=0) - hull  # (H, 2) integer edge vectors
+    along = hull @ edges.T  # (H, H) integer projections of every hull point on every edge
+    across = hull @ np.stack([-edges[:, 1], edges[:, 0]], axis=1).T
+    extent = (along.max(axis=0) - along.min(axis=0)) * (across.max(axis=0) - across.min(axis=0))
+    # each edge's rectangle: extents scaled by |edge|^2, one correctly rounded division each
+    return float((extent / (edges**2).sum(axis=1)).min())
 
 
 #: Within this many cells of ``min_cross_cells`` the cross support is recomputed in float64
@@ -446,7 +457,7 @@ class SemanticOptions(Options):
     consistency_polish: bool = option(True, boolean)
     min_cross_cells: float = option(10.0, number(0.0, math.inf))
     rival_perfect_cells: int = option(250, integer(0))
-    min_span_m: float = option(3.0, number(0.0, math.inf))
+    min_wall_area_m2: float = option(10.0, number(0.0, math.inf))
 
     def check_together(self) -> None:
         if self.detector is not None and not self.paper_candidates:
@@ -481,9 +492,9 @@ def merge_semantic(
     - ``min_cross_cells`` (10; 0 = off): refuse a pose whose agreeing walls pin it less than this
       (:func:`cross_support`, wall cells) across their direction: one straight wall or a
       corridor slides;
-    - ``min_span_m`` (3.0; 0 = off): refuse a pose whose agreeing walls span less than this
-      (:func:`agreeing_span`, the diagonal of their bounding box, m): one object, a rack or a
-      pillar, fits every copy of it;
+    - ``min_wall_area_m2`` (10.0; 0 = off): refuse a pose whose agreeing walls fit in a smaller
+      rectangle (:func:`agreeing_area`, m^2): one object, a rack or a pillar, fits every copy of
+      it;
     - ``paper_candidates`` (False): add the seed paper's trusted-point matches as hypotheses
       (``detector``, default harris, picks their keypoints; 3-4x slower, one more correct merge
       in 166 bench pairs).
@@ -764,13 +775,13 @@ def merge_semantic(
                 score=best.score,
                 **common,
             )
-    if o.min_span_m > 0:
-        span_m = round(agreeing_span(icp.cells_b, best.T, verify.codes_a) * resolution_m, 2)
-        info["span_m"] = span_m
-        if span_m < o.min_span_m:
+    if o.min_wall_area_m2 > 0:
+        area_m2 = agreeing_area(icp.cells_b, best.T, verify.codes_a) * resolution_m**2
+        info["wall_area_m2"] = area_m2
+        if area_m2 < o.min_wall_area_m2:
             return refuse(
-                f"the agreeing walls span only {span_m:.1f} m (need {o.min_span_m:g} m): one "
-                "object, a rack or a pillar, fits every copy of it",
+                f"the walls that agree fit in {area_m2:.1f} m^2 (need {o.min_wall_area_m2:g} "
+                "m^2): one object, a rack or a pillar, fits every copy of it",
                 score=best.score,
                 **common,
             )

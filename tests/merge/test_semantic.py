@@ -459,34 +459,60 @@ def test_min_cross_cells_refuses_a_match_on_one_wall(
 
 
 @pytest.mark.parametrize(("seed", "index"), [(5, 16), (6, 1), (6, 2)])
-def test_min_span_m_refuses_a_match_on_one_object(seed: int, index: int) -> None:
+def test_min_wall_area_m2_refuses_a_match_on_one_object(seed: int, index: int) -> None:
     """Two disjoint crops of the depot or the warehouse (the bench's aliased family), each with
-    a rack or a pillar of one repeated kind: without the span rule the merger lays one copy on
+    a rack or a pillar of one repeated kind: without the area rule the merger lays one copy on
     the other (a wrong merge), with it the pose is refused for the size of its evidence."""
     from mrexplore.experiments.merge_bench import classify
     from mrexplore.experiments.merge_cases import aliased_cases
 
     case = aliased_cases(index + 1, seed)[index]
-    loose = merge_maps(case.a, case.b, resolution_m=case.resolution_m, min_span_m=0)
+    loose = merge_maps(case.a, case.b, resolution_m=case.resolution_m, min_wall_area_m2=0)
     assert classify(case, loose.matched, loose.transform)[0] == "wrong"
     res = merge_maps(case.a, case.b, resolution_m=case.resolution_m)
-    assert not res.matched and "span only" in res.reason
-    assert res.info["span_m"] < 3.0
+    assert not res.matched and "walls that agree fit in" in res.reason
+    assert res.info["wall_area_m2"] < 10.0
 
 
-def test_agreeing_span_is_the_diagonal_of_the_agreeing_walls() -> None:
-    """b's walls that land on a's walls (or within a cell of them) count; those on a's open
-    floor or unknown cells do not."""
+def test_agreeing_area_is_the_smallest_rectangle_of_the_agreeing_walls() -> None:
+    """b's walls that land on a's walls (or within a cell of them) count, those on a's open
+    floor or unknown cells do not; the rectangle may lie at any angle."""
     from mrexplore.merge.common import MapCodes
-    from mrexplore.merge.semantic import agreeing_span
+    from mrexplore.merge.semantic import agreeing_area
 
-    a = np.full((60, 60), FREE, dtype=np.int8)
-    a[10, 10:41] = OCCUPIED  # a 30-cell wall along row 10
-    a[:, 50:] = UNKNOWN
+    a = np.full((80, 80), FREE, dtype=np.int8)
+    a[10, 10:41] = OCCUPIED  # an L of walls: 30 cells along row 10, 20 down column 40
+    a[10:31, 40] = OCCUPIED
+    a[:, 70:] = UNKNOWN
     codes_a = MapCodes(a).codes(1)
-    rows = np.array([10, 10, 11, 30, 10], dtype=np.intp)  # 11: a cell off the wall, agrees
-    cols = np.array([12, 40, 25, 20, 55], dtype=np.intp)  # (30, 20): open floor; (10, 55): unknown
-    span = agreeing_span((rows, cols), np.eye(3), codes_a)
-    assert span == pytest.approx(np.hypot(40 - 12, 11 - 10))
-    shifted = agreeing_span((rows, cols), translation(0.0, 25.0), codes_a)
-    assert shifted == 0.0  # every cell moved onto open floor
+    rows = np.array([10, 10, 30, 50, 10], dtype=np.intp)  # (50, 20): open floor
+    cols = np.array([10, 40, 40, 20, 75], dtype=np.intp)  # (10, 75): unknown
+    assert agreeing_area((rows, cols), np.eye(3), codes_a) == pytest.approx(30 * 20)
+    # the same three cells turned by 30 degrees about (40, 10): the same area
+    th = np.radians(30.0)
+    turn = np.array([[np.cos(th), -np.sin(th), 0.0], [np.sin(th), np.cos(th), 0.0], [0, 0, 1]])
+    T = translation(40.0, 10.0) @ turn @ translation(-40.0, -10.0)
+    b_cells = np.linalg.solve(T, np.stack([cols[:3], rows[:3], np.ones(3)]).astype(float))
+    rb = np.rint(b_cells[1]).astype(np.intp)
+    cb = np.rint(b_cells[0]).astype(np.intp)
+    assert agreeing_area((rb, cb), T, codes_a) == pytest.approx(600, rel=0.1)
+    assert agreeing_area((rows[:2], cols[:2]), np.eye(3), codes_a) == 0.0  # two cells: no area
+    assert agreeing_area((rows, cols), translation(0.0, 45.0), codes_a) == 0.0  # all on floor
+
+
+def test_agreeing_area_equals_opencvs_smallest_rectangle() -> None:
+    """Random cell sets (every cell coded wall): the area is OpenCV's ``minAreaRect``'s."""
+    import cv2
+
+    from mrexplore.merge.semantic import agreeing_area
+
+    rng = np.random.default_rng(3)
+    codes = np.full((400, 400), 3, dtype=np.uint8)  # CODE_WALL everywhere
+    for _ in range(50):
+        n = int(rng.integers(3, 60))
+        centre = rng.uniform(100, 300, size=2)
+        pts = np.rint(centre + rng.normal(size=(n, 2)) * rng.uniform(1, 60, size=2)).astype(int)
+        pts = np.clip(pts, 0, 399)
+        (_, _), (w, h), _ = cv2.minAreaRect(pts.astype(np.float32))
+        area = agreeing_area((pts[:, 1], pts[:, 0]), np.eye(3), codes)
+        assert area == pytest.approx(w * h, rel=1e-4, abs=1e-3)

@@ -58,6 +58,7 @@ from mrexplore.grid import (
 from mrexplore.merge.coarse import CoarseMatcher
 from mrexplore.merge.common import (
     CODE_FREE_NEAR_WALL,
+    CODE_UNKNOWN,
     CODE_WALL,
     Agreement,
     MapCodes,
@@ -68,6 +69,7 @@ from mrexplore.merge.common import (
     detector_check,
     known_bbox,
     map_points,
+    rigid_inverse,
     translation,
     warp_into,
 )
@@ -342,32 +344,41 @@ def cross_support(
     return float(np.linalg.eigvalsh(u.T @ u)[0])
 
 
-def agreeing_area(
-    cells_b: tuple[NDArray[np.intp], NDArray[np.intp]], T: Transform, codes_a: NDArray[np.uint8]
-) -> float:
-    """How much of the map the evidence of a pose covers, in cells^2: the area of the smallest
-    rectangle, at any angle, around b's wall cells ``cells_b`` (rows, cols) that land on a wall
-    of a or on free space within a cell of one under ``T`` (b cells -> a cells; the cells the
-    verifier counts as agreeing, ``codes_a``: :meth:`MapCodes.codes`). 0 when fewer than three
-    agree or they lie on one line.
-
-    A rack or a pillar gives a square metre or a few however well it matches, and every copy of
-    it matches as well; a room's walls cover the room. Exact on any CPU: the rectangle's sides
-    run along the edges of the cells' convex hull (integer vectors), so its extents are integer
-    dot products and its area one division.
-    """
-    rb, cb = cells_b
-    T = np.asarray(T, dtype=np.float64)
-    c = np.rint(T[0, 0] * cb + T[0, 1] * rb + T[0, 2]).astype(np.int64)
-    r = np.rint(T[1, 0] * cb + T[1, 1] * rb + T[1, 2]).astype(np.int64)
-    h, w = codes_a.shape
+def _agreeing_cells(
+    cells: tuple[NDArray[np.intp], NDArray[np.intp]], T: Transform, codes: NDArray[np.uint8]
+) -> tuple[NDArray[np.bool_], NDArray[np.int64], NDArray[np.int64]]:
+    """Which of the wall ``cells`` (rows, cols) land, mapped by ``T`` to the nearest cell, on a
+    wall of the other map or on free space within a cell of one (``codes``: the verifier's
+    agreeing codes), and the (cols, rows) they land on."""
+    rows, cols = cells
+    c, r = (np.rint(x).astype(np.int64) for x in map_points(np.stack([cols, rows], axis=1), T))
+    h, w = codes.shape
     inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
-    c, r = c[inside], r[inside]
-    got = codes_a[r, c]
-    on = (got == CODE_WALL) | (got == CODE_FREE_NEAR_WALL)
-    if np.count_nonzero(on) < 3:
+    got = np.full(c.size, CODE_UNKNOWN, dtype=np.uint8)
+    got[inside] = codes[r[inside], c[inside]]
+    return (got == CODE_WALL) | (got == CODE_FREE_NEAR_WALL), c, r
+
+
+def agreeing_area(a: MapCodes, b: MapCodes, T: Transform, tolerance: int = 1) -> float:
+    """How much of the maps the evidence of a pose covers, in cells^2 of a: the area of the
+    smallest rectangle, at any angle, around the wall cells that agree under ``T`` (b cells ->
+    a cells), the verifier's agreement both ways (:class:`Verifier`): b's reliable walls that
+    land on a wall of a or on free space within ``tolerance`` cells of one, where they land,
+    and a's walls that land so on b. 0 when fewer than three agree or all on one line.
+
+    A rack or a pillar gives a square metre or a few however well it matches, and every copy
+    of it matches as well; a room's or a corridor's walls cover it. Exact on any CPU: the
+    rectangle's sides run along the edges of the cells' convex hull (integer vectors), so its
+    extents are integer dot products and its area one division per edge.
+    """
+    on_b, cb, rb = _agreeing_cells(b.wall_cells(), T, a.codes(tolerance))
+    on_a, _, _ = _agreeing_cells(a.wall_cells(), rigid_inverse(T), b.codes(tolerance))
+    ra, ca = a.wall_cells()
+    pts = np.concatenate(
+        [np.stack([cb[on_b], rb[on_b]], axis=1), np.stack([ca[on_a], ra[on_a]], axis=1)]
+    )
+    if pts.shape[0] < 3:
         return 0.0
-    pts = np.stack([c[on], r[on]], axis=1)
     hull = cv2.convexHull(pts.astype(np.int32)).reshape(-1, 2).astype(np.int64)
     if hull.shape[0] < 3:
         return 0.0
@@ -457,7 +468,7 @@ class SemanticOptions(Options):
     consistency_polish: bool = option(True, boolean)
     min_cross_cells: float = option(10.0, number(0.0, math.inf))
     rival_perfect_cells: int = option(250, integer(0))
-    min_wall_area_m2: float = option(10.0, number(0.0, math.inf))
+    min_wall_area_m2: float = option(4.0, number(0.0, math.inf))
 
     def check_together(self) -> None:
         if self.detector is not None and not self.paper_candidates:
@@ -492,7 +503,7 @@ def merge_semantic(
     - ``min_cross_cells`` (10; 0 = off): refuse a pose whose agreeing walls pin it less than this
       (:func:`cross_support`, wall cells) across their direction: one straight wall or a
       corridor slides;
-    - ``min_wall_area_m2`` (10.0; 0 = off): refuse a pose whose agreeing walls fit in a smaller
+    - ``min_wall_area_m2`` (4.0; 0 = off): refuse a pose whose agreeing walls fit in a smaller
       rectangle (:func:`agreeing_area`, m^2): one object, a rack or a pillar, fits every copy of
       it;
     - ``paper_candidates`` (False): add the seed paper's trusted-point matches as hypotheses
@@ -776,11 +787,11 @@ def merge_semantic(
                 **common,
             )
     if o.min_wall_area_m2 > 0:
-        area_m2 = agreeing_area(icp.cells_b, best.T, verify.codes_a) * resolution_m**2
+        area_m2 = agreeing_area(codes_a, codes_b, best.T) * resolution_m**2
         info["wall_area_m2"] = area_m2
         if area_m2 < o.min_wall_area_m2:
             return refuse(
-                f"the walls that agree fit in {area_m2:.1f} m^2 (need {o.min_wall_area_m2:g} "
+                f"the walls that agree fit in {area_m2:.2f} m^2 (need {o.min_wall_area_m2:g} "
                 "m^2): one object, a rack or a pillar, fits every copy of it",
                 score=best.score,
                 **common,

@@ -40,7 +40,8 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
 mrexplore bench merge --methods semantic,orb --n 30 --families large --seeds 0-9 \
   --semantic-variant hough_max_cells=0 --out "$out/merge_large" --force
 mrexplore bench merge --methods semantic,orb --n 30 --families aliased --seeds 0-9 \
-  --semantic-variant min_wall_area_m2=0 --out "$out/merge_aliased" --force
+  --semantic-variant min_wall_area_m2=0 --semantic-variant min_wall_area_m2=10 \
+  --out "$out/merge_aliased" --force
 mrexplore bench loop --seeds 20 --jobs 2 --out "$out/loop_study" --force
 mrexplore bench loop --noise off --variants semantic oracle --seeds 20 --jobs 2 \
   --out "$out/loop_exact" --force

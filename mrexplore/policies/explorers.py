@@ -79,7 +79,7 @@ from mrexplore.policies.base import (
     nearest_path_index,
 )
 from mrexplore.policies.frontier_cells import find_frontiers, known_bbox, window_frontier_mask
-from mrexplore.policies.planning import PlanningGrid
+from mrexplore.policies.planning import PlanningGrid, planning_rounds
 from mrexplore.robot import Action
 from mrexplore.types import RobotView
 
@@ -236,15 +236,16 @@ class FrontierExplorer(Policy):
         self.slide_on_bump = bool(slide_on_bump)
         #: The planning rounds ``(factor, approach_cells, clearance_cells)``, tried in turn
         #: until one has a reachable frontier.
+        #: The approach distance is the same in metres on every grid.
         self.rounds: list[tuple[int, int, float]] = [
-            (self.plan_factor, self.approach_cells, self.clearance_cells)
+            (factor, self.approach_cells * self.plan_factor // factor, clearance)
+            for factor, clearance in planning_rounds(
+                self.plan_factor,
+                self.clearance_cells,
+                self.tight_clearance_cells,
+                self.fine_fallback,
+            )
         ]
-        fine = 1 if self.fine_fallback else self.plan_factor
-        fine_approach = self.approach_cells * self.plan_factor // fine
-        if fine != self.plan_factor:
-            self.rounds.append((fine, fine_approach, self.clearance_cells))
-        if self.tight_clearance_cells is not None:
-            self.rounds.append((fine, fine_approach, self.tight_clearance_cells))
         self.lookahead_m = float(lookahead_m)
         self.arrive_m = float(arrive_m)
         self.turn_step_rad = float(turn_step_rad)

@@ -19,7 +19,7 @@ from mrexplore.policies.base import (
     follow_path,
     nearest_path_index,
 )
-from mrexplore.policies.planning import PlanningGrid
+from mrexplore.policies.planning import PlanningGrid, planning_rounds
 from mrexplore.robot import Action
 from mrexplore.types import RobotView
 
@@ -177,14 +177,10 @@ class GoalPolicy(Policy):
                 c0, r0 = round(c), round(r)
                 m[max(r0 - 1, 0) : r0 + 2, max(c0 - 1, 0) : c0 + 2] = OCCUPIED
         self.path = None
-        # Rounds as the frontier explorer's: coarse cells, then the map's own cells, then the
-        # simulator's own collision rule (no clearance). Coarse cells and the clearance close
-        # gaps the robot fits through; on tb3_office a robot put back at its start found its
-        # own cell enclosed and stood there for the rest of the episode.
+        # The frontier explorer's rounds: on tb3_office a robot put back at its start found its
+        # own cell enclosed on coarse cells with the clearance, and stood there for 480 s.
         best: tuple[float, int, PlanningGrid, tuple[int, int], bool] | None = None
-        for k, (factor, clearance) in enumerate(((self.plan_factor, 0.5), (1, 0.5), (1, 0.0))):
-            if k == 1 and factor == self.plan_factor:
-                continue  # the first round was on the map's own cells already
+        for k, (factor, clearance) in enumerate(planning_rounds(self.plan_factor)):
             grid = PlanningGrid.build(
                 m,
                 float(view.resolution_m),

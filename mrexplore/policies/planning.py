@@ -42,7 +42,13 @@ from mrexplore import kernels
 from mrexplore.errors import ConfigError, GridError
 from mrexplore.grid import Int8Grid, free_mask, known_mask, occupied_mask
 
-__all__ = ["PlanningGrid", "distance_field", "distance_field_scan", "inflate_obstacles"]
+__all__ = [
+    "PlanningGrid",
+    "distance_field",
+    "distance_field_scan",
+    "inflate_obstacles",
+    "planning_rounds",
+]
 
 _SQRT2 = math.sqrt(2.0)
 
@@ -57,6 +63,32 @@ _NEIGHBOURS: tuple[tuple[int, int, float], ...] = (
     (1, -1, _SQRT2),
     (1, 1, _SQRT2),
 )
+
+
+def planning_rounds(
+    factor: int,
+    clearance_cells: float = 0.5,
+    tight_clearance_cells: float | None = 0.0,
+    fine_fallback: bool = True,
+) -> list[tuple[int, float]]:
+    """The ``(factor, clearance_cells)`` planning grids a policy tries in turn until one gets it
+    where it wants to go: ``factor`` fine cells per planning cell with ``clearance_cells``;
+    then (``fine_fallback``) the map's own cells, where coarse cells closed a gap the robot
+    fits through; then (unless ``tight_clearance_cells`` is None) the simulator's own
+    collision rule, which frees a robot whose own cell the clearance encloses.
+
+    >>> planning_rounds(2)
+    [(2, 0.5), (1, 0.5), (1, 0.0)]
+    >>> planning_rounds(1, tight_clearance_cells=None)
+    [(1, 0.5)]
+    """
+    rounds = [(int(factor), float(clearance_cells))]
+    fine = 1 if fine_fallback else int(factor)
+    if fine != factor:
+        rounds.append((fine, float(clearance_cells)))
+    if tight_clearance_cells is not None:
+        rounds.append((fine, float(tight_clearance_cells)))
+    return rounds
 
 
 def inflate_obstacles(

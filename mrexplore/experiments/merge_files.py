@@ -42,7 +42,8 @@ def merge_files(
 
     The outputs (``out_yaml``, its ``.pgm`` image and the ``.png`` figure) are checked before any
     work: none may be an input (a YAML or the image it names) or an existing file unless
-    ``force``. ``min_common_m2`` is measured at the maps' own resolution (from the YAML).
+    ``force``. ``min_common_m2`` and ``min_wall_area_m2`` are measured at the maps' own
+    resolution (from the YAML).
 
     Raises:
         MapFileNotFoundError / MapFileError: a file is missing or malformed, or the two maps'

@@ -44,7 +44,8 @@ def merge_maps(
         method: ``"semantic"`` (default; verified, any rotation, refuses ambiguous cases),
             ``"paper"`` (Durdu & Korkmaz 2019, translation only) or ``"orb"`` (m-explore baseline).
         resolution_m: metres per cell of both maps. The semantic method measures its
-            ``min_common_m2`` guard in square metres at this resolution, so pass the maps' own
+            ``min_common_m2`` and ``min_wall_area_m2`` guards in square metres at this
+            resolution, so pass the maps' own
             (``mrexplore merge`` takes it from the YAML). None assumes
             :data:`DEFAULT_RESOLUTION_M` (0.05); the result says which was used
             (``info["resolution_m"]``, and ``info["resolution_assumed"]`` is True when assumed).

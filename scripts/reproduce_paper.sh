@@ -5,7 +5,9 @@
 #      merge_seeds.{json,md}: the default merger on eleven seeds' cases (1,320), the rates;
 #      merge_large.{json,md}: large maps (500-900 cells a side, 300 cases), with and without
 #      the pooled rotation spectrum of large maps; merge_aliased.{json,md}: crops of repetitive
-#      real maps that do not overlap (the right answer is a refusal)
+#      real maps that do not overlap (the right answer is a refusal); merge_heldout.{json,md}:
+#      the default merger on ten seeds no rule was chosen on (13-22), with and without the
+#      wall-area rule
 #   2. loop_study.{json,md}: merging in the exploration loop against an oracle merger;
 #      loop_exact.{json,md}: the same with exact odometry (a merge error is then a wrong place);
 #      loop_nav.{json,md}: the navigation task (exact odometry) against the oracle;
@@ -42,6 +44,8 @@ mrexplore bench merge --methods semantic,orb --n 30 --families large --seeds 0-9
 mrexplore bench merge --methods semantic,orb --n 30 --families aliased --seeds 0-9 \
   --semantic-variant min_wall_area_m2=0 --semantic-variant min_wall_area_m2=10 \
   --out "$out/merge_aliased" --force
+mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
+  --seeds 13-22 --semantic-variant min_wall_area_m2=0 --out "$out/merge_heldout" --force
 mrexplore bench loop --seeds 20 --jobs 2 --out "$out/loop_study" --force
 mrexplore bench loop --noise off --variants semantic oracle --seeds 20 --jobs 2 \
   --out "$out/loop_exact" --force

@@ -7,7 +7,8 @@
 #      the pooled rotation spectrum of large maps; merge_aliased.{json,md}: crops of repetitive
 #      real maps that do not overlap (the right answer is a refusal); merge_heldout.{json,md}:
 #      the default merger on ten seeds no rule was chosen on (13-22), with and without the
-#      wall-area rule
+#      wall-area rule and the polish margin; merge_heldout2.{json,md}: ten more (23-32), kept
+#      unseen until the polish margin (chosen on 13-22) was judged on them
 #   2. loop_study.{json,md}: merging in the exploration loop against an oracle merger;
 #      loop_exact.{json,md}: the same with exact odometry (a merge error is then a wrong place);
 #      loop_nav.{json,md}: the navigation task (exact odometry) against the oracle;
@@ -38,7 +39,7 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
   --semantic-variant paper_candidates=true \
   --semantic-variant shared_weight=0 --semantic-variant consistency_polish=false \
   --semantic-variant min_cross_cells=0 --semantic-variant min_wall_area_m2=0 \
-  --out "$out/merge_ablation" --force
+  --semantic-variant polish_margin=0 --out "$out/merge_ablation" --force
 mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
   --seeds 0-9,12 --out "$out/merge_seeds" --force
 mrexplore bench merge --methods semantic,orb --n 30 --families large --seeds 0-9 \
@@ -47,7 +48,10 @@ mrexplore bench merge --methods semantic,orb --n 30 --families aliased --seeds 0
   --semantic-variant min_wall_area_m2=0 --semantic-variant min_wall_area_m2=10 \
   --out "$out/merge_aliased" --force
 mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
-  --seeds 13-22 --semantic-variant min_wall_area_m2=0 --out "$out/merge_heldout" --force
+  --seeds 13-22 --semantic-variant min_wall_area_m2=0 --semantic-variant polish_margin=0 \
+  --out "$out/merge_heldout" --force
+mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
+  --seeds 23-32 --semantic-variant polish_margin=0 --out "$out/merge_heldout2" --force
 mrexplore bench loop --seeds 20 --jobs 2 --out "$out/loop_study" --force
 mrexplore bench loop --noise off --variants semantic oracle --seeds 20 --jobs 2 \
   --out "$out/loop_exact" --force

@@ -8,7 +8,11 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from mrexplore import kernels
 from mrexplore.grid import FREE_THRESHOLD, OCCUPIED_THRESHOLD, Int8Grid
+
+# The compiled pooling and ratio score (None without numba); used while kernels.enabled().
+_merging = kernels.load("merging")
 
 F32 = NDArray[np.float32]
 F64 = NDArray[np.float64]
@@ -26,8 +30,15 @@ def _pool(grid: Int8Grid, s: int) -> tuple[F32, F32]:
     size is a multiple of s), far cheaper than numpy reductions over a 4-D view. As uint8 0/255
     masks for s <= 16: a wall among s^2 cells averages >= 255 / 256, which rounds above 0, and a
     block short of one free cell <= 255 - 255 / 256, which rounds below 255; larger blocks as
-    float32 0/1 masks.
+    float32 0/1 masks. With the kernels on, :func:`mrexplore.kernels.merging.pool_blocks`
+    computes the same any / all in one pass (this path is its test oracle).
     """
+    if kernels.enabled():
+        assert _merging is not None
+        wall_k, free_k = _merging.pool_blocks(
+            np.ascontiguousarray(grid).view(np.uint8), s, OCCUPIED_THRESHOLD, FREE_THRESHOLD
+        )
+        return wall_k, free_k
     h, w = grid.shape
     H, W = -(-h // s), -(-w // s)
     cells = grid.view(np.uint8)  # unknown (-1) is 255, above every occupancy value (<= 100)
@@ -123,8 +134,13 @@ class CoarseMatcher:
             # favours clean alignments over large but contradicted overlaps (repetitive shelves)
             # both are counts of 0/1 blocks: rounded, they are exact on every CPU (the FFT's
             # last bits are not), and so is the score computed from them
-            ag = np.maximum(np.rint(_correlation((self.FAW, FB1))), 0.0)
-            ds = np.maximum(np.rint(_correlation((self.FAF, FB1), (self.FAWW, FB2))), 0.0)
+            ag_raw = _correlation((self.FAW, FB1))
+            ds_raw = _correlation((self.FAF, FB1), (self.FAWW, FB2))
+            if self.p == 2.0 and kernels.enabled():  # the default power: one compiled pass
+                assert _merging is not None
+                return self._top(_merging.ratio_scores(ag_raw, ds_raw), wb.shape, k, nms)
+            ag = np.maximum(np.rint(ag_raw), 0.0)
+            ds = np.maximum(np.rint(ds_raw), 0.0)
             # S = agree * (agree / (agree + dis + 2))^p, in place (the same operations in the
             # same order as the plain expression, so the same bits)
             ds += ag

@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from mrexplore import kernels
 from mrexplore.grid import FREE_THRESHOLD, OCCUPIED_THRESHOLD
-from mrexplore.merge.coarse import _correlation, _pool, _spectrum
+from mrexplore.merge.coarse import CoarseMatcher, _correlation, _pool, _spectrum
 
 
 def _pool_reference(grid: np.ndarray, s: int) -> tuple[np.ndarray, np.ndarray]:
@@ -24,8 +25,15 @@ def _pool_reference(grid: np.ndarray, s: int) -> tuple[np.ndarray, np.ndarray]:
     return wall, free
 
 
+@pytest.mark.parametrize("compiled", [True, False])
 @pytest.mark.parametrize("s", [1, 2, 3, 4, 7, 16, 17, 32])
-def test_pool_is_block_any_wall_and_all_free(s: int) -> None:
+def test_pool_is_block_any_wall_and_all_free(
+    s: int, compiled: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Both paths: the compiled one pass and OpenCV's padding, ``inRange`` and resizes."""
+    if compiled and not kernels.HAVE_NUMBA:
+        pytest.skip("numba is not installed")
+    monkeypatch.setattr(kernels, "USE_NUMBA", compiled)
     rng = np.random.default_rng(s)
     values = np.array([-1, 0, FREE_THRESHOLD, FREE_THRESHOLD + 1, OCCUPIED_THRESHOLD - 1,
                        OCCUPIED_THRESHOLD, 100], dtype=np.int8)  # fmt: skip
@@ -66,3 +74,51 @@ def test_correlation_is_the_circular_cross_correlation(shape: tuple[int, int]) -
     assert got[2, 3] - ref(a2, b2)[2, 3] == pytest.approx(
         float((np.roll(pa, (-2, -3), (0, 1)) * pb).sum())
     )
+
+
+def _office_pair(seed: int) -> tuple[np.ndarray, np.ndarray]:
+    from mrexplore.experiments.merge_cases import real_map_case
+    from mrexplore.world import symmetric_office
+
+    rng = np.random.default_rng(seed)
+    world = symmetric_office(rng, width_m=16.0, height_m=16.0)
+    full = np.where(world.walls, 100, 0).astype(np.int8)
+    case = real_map_case(full, rng, crop=(200, 200), name="office")
+    return case.a, case.b
+
+
+@pytest.mark.skipif(not kernels.HAVE_NUMBA, reason="numba is not installed")
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_compiled_coarse_peaks_equal_the_numpy_path(
+    seed: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The compiled pooling and ratio score give the same peaks, scores bit for bit, as the
+    OpenCV and numpy path, on rotated crops of an office floor and on b turned by 0-3 quarter
+    turns (blocks cut by the edges, sides not a multiple of the block)."""
+    from mrexplore.kernels.merging import ratio_scores
+
+    a, b = _office_pair(seed)
+    for quarter in range(4):
+        bq = np.ascontiguousarray(np.rot90(b, quarter))
+        for scale in (3, 4):
+            got, want = [], []
+            for use, out in ((True, got), (False, want)):
+                monkeypatch.setattr(kernels, "USE_NUMBA", use)
+                matcher = CoarseMatcher(a, scale, bq.shape, 0.2, 1.0, 2.0)
+                out.append(matcher.peaks(bq, 12))
+            assert got == want and len(got[0]) == 12
+    # the score itself, on raw correlations with FFT noise, negative noise and ties of -0.0
+    rng = np.random.default_rng(seed)
+    ag = rng.integers(0, 400, (50, 60)) + rng.normal(0, 1e-9, (50, 60))
+    ds = rng.integers(0, 400, (50, 60)) + rng.normal(0, 1e-9, (50, 60))
+    ag[:5] = -1e-12
+    ds[5:10] = -0.0
+    want = np.maximum(np.rint(ds), 0.0)
+    a0 = np.maximum(np.rint(ag), 0.0)
+    want += a0
+    want += 2.0
+    np.divide(a0, want, out=want)
+    np.power(want, 2.0, out=want)
+    np.multiply(a0, want, out=want)
+    want = np.round(want, 6).astype(np.float32)
+    assert ratio_scores(ag, ds).tobytes() == want.tobytes()

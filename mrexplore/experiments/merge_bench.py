@@ -59,6 +59,12 @@ DEFAULT_CONFIGS: tuple[tuple[str, str | None, dict[str, Any]], ...] = (
     ("orb", "orb", {"min_confidence": 0.6}),
     ("orb", "sift", {}),
 )
+#: Diagnostic configurations, run only when named in ``methods``: ``seeded`` is the semantic
+#: merger with the true pose handed in as one more hypothesis (``extra_hypotheses``), judged by
+#: the same rules. Where the default refuses and ``seeded`` merges, the search missed the truth;
+#: where both refuse, the decision rules did (the in-loop study has the same variant). The truth
+#: reaches a merger only here and in the oracle of the loop study.
+DIAGNOSTIC_CONFIGS: tuple[tuple[str, str | None, dict[str, Any]], ...] = (("seeded", None, {}),)
 CORRECT_CELLS = 2.0
 WRONG_CELLS = 5.0
 
@@ -93,8 +99,14 @@ def evaluate(
     big = big_ok = forty = forty_ok = half = half_ok = 0
     for c in cases:
         t_cpu = time.process_time()
-        extra = {"resolution_m": c.resolution_m} if method == "semantic" else {}
-        res = merge_maps(c.a, c.b, method=method, **extra, **kw)
+        extra: dict[str, Any] = {}
+        if method in ("semantic", "seeded"):
+            extra["resolution_m"] = c.resolution_m
+        if method == "seeded":
+            extra["extra_hypotheses"] = [np.asarray(c.T_ab, dtype=np.float64)]
+        res = merge_maps(
+            c.a, c.b, method="semantic" if method == "seeded" else method, **extra, **kw
+        )
         cpu.append(time.process_time() - t_cpu)
         kind, err = classify(c, res.matched, res.transform)
         counts[kind] += 1
@@ -171,13 +183,14 @@ def run_bench(
     """Rows ``{family, method, detector, n, correct, wrong, imprecise, refused,
     correct_overlap30, median_ms, cases}`` for every configuration and family.
 
-    ``methods``/``detectors`` filter :data:`DEFAULT_CONFIGS` (None = all); ``configs`` replaces
-    it. ``n_cases`` cases per family, seeded by ``seed``; or, with ``seeds``, ``n_cases`` per
-    family and seed, pooled (case names then end in `` (seed S)``).
+    ``methods``/``detectors`` filter :data:`DEFAULT_CONFIGS` (None = all), and a method of
+    :data:`DIAGNOSTIC_CONFIGS` named in ``methods`` is added; ``configs`` replaces them all.
+    ``n_cases`` cases per family, seeded by ``seed``; or, with ``seeds``, ``n_cases`` per family
+    and seed, pooled (case names then end in `` (seed S)``).
     """
     if n_cases < 1:
         raise ConfigError(f"run_bench: n_cases must be >= 1, got {n_cases}")
-    known_methods = {m for m, _, _ in DEFAULT_CONFIGS}
+    known_methods = {m for m, _, _ in DEFAULT_CONFIGS + DIAGNOSTIC_CONFIGS}
     known_detectors = {d for _, d, _ in DEFAULT_CONFIGS if d is not None}
     bad = sorted(set(methods or ()) - known_methods)
     if bad:
@@ -201,6 +214,7 @@ def run_bench(
             if (methods is None or m in methods)
             and (detectors is None or d is None or d in detectors)
         ]
+        + [c for c in DIAGNOSTIC_CONFIGS if methods is not None and c[0] in methods]
     )
     rows: list[dict[str, Any]] = []
     for fam in families:
@@ -405,7 +419,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         metavar="S,S-S",
         help="pool the cases of these seeds per family, e.g. 0-9,12 (replaces --seed)",
     )
-    p.add_argument("--methods", default=None, help="comma list of semantic,paper,orb (default all)")
+    p.add_argument(
+        "--methods",
+        default=None,
+        help="comma list of semantic,paper,orb (default all) and the diagnostic seeded (the "
+        "semantic merger with the true pose among its hypotheses: search misses vs rule refusals)",
+    )
     p.add_argument("--detectors", default=None, help="comma list filter of detectors")
     p.add_argument("--families", default="symmetric,real")
     p.add_argument("--out", default=None, help="write STEM.json and STEM.md")
@@ -444,12 +463,16 @@ def main(argv: Sequence[str] | None = None) -> int:
             probe = np.full((4, 4), -1, dtype=np.int8)
             for opts in variants:  # a misspelt option fails now, not after the cases are made
                 merge_maps(probe, probe, method="semantic", **opts)
-            configs = [
-                (m, d, o)
-                for m, d, o in DEFAULT_CONFIGS
-                if (methods is None or m in methods)
-                and (detectors is None or d is None or d in detectors)
-            ] + [("semantic", None, o) for o in variants]
+            configs = (
+                [
+                    (m, d, o)
+                    for m, d, o in DEFAULT_CONFIGS
+                    if (methods is None or m in methods)
+                    and (detectors is None or d is None or d in detectors)
+                ]
+                + [c for c in DIAGNOSTIC_CONFIGS if methods is not None and c[0] in methods]
+                + [("semantic", None, o) for o in variants]
+            )
         # --n 0: only the extra timings (--sizes, --tracker), no table
         if args.n == 0 and not (args.sizes or args.tracker):
             raise ConfigError("--n 0 runs only --sizes or --tracker: give one of them")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from mrexplore.cli import main
@@ -91,6 +92,31 @@ def test_merge_seeds_pool_the_cases_of_each_seed() -> None:
     assert [c["kind"] for c in pooled["cases"][2:]] == [c["kind"] for c in one["cases"]]
     assert all(n.endswith(" (seed 0)") for n in names[:2])
     assert pooled["correct_overlap40"].count("/") == 1
+
+
+def test_merge_seeded_row_hands_the_merger_the_truth(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """``seeded`` runs only when named, and calls the semantic merger with the case's true pose
+    among its hypotheses (and nothing else changed)."""
+    from mrexplore.experiments import merge_bench
+
+    calls: list[dict] = []
+    real = merge_bench.merge_maps
+
+    def spy(a, b, method="semantic", **kw):  # type: ignore[no-untyped-def]
+        calls.append({"method": method, **kw})
+        return real(a, b, method=method, **kw)
+
+    monkeypatch.setattr(merge_bench, "merge_maps", spy)
+    rows = merge_bench.run_bench(2, methods=["semantic", "seeded"], families=["symmetric"])
+    assert [r["method"] for r in rows] == ["semantic", "seeded"]
+    cases = merge_bench.make_cases("symmetric", 2, 0)
+    plain, seeded = calls[:2], calls[2:]
+    assert all("extra_hypotheses" not in c for c in plain)
+    for c, case in zip(seeded, cases, strict=True):
+        assert c["method"] == "semantic"
+        np.testing.assert_array_equal(c["extra_hypotheses"][0], case.T_ab)
+    assert rows[1]["wrong"] == 0
+    assert "seeded" not in {r["method"] for r in merge_bench.run_bench(1, families=["symmetric"])}
 
 
 def test_large_cases_reach_past_the_large_map_bound() -> None:

@@ -263,8 +263,33 @@ HEADERS = (
 )
 
 
+def seeded_summary(
+    default: dict[str, Any], seeded: dict[str, Any], min_overlap: float = 0.4
+) -> str:
+    """One sentence pairing the default semantic row with the ``seeded`` row of the same cases:
+    of the default's refusals at ``min_overlap`` or more, how many the true pose handed in turns
+    into merges (the search missed them) and how many stay refused (the decision rules refuse
+    even the truth), and how many of the default's merges are lost with it."""
+    pairs = [
+        (d, s)
+        for d, s in zip(default["cases"], seeded["cases"], strict=True)
+        if d["overlap"] >= min_overlap
+    ]
+    refused = [(d, s) for d, s in pairs if d["kind"] == "refused"]
+    rescued = sum(s["kind"] == "correct" for _, s in refused)
+    other = sum(s["kind"] in ("imprecise", "wrong") for _, s in refused)
+    lost = sum(d["kind"] == "correct" and s["kind"] != "correct" for d, s in pairs)
+    return (
+        f"With the true pose handed in (`seeded`), at overlap >= {min_overlap:.0%}: of the "
+        f"default's {len(refused)} refusals, {rescued} become correct merges (the search missed "
+        f"the truth), {other} imprecise or wrong, {len(refused) - rescued - other} stay refused "
+        f"(the rules refuse the truth too); {lost} of its correct merges are not correct with it."
+    )
+
+
 def to_markdown(rows: Sequence[dict[str, Any]]) -> str:
-    """One Markdown table per family."""
+    """One Markdown table per family (with :func:`seeded_summary` when it holds a ``seeded``
+    row beside the default one)."""
     out = []
     for fam in dict.fromkeys(r["family"] for r in rows):
         sel = [r for r in rows if r["family"] == fam]
@@ -274,6 +299,11 @@ def to_markdown(rows: Sequence[dict[str, Any]]) -> str:
         out.append("|" + "---|" * len(HEADERS))
         for r in sel:
             out.append("| " + " | ".join(str(r[c]) for c in COLUMNS) + " |")
+        default = [r for r in sel if r["method"] == "semantic" and r["options"] == "-"]
+        seeded = [r for r in sel if r["method"] == "seeded" and r["options"] == "-"]
+        if default and seeded:
+            out.append("")
+            out.append(seeded_summary(default[0], seeded[0]))
         out.append("")
     return "\n".join(out)
 

@@ -155,3 +155,27 @@ def test_aliased_cases_do_not_overlap() -> None:
         assert overlap_share(c.a, c.b, c.T_ab) == 0.0
         assert classify(c, False, None)[0] == "refused"
         assert classify(c, True, np.eye(3))[0] == "wrong"
+
+
+def test_seeded_summary_counts_rescues_refusals_and_losses() -> None:
+    from mrexplore.experiments.merge_bench import COLUMNS, seeded_summary, to_markdown
+
+    def row(method: str, kinds: list[str]) -> dict:
+        cases = [
+            {"overlap": ov, "kind": k}
+            for ov, k in zip([0.5, 0.6, 0.7, 0.2, 0.9], kinds, strict=True)
+        ]
+        return {"method": method, "options": "-", "family": "real", "cases": cases}
+
+    default = row("semantic", ["refused", "refused", "correct", "refused", "refused"])
+    seeded = row("seeded", ["correct", "refused", "refused", "correct", "wrong"])
+    text = seeded_summary(default, seeded)
+    # overlap >= 40 %: refusals at 0.5, 0.6, 0.9 (0.2 is below): one rescued, one wrong, one
+    # still refused; the correct merge at 0.7 is lost
+    assert "default's 3 refusals, 1 become correct" in text
+    assert "1 imprecise or wrong, 1 stay refused" in text
+    assert "1 of its correct merges are not correct" in text
+    for r in (default, seeded):
+        r.update({c: 0 for c in COLUMNS if c not in r} | {"n": 5})
+    assert text in to_markdown([default, seeded])
+    assert "true pose" not in to_markdown([default])

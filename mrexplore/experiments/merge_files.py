@@ -3,7 +3,9 @@
 Writes the merged map (YAML + PGM, in a's frame, canvas grown as needed, origin shifted so the
 world coordinates of a's cells are unchanged) and a PNG beside it (``merged.png``) with the two
 inputs side by side, the matched points joined by lines (like the seed paper's Figure 6), and
-the result. Prints the transform and the score, or says plainly that no reliable match was found.
+the result. Prints the transform and the score, or says plainly that no reliable match was found;
+when the refusal is an ambiguity (look-alike places), it also prints the best pose and its
+rivals with their agreement, so a user who knows where the maps overlap can tell which is right.
 
 Exit codes: **0** merged, **1** refused (no reliable match: a clean, expected outcome, but one a
 script must be able to tell apart), **2** bad input (missing or malformed file, different
@@ -124,6 +126,57 @@ def figure(a: Int8Grid, b: Int8Grid, res: MergeResult, max_lines: int = 40) -> N
     return out
 
 
+def read_resolution(a_yaml: str | Path) -> float:
+    """The resolution (m/cell) a map_server YAML declares (read again for the printout)."""
+    from mrexplore.world.map_io import read_map_yaml
+
+    return float(read_map_yaml(a_yaml).resolution_m)
+
+
+def _pose_line(label: str, T: NDArray[np.float64], ag: Any, resolution_m: float) -> str:
+    # rounded, then + 0.0: a -1e-12 would print as "-0.00"
+    tx, ty = round(float(T[0, 2]), 1) + 0.0, round(float(T[1, 2]), 1) + 0.0
+    deg = round(float(np.degrees(transform_angle(T))), 2) + 0.0
+    text = (
+        f"  {label}: rotation {deg:.2f} deg, translation "
+        f"({tx:.1f}, {ty:.1f}) cells = ({tx * resolution_m:.2f}, {ty * resolution_m:.2f}) m"
+    )
+    if ag is not None:
+        text += f", index {ag.score:.3f} ({ag.agree} agreeing, {ag.disagree} contradicting walls)"
+    return text
+
+
+def candidate_lines(res: MergeResult, resolution_m: float, max_rivals: int = 3) -> list[str]:
+    """When the semantic merger refused because far-apart poses explain the maps about as well
+    (look-alike places), the poses it weighed (b's cells -> a's, as ``transform`` would be),
+    best first: a user who knows where the maps overlap can tell which one is right. Empty for
+    other refusals and other methods. Wall counts are of the verifier's sampled wall cells."""
+    info = res.info or {}
+    best, rivals = info.get("best_transform"), info.get("rivals") or []
+    if best is None or not rivals or not res.reason.startswith("ambiguous"):
+        return []
+    ags = info.get("rival_agreements") or [None] * len(rivals)
+    lines = ["the best pose and its rivals, far poses that explain half as much or more (b -> a):"]
+    lines.append(_pose_line("best ", np.asarray(best), info.get("best_agreement"), resolution_m))
+    shown: list[NDArray[np.float64]] = [np.asarray(best)]
+    for T, ag in zip(rivals, ags, strict=True):
+        T = np.asarray(T)
+        if any(_near(T, S) for S in shown):
+            continue  # the same place as one listed, a cell or a degree apart
+        if len(shown) > max_rivals:
+            lines.append("  ... and more")
+            break
+        lines.append(_pose_line("rival", T, ag, resolution_m))
+        shown.append(T)
+    return lines
+
+
+def _near(T: NDArray[np.float64], S: NDArray[np.float64]) -> bool:
+    """Within 3 cells and 2 degrees of each other."""
+    turn = abs((transform_angle(T) - transform_angle(S) + np.pi) % (2 * np.pi) - np.pi)
+    return bool(np.hypot(*(T[:2, 2] - S[:2, 2])) < 3.0 and np.degrees(turn) < 2.0)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """CLI entry point; returns the exit code (0 merged, 1 refused, 2 bad input)."""
     p = argparse.ArgumentParser(prog="mrexplore merge", description=__doc__.split("\n\n")[0])
@@ -147,6 +200,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not res.matched or res.transform is None:
         print(f"no reliable match found: {res.reason}")
         print(f"(best score {res.score:.3f}; figure: {png})")
+        for line in candidate_lines(res, read_resolution(args.a)):
+            print(line)
         return 1
     T = res.transform
     print(f"merged with method={res.method} in {res.time_s * 1e3:.0f} ms, score {res.score:.3f}")

@@ -737,9 +737,11 @@ def merge_semantic(
     info["rivals"] = [
         chain(translation(bba[2], bba[0]), h.T, translation(-bbb[2], -bbb[0])) for h in rivals
     ]
+    info["rival_agreements"] = [h.agreement for h in rivals]
     info["best_agreement"] = best.agreement
     info["runner_up_agreement"] = rivals[0].agreement if rivals else None
     T_full = chain(translation(bba[2], bba[0]), best.T, translation(-bbb[2], -bbb[0]))
+    info["best_transform"] = T_full  # the pose judged below, also when it is refused
     overlap_cells = int(best.agreement.overlap * verify.cells_per_sample)
     common = dict(n_hypotheses=len(hyps), runner_up_score=runner, overlap_cells=overlap_cells)
     info["best_source"] = best.source

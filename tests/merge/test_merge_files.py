@@ -130,3 +130,28 @@ def test_min_common_m2_is_measured_at_the_files_resolution(tmp_path: Path, offic
     res = merge_files(pa, pb, tmp_path / "m.yaml", min_common_m2=100.0)
     assert res.info["resolution_m"] == 0.1 and res.info["resolution_assumed"] is False
     assert res.matched, res.reason
+
+
+def test_an_ambiguous_refusal_prints_the_poses_it_could_not_tell_apart(
+    tmp_path: Path, capsys
+) -> None:  # type: ignore[no-untyped-def]
+    """Two identical rooms side by side: b (the left room) fits both. The merger refuses, and
+    the CLI prints the best pose and the rival one room-width (130 cells, 6.5 m) away, so a user
+    who knows where b was mapped can tell which is right."""
+    a = np.zeros((120, 260), np.int8)
+    a[0, :] = a[-1, :] = a[:, 0] = a[:, -1] = a[:, 130] = 100
+    a[50:70, 130] = 0  # the door between the rooms
+    for c0 in (0, 130):  # the same furniture in each room
+        a[30:40, c0 + 30 : c0 + 70] = 100
+        a[80:100, c0 + 90 : c0 + 95] = 100
+    pa = write_map_yaml(tmp_path / "a.yaml", a, 0.05)
+    pb = write_map_yaml(tmp_path / "b.yaml", a[:, :131].copy(), 0.05)
+    assert main([str(pa), str(pb), "-o", str(tmp_path / "m.yaml")]) == 1
+    out = capsys.readouterr().out
+    assert "ambiguous" in out and "its rivals" in out
+    poses = [line for line in out.splitlines() if line.startswith(("  best", "  rival"))]
+    assert len(poses) >= 2
+    xs = sorted(float(line.split("translation (")[1].split(",")[0]) for line in poses[:2])
+    assert xs[0] == pytest.approx(0.0, abs=1.0) and xs[1] == pytest.approx(130.0, abs=1.0)
+    assert "6.50" in out or "6.49" in out or "6.51" in out
+    assert not (tmp_path / "m.yaml").exists()

@@ -40,7 +40,7 @@ IN_LOOP_RIVAL_PERFECT_CELLS = 0
 IN_LOOP_MIN_ACCEPT_CELLS = 250
 #: The semantic merger's options in the loop (the env's tracker and the loop study's seeded
 #: diagnostic); options the caller gives win.
-IN_LOOP_SEMANTIC_OPTIONS: dict[str, float] = {
+IN_LOOP_SEMANTIC_OPTIONS: dict[str, Any] = {
     "min_common_m2": IN_LOOP_MIN_COMMON_M2,
     "rival_perfect_cells": IN_LOOP_RIVAL_PERFECT_CELLS,
 }

@@ -108,6 +108,50 @@ class _Hypothesis:
         return float(ag.agree - 10 * ag.disagree) + self.shared_bonus
 
 
+@dataclass(frozen=True)
+class PosePrior:
+    """A rough guess of where b lies in a, for maps of look-alike places the merger cannot tell
+    apart alone (as m-explore's map merge takes known initial poses).
+
+    ``T_ab``: the guessed pose (3x3, b's cells -> a's cells, both maps' full grids). A pose is
+    considered only when it puts the centre of b's walls within ``radius_cells`` of where the
+    guess puts it and turns b by at most ``turn_deg`` from the guess. Every other rule holds
+    inside that region: consistency, a unique best (a rival inside the region still refuses),
+    the pin and the wall area. A wrong guess can make a wrong merge: the merger trusts it.
+
+    >>> PosePrior(np.eye(3), radius_cells=-1.0)
+    Traceback (most recent call last):
+    ...
+    mrexplore.errors.ConfigError: PosePrior: radius_cells must be a number > 0, got -1.0
+    """
+
+    T_ab: Transform
+    radius_cells: float = 40.0
+    turn_deg: float = 10.0
+
+    def __post_init__(self) -> None:
+        T = np.asarray(self.T_ab, dtype=np.float64)
+        if T.shape != (3, 3) or not np.isfinite(T).all():
+            raise ConfigError(f"PosePrior: T_ab must be a finite 3x3 transform, got {self.T_ab!r}")
+        for name in ("radius_cells", "turn_deg"):
+            v = getattr(self, name)
+            if not isinstance(v, int | float) or not math.isfinite(v) or v <= 0:
+                raise ConfigError(f"PosePrior: {name} must be a number > 0, got {v!r}")
+        object.__setattr__(self, "T_ab", T)
+
+    def admits(self, T: Transform, centre: NDArray[np.float64], prior_T: Transform) -> bool:
+        """Whether pose ``T`` lies in the region around ``prior_T`` (both in the same frames;
+        ``centre`` (2,): the centre of b's walls in b's cells)."""
+        p = np.stack(map_points(centre.reshape(1, 2), T), axis=1)[0]
+        q = np.stack(map_points(centre.reshape(1, 2), prior_T), axis=1)[0]
+        turn = math.atan2(T[1, 0], T[0, 0]) - math.atan2(prior_T[1, 0], prior_T[0, 0])
+        turn = abs((turn + math.pi) % (2 * math.pi) - math.pi)
+        return (
+            math.hypot(p[0] - q[0], p[1] - q[1]) <= self.radius_cells
+            and math.degrees(turn) <= self.turn_deg
+        )
+
+
 # --------------------------------------------------------------------------------------------
 # the method
 # --------------------------------------------------------------------------------------------
@@ -477,7 +521,12 @@ class SemanticOptions(Options):
 
 
 def merge_semantic(
-    a: Int8Grid, b: Int8Grid, *, extra_hypotheses: Sequence[Transform] = (), **options: Any
+    a: Int8Grid,
+    b: Int8Grid,
+    *,
+    extra_hypotheses: Sequence[Transform] = (),
+    prior: PosePrior | None = None,
+    **options: Any,
 ) -> MergeResult:
     """Verified merge of b into a (int8 maps, any sizes). Options (validated; why each default
     is what it is, with the measurements: ``docs/merging.md``):
@@ -511,6 +560,9 @@ def merge_semantic(
     - ``paper_candidates`` (False): add the seed paper's trusted-point matches as hypotheses
       (``detector``, default harris, picks their keypoints; 3-4x slower, one more correct merge
       in 166 bench pairs).
+
+    ``prior``: a :class:`PosePrior`, a rough guess of b's pose from outside the maps; only
+    poses near it are considered (and the guess itself is one more hypothesis).
 
     ``extra_hypotheses``: poses ``T_ab`` (3x3, b's cells -> a's) added to the search's own and
     always polished and refined, judged by the same rules. For diagnostics: the loop study's
@@ -583,7 +635,9 @@ def merge_semantic(
                 _Hypothesis(T, "paper")
                 for T in _paper_hypotheses(ac, b_rot, T_rot, 150, 3, detector)
             ]
-    if not hyps and not extra_hypotheses:
+    # the guess of a prior is one more pose handed in
+    given = [*extra_hypotheses, *([prior.T_ab] if prior is not None else [])]
+    if not hyps and not given:
         return refuse("no candidate alignment (the maps share no structure)")
 
     # --- 3. screen the raw hypotheses with a wide tolerance (they are up to ~scale/2 cells off),
@@ -592,13 +646,22 @@ def merge_semantic(
     for hyp in hyps:
         hyp.agreement = screen(hyp.T)
     hyps.sort(key=lambda h: -(h.agreement.agree - h.agreement.disagree if h.agreement else 0))
-    # poses handed in go first, so that they are always polished (and judged like the rest)
     to_crops = translation(-bba[2], -bba[0]), translation(bbb[2], bbb[0])
+    in_prior: Callable[[_Hypothesis], bool] = lambda h: True  # noqa: E731
+    if prior is not None:
+        # only poses near the guess; the coarse ones with room for their ~scale/2 cells of error
+        prior_crop = chain(to_crops[0], prior.T_ab, to_crops[1])
+        centre = np.asarray(verify.points_b, dtype=np.float64).mean(axis=0)
+        loose = PosePrior(prior_crop, prior.radius_cells + 2 * scale, prior.turn_deg + 2.0)
+        hyps = [h for h in hyps if loose.admits(h.T, centre, prior_crop)]
+        in_prior = lambda h: prior.admits(h.T, centre, prior_crop)  # noqa: E731
+        info["prior"] = True
+    # poses handed in go first, so that they are always polished (and judged like the rest)
     hyps = [
         _Hypothesis(chain(to_crops[0], np.asarray(T, dtype=np.float64), to_crops[1]), "given")
-        for T in extra_hypotheses
+        for T in given
     ] + hyps
-    for hyp in hyps[: len(extra_hypotheses)]:
+    for hyp in hyps[: len(given)]:
         hyp.agreement = screen(hyp.T)
     icp = WallICP(wall_a, wall_b, max_points=1500)
     for hyp in hyps[:n_polish]:
@@ -653,6 +716,7 @@ def merge_semantic(
             min_overlap,
             min_overlap_cells,
         )
+    chosen = [h for h in chosen if in_prior(h)]  # refined and slid: still near the guess?
     info["n_candidates"] = len(hyps)
     if not chosen:
         best_any = max((h.score for h in hyps), default=0.0)

@@ -8,10 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mrexplore.errors import ConfigError
 from mrexplore.experiments.merge_cases import rotate_map
 from mrexplore.grid import FREE, OCCUPIED, UNKNOWN, invert_transform, transform_angle
 from mrexplore.merge import merge_maps
-from mrexplore.merge.common import translation
+from mrexplore.merge.common import chain, translation
 from mrexplore.merge.rotation import rotation_candidates
 from mrexplore.truth import merge_error
 
@@ -534,3 +535,39 @@ def test_agreeing_area_equals_opencvs_smallest_rectangle() -> None:
         (_, _), (w, h), _ = cv2.minAreaRect(pts)
         codes = MapCodes(grid)
         assert agreeing_area(codes, codes, np.eye(3)) == pytest.approx(w * h, rel=1e-4)
+
+
+def _two_rooms() -> tuple[np.ndarray, np.ndarray]:
+    """a: two identical rooms side by side (130 cells apart, a door between); b: the left one."""
+    a = np.zeros((120, 260), np.int8)
+    a[0, :] = a[-1, :] = a[:, 0] = a[:, -1] = a[:, 130] = 100
+    a[50:70, 130] = 0
+    for c0 in (0, 130):
+        a[30:40, c0 + 30 : c0 + 70] = 100
+        a[80:100, c0 + 90 : c0 + 95] = 100
+    return a, a[:, :131].copy()
+
+
+def test_a_pose_prior_picks_between_look_alike_places() -> None:
+    """b fits both rooms of a, so alone the merger refuses. A rough guess (a few cells and
+    degrees off) near either room decides: the merger trusts it, so a guess near the wrong
+    room merges there. Without the guess nothing changes."""
+    from mrexplore.merge import PosePrior
+    from mrexplore.merge.semantic import _turn_about
+
+    a, b = _two_rooms()
+    alone = merge_maps(a, b, resolution_m=0.05)
+    assert not alone.matched and alone.reason.startswith("ambiguous")
+    for room_dc in (0.0, 130.0):
+        guess = chain(translation(room_dc + 6.0, -4.0), _turn_about(3.0, 65.0, 60.0))
+        res = merge_maps(a, b, resolution_m=0.05, prior=PosePrior(guess, 20.0, 10.0))
+        assert res.matched and (res.info or {}).get("prior"), res.reason
+        assert res.transform is not None
+        np.testing.assert_allclose(res.transform[:2, 2], (room_dc, 0.0), atol=1.0)
+    # a guess with nothing consistent within reach is refused, not forced
+    far = PosePrior(translation(60.0, 0.0), 10.0, 5.0)
+    assert not merge_maps(a, b, resolution_m=0.05, prior=far).matched
+    with pytest.raises(ConfigError, match="T_ab"):
+        PosePrior(np.eye(2))
+    with pytest.raises(ConfigError, match="turn_deg"):
+        PosePrior(np.eye(3), 10.0, float("nan"))

@@ -64,7 +64,17 @@ DEFAULT_CONFIGS: tuple[tuple[str, str | None, dict[str, Any]], ...] = (
 #: the same rules. Where the default refuses and ``seeded`` merges, the search missed the truth;
 #: where both refuse, the decision rules did (the in-loop study has the same variant). The truth
 #: reaches a merger only here and in the oracle of the loop study.
-DIAGNOSTIC_CONFIGS: tuple[tuple[str, str | None, dict[str, Any]], ...] = (("seeded", None, {}),)
+DIAGNOSTIC_CONFIGS: tuple[tuple[str, str | None, dict[str, Any]], ...] = (
+    ("seeded", None, {}),
+    ("guided", None, {}),
+)
+#: ``guided``: the semantic merger given a :class:`~mrexplore.merge.PosePrior`, a rough guess
+#: drawn around the true pose (b's centre moved up to ``GUIDE_SHIFT_CELLS`` in a random
+#: direction, turned up to ``GUIDE_TURN_DEG`` either way; seeded by the case's name), with a
+#: region of ``GUIDE_RADIUS_CELLS`` and ``GUIDE_REGION_DEG``: what a user who knows roughly
+#: where the maps overlap (a rendezvous, GPS, known start poses) gets.
+GUIDE_SHIFT_CELLS, GUIDE_TURN_DEG = 20.0, 5.0
+GUIDE_RADIUS_CELLS, GUIDE_REGION_DEG = 40.0, 10.0
 CORRECT_CELLS = 2.0
 WRONG_CELLS = 5.0
 
@@ -87,6 +97,36 @@ def classify(case: MergeCase, matched: bool, transform: np.ndarray | None) -> tu
     return "imprecise", err
 
 
+def guide(case: MergeCase) -> Any:
+    """The ``guided`` method's :class:`~mrexplore.merge.PosePrior` for ``case``: the true pose
+    moved and turned at random within :data:`GUIDE_SHIFT_CELLS` and :data:`GUIDE_TURN_DEG`
+    about b's known centre (seeded by the case's name: the same guess on every run)."""
+    import math
+    import zlib
+
+    from mrexplore.grid import UNKNOWN, chain, map_points
+    from mrexplore.merge import PosePrior
+    from mrexplore.merge.common import translation
+
+    rng = np.random.default_rng(zlib.crc32(case.name.encode()))
+    rows, cols = np.nonzero(case.b != UNKNOWN)
+    if rows.size == 0:
+        rows, cols = np.array([case.b.shape[0] / 2]), np.array([case.b.shape[1] / 2])
+    centre = np.array([[cols.mean(), rows.mean()]], dtype=np.float64)
+    T = np.asarray(case.T_ab, dtype=np.float64)
+    cx, cy = (float(v[0]) for v in map_points(centre, T))
+    ang, dist = rng.uniform(0.0, 2.0 * math.pi), GUIDE_SHIFT_CELLS * math.sqrt(rng.uniform())
+    turn = math.radians(rng.uniform(-GUIDE_TURN_DEG, GUIDE_TURN_DEG))
+    c, s = math.cos(turn), math.sin(turn)
+    about = chain(
+        translation(cx, cy),
+        np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]),
+        translation(-cx, -cy),
+    )
+    guess = chain(translation(dist * math.cos(ang), dist * math.sin(ang)), about, T)
+    return PosePrior(guess, GUIDE_RADIUS_CELLS, GUIDE_REGION_DEG)
+
+
 def evaluate(
     cases: Sequence[MergeCase], method: str, detector: str | None, **options: Any
 ) -> dict[str, Any]:
@@ -100,13 +140,14 @@ def evaluate(
     for c in cases:
         t_cpu = time.process_time()
         extra: dict[str, Any] = {}
-        if method in ("semantic", "seeded"):
+        diagnostic = method in ("seeded", "guided")
+        if method == "semantic" or diagnostic:
             extra["resolution_m"] = c.resolution_m
         if method == "seeded":
             extra["extra_hypotheses"] = [np.asarray(c.T_ab, dtype=np.float64)]
-        res = merge_maps(
-            c.a, c.b, method="semantic" if method == "seeded" else method, **extra, **kw
-        )
+        if method == "guided":
+            extra["prior"] = guide(c)
+        res = merge_maps(c.a, c.b, method="semantic" if diagnostic else method, **extra, **kw)
         cpu.append(time.process_time() - t_cpu)
         kind, err = classify(c, res.matched, res.transform)
         counts[kind] += 1
@@ -266,10 +307,10 @@ HEADERS = (
 def seeded_summary(
     default: dict[str, Any], seeded: dict[str, Any], min_overlap: float = 0.4
 ) -> str:
-    """One sentence pairing the default semantic row with the ``seeded`` row of the same cases:
-    of the default's refusals at ``min_overlap`` or more, how many the true pose handed in turns
-    into merges (the search missed them) and how many stay refused (the decision rules refuse
-    even the truth), and how many of the default's merges are lost with it."""
+    """One sentence pairing the default semantic row with a ``seeded`` or ``guided`` row of the
+    same cases: of the default's refusals at ``min_overlap`` or more, how many the true pose
+    handed in (or the rough guess) turns into correct merges, how many into imprecise or wrong
+    ones, how many stay refused, and how many of the default's correct merges are lost."""
     pairs = [
         (d, s)
         for d, s in zip(default["cases"], seeded["cases"], strict=True)
@@ -279,11 +320,20 @@ def seeded_summary(
     rescued = sum(s["kind"] == "correct" for _, s in refused)
     other = sum(s["kind"] in ("imprecise", "wrong") for _, s in refused)
     lost = sum(d["kind"] == "correct" and s["kind"] != "correct" for d, s in pairs)
+    if seeded["method"] == "guided":
+        lead = (
+            f"With a rough guess of the pose (`guided`: within {GUIDE_SHIFT_CELLS:g} cells and "
+            f"{GUIDE_TURN_DEG:g} degrees of the truth)"
+        )
+        why, still = "", ""
+    else:
+        lead = "With the true pose handed in (`seeded`)"
+        why, still = " (the search missed the truth)", " (the rules refuse the truth too)"
     return (
-        f"With the true pose handed in (`seeded`), at overlap >= {min_overlap:.0%}: of the "
-        f"default's {len(refused)} refusals, {rescued} become correct merges (the search missed "
-        f"the truth), {other} imprecise or wrong, {len(refused) - rescued - other} stay refused "
-        f"(the rules refuse the truth too); {lost} of its correct merges are not correct with it."
+        f"{lead}, at overlap >= {min_overlap:.0%}: of the default's {len(refused)} refusals, "
+        f"{rescued} become correct merges{why}, {other} imprecise or wrong, "
+        f"{len(refused) - rescued - other} stay refused{still}; {lost} of its correct merges "
+        "are not correct with it."
     )
 
 
@@ -300,10 +350,10 @@ def to_markdown(rows: Sequence[dict[str, Any]]) -> str:
         for r in sel:
             out.append("| " + " | ".join(str(r[c]) for c in COLUMNS) + " |")
         default = [r for r in sel if r["method"] == "semantic" and r["options"] == "-"]
-        seeded = [r for r in sel if r["method"] == "seeded" and r["options"] == "-"]
-        if default and seeded:
-            out.append("")
-            out.append(seeded_summary(default[0], seeded[0]))
+        for other in [r for r in sel if r["method"] in ("seeded", "guided")]:
+            if default and other["options"] == "-":
+                out.append("")
+                out.append(seeded_summary(default[0], other))
         out.append("")
     return "\n".join(out)
 
@@ -453,7 +503,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--methods",
         default=None,
         help="comma list of semantic,paper,orb (default all) and the diagnostic seeded (the "
-        "semantic merger with the true pose among its hypotheses: search misses vs rule refusals)",
+        "semantic merger with the true pose among its hypotheses: search misses vs rule "
+        "refusals) and guided (given a rough guess of the pose, a PosePrior)",
     )
     p.add_argument("--detectors", default=None, help="comma list filter of detectors")
     p.add_argument("--families", default="symmetric,real")

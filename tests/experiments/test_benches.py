@@ -179,3 +179,22 @@ def test_seeded_summary_counts_rescues_refusals_and_losses() -> None:
         r.update({c: 0 for c in COLUMNS if c not in r} | {"n": 5})
     assert text in to_markdown([default, seeded])
     assert "true pose" not in to_markdown([default])
+
+
+def test_guided_guess_lies_within_its_bounds_and_repeats() -> None:
+    """The ``guided`` method's guess moves b's centre at most GUIDE_SHIFT_CELLS from where the
+    truth puts it and turns it at most GUIDE_TURN_DEG, and is the same on every call."""
+    from mrexplore.experiments import merge_bench as mb
+    from mrexplore.grid import UNKNOWN, map_points, transform_angle
+
+    for case in mb.make_cases("real", 4, 3):
+        p, q = mb.guide(case), mb.guide(case)
+        np.testing.assert_array_equal(p.T_ab, q.T_ab)
+        assert (p.radius_cells, p.turn_deg) == (mb.GUIDE_RADIUS_CELLS, mb.GUIDE_REGION_DEG)
+        rows, cols = np.nonzero(case.b != UNKNOWN)
+        centre = np.array([[cols.mean(), rows.mean()]])
+        x0, y0 = map_points(centre, case.T_ab)
+        x1, y1 = map_points(centre, p.T_ab)
+        assert np.hypot(x1 - x0, y1 - y0)[0] <= mb.GUIDE_SHIFT_CELLS + 1e-9
+        turn = np.degrees(transform_angle(p.T_ab) - transform_angle(case.T_ab))
+        assert abs((turn + 180) % 360 - 180) <= mb.GUIDE_TURN_DEG + 1e-9

@@ -10,7 +10,9 @@
 #      wall-area rule and the polish margin; merge_heldout2.{json,md}: ten more (23-32), kept
 #      unseen until the polish margin (chosen on 13-22) was judged on them;
 #      merge_seeded.{json,md}: the default beside the diagnostic `seeded` (the true pose handed
-#      in as one more hypothesis) on the 1,320 cases of merge_seeds: search misses vs refusals
+#      in as one more hypothesis) on the 1,320 cases of merge_seeds: search misses vs refusals;
+#      merge_guided.{json,md}: the default beside `guided` (a rough guess of the pose, a
+#      PosePrior, as a user who knows roughly where the maps overlap would give it)
 #   2. loop_study.{json,md}: merging in the exploration loop against an oracle merger;
 #      loop_exact.{json,md}: the same with exact odometry (a merge error is then a wrong place);
 #      loop_nav.{json,md}: the navigation task (exact odometry) against the oracle;
@@ -56,6 +58,8 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
   --seeds 23-32 --semantic-variant polish_margin=0 --out "$out/merge_heldout2" --force
 mrexplore bench merge --methods semantic,seeded --n 30 --families symmetric,real,noisy,lidar \
   --seeds 0-9,12 --out "$out/merge_seeded" --force
+mrexplore bench merge --methods semantic,guided --n 30 \
+  --families symmetric,real,noisy,lidar,aliased --seeds 0-9,12 --out "$out/merge_guided" --force
 mrexplore bench loop --seeds 20 --jobs 2 --out "$out/loop_study" --force
 mrexplore bench loop --noise off --variants semantic oracle --seeds 20 --jobs 2 \
   --out "$out/loop_exact" --force

@@ -350,8 +350,9 @@ def to_markdown(rows: Sequence[dict[str, Any]]) -> str:
         for r in sel:
             out.append("| " + " | ".join(str(r[c]) for c in COLUMNS) + " |")
         default = [r for r in sel if r["method"] == "semantic" and r["options"] == "-"]
+        overlapping = default and any(c["overlap"] >= 0.4 for c in default[0]["cases"])
         for other in [r for r in sel if r["method"] in ("seeded", "guided")]:
-            if default and other["options"] == "-":
+            if overlapping and other["options"] == "-":
                 out.append("")
                 out.append(seeded_summary(default[0], other))
         out.append("")

@@ -25,10 +25,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError, MapFileError, MrexploreError
-from mrexplore.grid import Int8Grid, transform_angle
+from mrexplore.grid import Int8Grid, affine_inverse, chain, make_transform, transform_angle
 from mrexplore.io_safety import check_outputs, write_bytes
-from mrexplore.merge import MergeResult, merge_maps
-from mrexplore.merge.common import to_gray
+from mrexplore.merge import MergeResult, PosePrior, merge_maps
+from mrexplore.merge.common import to_gray, translation
 
 
 def merge_files(
@@ -38,6 +38,9 @@ def merge_files(
     method: str = "semantic",
     detector: str | None = None,
     force: bool = False,
+    prior_m: Sequence[float] | None = None,
+    prior_radius_m: float = 2.0,
+    prior_turn_deg: float = 10.0,
     **options: Any,
 ) -> MergeResult:
     """Merge map file b into map file a; write ``out_yaml`` (+ image) and a PNG figure when matched.
@@ -46,6 +49,11 @@ def merge_files(
     work: none may be an input (a YAML or the image it names) or an existing file unless
     ``force``. ``min_common_m2`` and ``min_wall_area_m2`` are measured at the maps' own
     resolution (from the YAML).
+
+    ``prior_m``: a rough guess ``(x_m, y_m, yaw_deg)`` of b's map frame in a's (a point at
+    ``p`` in b's frame lies at ``R(yaw) p + (x, y)`` in a's; ``(0, 0, 0)`` when both maps were
+    built in one frame), believed within ``prior_radius_m`` and ``prior_turn_deg``: only poses
+    near it are considered (:class:`~mrexplore.merge.PosePrior`, semantic method only).
 
     Raises:
         MapFileNotFoundError / MapFileError: a file is missing or malformed, or the two maps'
@@ -71,6 +79,10 @@ def merge_files(
         )
     if detector is not None:
         options["detector"] = detector
+    if prior_m is not None:
+        if method.lower() != "semantic":
+            raise ConfigError(f"--prior works with the semantic method only, not {method!r}")
+        options["prior"] = file_prior(fa, fb, prior_m, prior_radius_m, prior_turn_deg)
     res = merge_maps(fa.grid, fb.grid, method=method, resolution_m=fa.resolution_m, **options)
     if res.matched and res.merged is not None:
         dc, dr = res.offset
@@ -81,6 +93,32 @@ def merge_files(
     if ok:
         write_bytes(png, encoded.tobytes())
     return res
+
+
+def _cells_to_frame(f: Any) -> NDArray[np.float64]:
+    """3x3: a map file's cell (col, row) centre -> its map frame (metres), from its origin
+    (lower-left corner of cell (0, 0), yaw about it) and resolution."""
+    ox, oy, yaw = f.origin_m
+    res = float(f.resolution_m)
+    scale = np.diag([res, res, 1.0])
+    return chain(make_transform(float(yaw), float(ox), float(oy)), scale, translation(0.5, 0.5))
+
+
+def file_prior(
+    fa: Any, fb: Any, prior_m: Sequence[float], radius_m: float, turn_deg: float
+) -> PosePrior:
+    """The :class:`~mrexplore.merge.PosePrior` in cells for a guess ``(x_m, y_m, yaw_deg)`` of
+    b's map frame in a's (see :func:`merge_files`)."""
+    vals = [float(v) for v in prior_m]
+    if len(vals) != 3 or not all(np.isfinite(vals)):
+        raise ConfigError(f"--prior must be three finite numbers x_m,y_m,yaw_deg, got {prior_m!r}")
+    if not (np.isfinite(radius_m) and radius_m > 0 and np.isfinite(turn_deg) and turn_deg > 0):
+        raise ConfigError(
+            f"--prior-radius-m and --prior-turn-deg must be > 0, got {radius_m!r}, {turn_deg!r}"
+        )
+    frame = make_transform(np.radians(vals[2]), vals[0], vals[1])
+    T = chain(affine_inverse(_cells_to_frame(fa)), frame, _cells_to_frame(fb))
+    return PosePrior(T, radius_m / float(fa.resolution_m), turn_deg)
 
 
 def _panel(grid: Int8Grid) -> NDArray[np.uint8]:
@@ -188,10 +226,33 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument(
         "--force", action="store_true", help="replace existing outputs (even an input map)"
     )
+    p.add_argument(
+        "--prior",
+        default=None,
+        metavar="X_M,Y_M,YAW_DEG",
+        help="a rough guess of b's map frame in a's (0,0,0: both built in one frame); only "
+        "poses near it are considered (for maps of look-alike places)",
+    )
+    p.add_argument("--prior-radius-m", type=float, default=2.0, help="how far off the guess may be")
+    p.add_argument("--prior-turn-deg", type=float, default=10.0, help="how much it may be turned")
     args = p.parse_args(list(argv) if argv is not None else None)
     try:
+        prior = None
+        if args.prior is not None:
+            try:
+                prior = tuple(float(v) for v in args.prior.split(","))
+            except ValueError:
+                raise ConfigError(f"--prior must be x_m,y_m,yaw_deg, got {args.prior!r}") from None
         res = merge_files(
-            args.a, args.b, args.out, method=args.method, detector=args.detector, force=args.force
+            args.a,
+            args.b,
+            args.out,
+            method=args.method,
+            detector=args.detector,
+            force=args.force,
+            prior_m=prior,
+            prior_radius_m=args.prior_radius_m,
+            prior_turn_deg=args.prior_turn_deg,
         )
     except (MrexploreError, ConfigError) as e:
         print(f"error: {e}", file=sys.stderr)

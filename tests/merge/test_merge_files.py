@@ -155,3 +155,32 @@ def test_an_ambiguous_refusal_prints_the_poses_it_could_not_tell_apart(
     assert xs[0] == pytest.approx(0.0, abs=1.0) and xs[1] == pytest.approx(130.0, abs=1.0)
     assert "6.50" in out or "6.49" in out or "6.51" in out
     assert not (tmp_path / "m.yaml").exists()
+
+
+def test_a_prior_in_metres_picks_the_room(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """b is the right-hand room of a, both maps in one frame (b's origin is where its cells lie
+    in a's frame). Alone the merger refuses (b fits both rooms); ``--prior 0,0,0`` (the frames
+    agree) merges b onto the right room, 129 cells along; a guess near the left room merges it
+    there: the merger trusts the guess. A bad guess string or a method without priors: exit 2."""
+    a = np.zeros((120, 260), np.int8)
+    a[0, :] = a[-1, :] = a[:, 0] = a[:, -1] = a[:, 130] = 100
+    a[50:70, 130] = 0
+    for c0 in (0, 130):
+        a[30:40, c0 + 30 : c0 + 70] = 100
+        a[80:100, c0 + 90 : c0 + 95] = 100
+    pa = write_map_yaml(tmp_path / "a.yaml", a, 0.05, (1.0, -2.0, 0.0))
+    pb = write_map_yaml(tmp_path / "b.yaml", a[:, 129:].copy(), 0.05, (1.0 + 129 * 0.05, -2.0, 0.0))
+    assert main([str(pa), str(pb), "-o", str(tmp_path / "alone.yaml")]) == 1
+    out = tmp_path / "m.yaml"
+    assert main([str(pa), str(pb), "-o", str(out), "--prior", "0.3,-0.2,4"]) == 0
+    res = merge_files(pa, pb, tmp_path / "m2.yaml", prior_m=(0.0, 0.0, 0.0))
+    assert res.matched and res.transform is not None
+    np.testing.assert_allclose(res.transform[:2, 2], (129.0, 0.0), atol=1.0)
+    left = merge_files(pa, pb, tmp_path / "m3.yaml", prior_m=(-6.5, 0.0, 0.0))
+    assert left.matched and left.transform is not None
+    np.testing.assert_allclose(left.transform[:2, 2], (-1.0, 0.0), atol=1.0)
+    capsys.readouterr()
+    assert main([str(pa), str(pb), "-o", str(tmp_path / "x.yaml"), "--prior", "1,two,3"]) == 2
+    assert "--prior" in capsys.readouterr().err
+    bad = ["--prior", "0,0,0", "--method", "orb", "--detector", "orb"]
+    assert main([str(pa), str(pb), "-o", str(tmp_path / "y.yaml"), *bad]) == 2

@@ -184,3 +184,6 @@ def test_a_prior_in_metres_picks_the_room(tmp_path: Path, capsys) -> None:  # ty
     assert "--prior" in capsys.readouterr().err
     bad = ["--prior", "0,0,0", "--method", "orb", "--detector", "orb"]
     assert main([str(pa), str(pb), "-o", str(tmp_path / "y.yaml"), *bad]) == 2
+    zero = ["--prior", "0,0,0", "--prior-radius-m", "0"]
+    assert main([str(pa), str(pb), "-o", str(tmp_path / "z.yaml"), *zero]) == 2
+    assert "--prior-radius-m" in capsys.readouterr().err

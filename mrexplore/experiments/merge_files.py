@@ -261,8 +261,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not res.matched or res.transform is None:
         print(f"no reliable match found: {res.reason}")
         print(f"(best score {res.score:.3f}; figure: {png})")
-        for line in candidate_lines(res, read_resolution(args.a)):
+        lines = candidate_lines(res, read_resolution(args.a))
+        for line in lines:
             print(line)
+        if lines and args.prior is None:
+            print("if you know roughly where b lies in a, give it: --prior X_M,Y_M,YAW_DEG")
         return 1
     T = res.transform
     print(f"merged with method={res.method} in {res.time_s * 1e3:.0f} ms, score {res.score:.3f}")

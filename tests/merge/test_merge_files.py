@@ -148,7 +148,7 @@ def test_an_ambiguous_refusal_prints_the_poses_it_could_not_tell_apart(
     pb = write_map_yaml(tmp_path / "b.yaml", a[:, :131].copy(), 0.05)
     assert main([str(pa), str(pb), "-o", str(tmp_path / "m.yaml")]) == 1
     out = capsys.readouterr().out
-    assert "ambiguous" in out and "its rivals" in out
+    assert "ambiguous" in out and "its rivals" in out and "--prior" in out
     poses = [line for line in out.splitlines() if line.startswith(("  best", "  rival"))]
     assert len(poses) >= 2
     xs = sorted(float(line.split("translation (")[1].split(",")[0]) for line in poses[:2])

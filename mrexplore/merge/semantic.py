@@ -647,15 +647,19 @@ def merge_semantic(
         hyp.agreement = screen(hyp.T)
     hyps.sort(key=lambda h: -(h.agreement.agree - h.agreement.disagree if h.agreement else 0))
     to_crops = translation(-bba[2], -bba[0]), translation(bbb[2], bbb[0])
-    in_prior: Callable[[_Hypothesis], bool] = lambda h: True  # noqa: E731
+    region: tuple[PosePrior, Transform, NDArray[np.float64]] | None = None
     if prior is not None:
         # only poses near the guess; the coarse ones with room for their ~scale/2 cells of error
         prior_crop = chain(to_crops[0], prior.T_ab, to_crops[1])
         centre = np.asarray(verify.points_b, dtype=np.float64).mean(axis=0)
         loose = PosePrior(prior_crop, prior.radius_cells + 2 * scale, prior.turn_deg + 2.0)
         hyps = [h for h in hyps if loose.admits(h.T, centre, prior_crop)]
-        in_prior = lambda h: prior.admits(h.T, centre, prior_crop)  # noqa: E731
+        region = (prior, prior_crop, centre)
         info["prior"] = True
+
+    def in_prior(h: _Hypothesis) -> bool:
+        return region is None or region[0].admits(h.T, region[2], region[1])
+
     # poses handed in go first, so that they are always polished (and judged like the rest)
     hyps = [
         _Hypothesis(chain(to_crops[0], np.asarray(T, dtype=np.float64), to_crops[1]), "given")

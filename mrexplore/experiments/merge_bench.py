@@ -107,6 +107,7 @@ def guide(case: MergeCase) -> Any:
     from mrexplore.grid import UNKNOWN, chain, map_points
     from mrexplore.merge import PosePrior
     from mrexplore.merge.common import translation
+    from mrexplore.merge.semantic import _turn_about
 
     rng = np.random.default_rng(zlib.crc32(case.name.encode()))
     rows, cols = np.nonzero(case.b != UNKNOWN)
@@ -116,13 +117,7 @@ def guide(case: MergeCase) -> Any:
     T = np.asarray(case.T_ab, dtype=np.float64)
     cx, cy = (float(v[0]) for v in map_points(centre, T))
     ang, dist = rng.uniform(0.0, 2.0 * math.pi), GUIDE_SHIFT_CELLS * math.sqrt(rng.uniform())
-    turn = math.radians(rng.uniform(-GUIDE_TURN_DEG, GUIDE_TURN_DEG))
-    c, s = math.cos(turn), math.sin(turn)
-    about = chain(
-        translation(cx, cy),
-        np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]),
-        translation(-cx, -cy),
-    )
+    about = _turn_about(rng.uniform(-GUIDE_TURN_DEG, GUIDE_TURN_DEG), cx, cy)
     guess = chain(translation(dist * math.cos(ang), dist * math.sin(ang)), about, T)
     return PosePrior(guess, GUIDE_RADIUS_CELLS, GUIDE_REGION_DEG)
 

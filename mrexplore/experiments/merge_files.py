@@ -29,6 +29,7 @@ from mrexplore.grid import Int8Grid, affine_inverse, chain, make_transform, tran
 from mrexplore.io_safety import check_outputs, write_bytes
 from mrexplore.merge import MergeResult, PosePrior, merge_maps
 from mrexplore.merge.common import to_gray, translation
+from mrexplore.world.map_io import OccupancyFile
 
 
 def merge_files(
@@ -95,7 +96,7 @@ def merge_files(
     return res
 
 
-def _cells_to_frame(f: Any) -> NDArray[np.float64]:
+def _cells_to_frame(f: OccupancyFile) -> NDArray[np.float64]:
     """3x3: a map file's cell (col, row) centre -> its map frame (metres), from its origin
     (lower-left corner of cell (0, 0), yaw about it) and resolution."""
     ox, oy, yaw = f.origin_m
@@ -105,7 +106,11 @@ def _cells_to_frame(f: Any) -> NDArray[np.float64]:
 
 
 def file_prior(
-    fa: Any, fb: Any, prior_m: Sequence[float], radius_m: float, turn_deg: float
+    fa: OccupancyFile,
+    fb: OccupancyFile,
+    prior_m: Sequence[float],
+    radius_m: float,
+    turn_deg: float,
 ) -> PosePrior:
     """The :class:`~mrexplore.merge.PosePrior` in cells for a guess ``(x_m, y_m, yaw_deg)`` of
     b's map frame in a's (see :func:`merge_files`)."""
@@ -162,13 +167,6 @@ def figure(a: Int8Grid, b: Int8Grid, res: MergeResult, max_lines: int = 40) -> N
     out[: top.shape[0], : top.shape[1]] = top
     out[top.shape[0] + gap :, : bottom.shape[1]] = bottom
     return out
-
-
-def read_resolution(a_yaml: str | Path) -> float:
-    """The resolution (m/cell) a map_server YAML declares (read again for the printout)."""
-    from mrexplore.world.map_io import read_map_yaml
-
-    return float(read_map_yaml(a_yaml).resolution_m)
 
 
 def _pose_line(label: str, T: NDArray[np.float64], ag: Any, resolution_m: float) -> str:
@@ -261,7 +259,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not res.matched or res.transform is None:
         print(f"no reliable match found: {res.reason}")
         print(f"(best score {res.score:.3f}; figure: {png})")
-        lines = candidate_lines(res, read_resolution(args.a))
+        lines = candidate_lines(res, float(res.info["resolution_m"]))  # merge_maps sets it
         for line in lines:
             print(line)
         if lines and args.prior is None:

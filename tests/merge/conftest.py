@@ -16,6 +16,19 @@ from mrexplore.merge.common import translation
 ENVS = Path(__file__).resolve().parents[2] / "envs"
 
 
+def two_rooms() -> np.ndarray:
+    """A fully known 120 x 260 floor: two identical rooms side by side (their walls at columns 0,
+    130 and 259, a door between them, the same furniture in each), so a crop of one room fits
+    the other 130 cells along."""
+    a = np.zeros((120, 260), np.int8)
+    a[0, :] = a[-1, :] = a[:, 0] = a[:, -1] = a[:, 130] = OCCUPIED
+    a[50:70, 130] = FREE  # the door
+    for c0 in (0, 130):
+        a[30:40, c0 + 30 : c0 + 70] = OCCUPIED
+        a[80:100, c0 + 90 : c0 + 95] = OCCUPIED
+    return a
+
+
 def twin_world() -> tuple[np.ndarray, list[tuple[int, int, int, int]]]:
     """A fully known 110 x 190 floor: a corridor along the bottom with asymmetric clutter, and
     above it two cell-for-cell identical rooms (same size, door, furniture) plus a different

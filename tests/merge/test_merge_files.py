@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import two_rooms
 
 from mrexplore.errors import MapFileError
 from mrexplore.experiments.merge_files import main, merge_files
@@ -138,12 +139,7 @@ def test_an_ambiguous_refusal_prints_the_poses_it_could_not_tell_apart(
     """Two identical rooms side by side: b (the left room) fits both. The merger refuses, and
     the CLI prints the best pose and the rival one room-width (130 cells, 6.5 m) away, so a user
     who knows where b was mapped can tell which is right."""
-    a = np.zeros((120, 260), np.int8)
-    a[0, :] = a[-1, :] = a[:, 0] = a[:, -1] = a[:, 130] = 100
-    a[50:70, 130] = 0  # the door between the rooms
-    for c0 in (0, 130):  # the same furniture in each room
-        a[30:40, c0 + 30 : c0 + 70] = 100
-        a[80:100, c0 + 90 : c0 + 95] = 100
+    a = two_rooms()
     pa = write_map_yaml(tmp_path / "a.yaml", a, 0.05)
     pb = write_map_yaml(tmp_path / "b.yaml", a[:, :131].copy(), 0.05)
     assert main([str(pa), str(pb), "-o", str(tmp_path / "m.yaml")]) == 1
@@ -162,12 +158,7 @@ def test_a_prior_in_metres_picks_the_room(tmp_path: Path, capsys) -> None:  # ty
     in a's frame). Alone the merger refuses (b fits both rooms); ``--prior 0,0,0`` (the frames
     agree) merges b onto the right room, 129 cells along; a guess near the left room merges it
     there: the merger trusts the guess. A bad guess string or a method without priors: exit 2."""
-    a = np.zeros((120, 260), np.int8)
-    a[0, :] = a[-1, :] = a[:, 0] = a[:, -1] = a[:, 130] = 100
-    a[50:70, 130] = 0
-    for c0 in (0, 130):
-        a[30:40, c0 + 30 : c0 + 70] = 100
-        a[80:100, c0 + 90 : c0 + 95] = 100
+    a = two_rooms()
     pa = write_map_yaml(tmp_path / "a.yaml", a, 0.05, (1.0, -2.0, 0.0))
     pb = write_map_yaml(tmp_path / "b.yaml", a[:, 129:].copy(), 0.05, (1.0 + 129 * 0.05, -2.0, 0.0))
     assert main([str(pa), str(pb), "-o", str(tmp_path / "alone.yaml")]) == 1

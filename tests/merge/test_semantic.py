@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import two_rooms
 
 from mrexplore.errors import ConfigError
 from mrexplore.experiments.merge_cases import rotate_map
@@ -537,17 +538,6 @@ def test_agreeing_area_equals_opencvs_smallest_rectangle() -> None:
         assert agreeing_area(codes, codes, np.eye(3)) == pytest.approx(w * h, rel=1e-4)
 
 
-def _two_rooms() -> tuple[np.ndarray, np.ndarray]:
-    """a: two identical rooms side by side (130 cells apart, a door between); b: the left one."""
-    a = np.zeros((120, 260), np.int8)
-    a[0, :] = a[-1, :] = a[:, 0] = a[:, -1] = a[:, 130] = 100
-    a[50:70, 130] = 0
-    for c0 in (0, 130):
-        a[30:40, c0 + 30 : c0 + 70] = 100
-        a[80:100, c0 + 90 : c0 + 95] = 100
-    return a, a[:, :131].copy()
-
-
 def test_a_pose_prior_picks_between_look_alike_places() -> None:
     """b fits both rooms of a, so alone the merger refuses. A rough guess (a few cells and
     degrees off) near either room decides: the merger trusts it, so a guess near the wrong
@@ -555,7 +545,8 @@ def test_a_pose_prior_picks_between_look_alike_places() -> None:
     from mrexplore.merge import PosePrior
     from mrexplore.merge.semantic import _turn_about
 
-    a, b = _two_rooms()
+    a = two_rooms()
+    b = a[:, :131].copy()  # the left room
     alone = merge_maps(a, b, resolution_m=0.05)
     assert not alone.matched and alone.reason.startswith("ambiguous")
     for room_dc in (0.0, 130.0):

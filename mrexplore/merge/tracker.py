@@ -18,9 +18,11 @@ Each step the caller hands over the robots' own-frame maps. The tracker
   discounts the maps' noise as the default merger's acceptance does (walls within
   ``recheck_slack_cells`` of each other agree, lone contradictions under
   ``recheck_min_run_cells`` cells do not count), so a pose accepted as consistent is not
-  dropped for the noise and drift it was accepted with; and a contradicted transform is
+  dropped for the noise and drift it was accepted with; a contradicted transform is
   replaced instead of dropped when the merger, run on the same maps, accepts one within
-  ``relocate_tol_cells`` of it (the same place, refitted to maps that drift has bent);
+  ``relocate_tol_cells`` of it, or ranks one there first and refuses it only for the maps'
+  bending (the same place, refitted to maps that drift has bent); and it is kept when it is
+  contradicted only by walls a drift's width apart (``drift_slack_cells``);
 - chains transforms through merged pairs (0-1 and 1-2 merged => 0-2 known);
 - hands the pixels to :class:`~mrexplore.merge.compositor.MapCompositor`: change detection,
   each teammate's map warped into i's frame, and robot i's fused map ("occupied beats free
@@ -66,6 +68,7 @@ from mrexplore.options import (
     MERGE_LATENCY_CHECK,
     RECHECK_EVERY_CHECK,
     RECHECK_EVERY_DEFAULT,
+    boolean,
     integer,
     number,
     positive,
@@ -91,10 +94,17 @@ class _Outcome:
     T: Transform | None  # T_ij in full-canvas cells, None when refused
     old_now: float | None = None  # re-check: the kept transform's raw index on those maps
     held_now: float | None = None  # re-check: its noise-aware agreement (what a drop judges)
+    # re-check, when held_now is under the bar: that agreement with walls up to
+    # ``drift_slack_cells`` apart taken as one wall (None: not computed)
+    drift_held: float | None = None
     # attempt: rival poses the merger reported (canvas cells), and the remembered rivals that
     # still stand against the accepted pose on these maps (None: none were checked)
     rivals: tuple[Transform, ...] = ()
     standing: tuple[Transform, ...] | None = None
+    # re-check the merger refused: its best pose (canvas cells) when that pose still places b
+    # where the kept transform does, within the maps' noise and without a far rival (None:
+    # not so, or the merger reports no best pose)
+    refit: Transform | None = None
 
 
 @dataclass
@@ -180,7 +190,20 @@ class MapMergeTracker:
         relocate_tol_cells: a re-check that finds the kept transform contradicted keeps the
             pair merged, with the merger's new transform, when the merger accepts one whose
             placement of b's known box is within this many cells of the kept one's (default
-            5.0; 0 = always drop). Farther, or refused: dropped.
+            10.0, half a metre at 0.05 m: the drift of a long episode; 0 = always drop).
+            Farther, or refused: dropped (but see ``refit_refused``).
+        refit_refused: a contradicted transform is also kept, refitted, when the merger refuses
+            but its best pose is within ``relocate_tol_cells`` of it, agrees within the maps'
+            noise at least ``drop_below``, and beats every farther rival by the merger's margin:
+            drift has bent the maps so that no rigid pose reaches the acceptance bar, yet the
+            place is still the best explanation (default True; semantic merger only, which
+            reports its best pose).
+        drift_slack_cells, drift_keep_above: a contradicted transform that is neither relocated
+            nor refitted is still kept when its noise-aware agreement, with walls up to
+            ``drift_slack_cells`` (default 6, 0.3 m at 0.05 m) beyond the tolerance taken as one
+            wall, is at least ``drift_keep_above`` (default 0.9): odometry drift displaces
+            walls by that much over a long episode, while a look-alike place lays walls across
+            open space (measurements: ``docs/merging.md``, item 18). 0 cells = off.
         rival_memory: rivals remembered per unmerged pair (default 8; 0 = none): a pose an
             attempt found nearly as good as its best, far from it. A later attempt's pose is
             accepted only when the maps now rule out every remembered rival (it explains less
@@ -226,7 +249,10 @@ class MapMergeTracker:
         drop_below: float = 0.85,
         recheck_slack_cells: int = 2,
         recheck_min_run_cells: int = 5,
-        relocate_tol_cells: float = 5.0,
+        relocate_tol_cells: float = 10.0,
+        refit_refused: bool = True,
+        drift_slack_cells: int = 6,
+        drift_keep_above: float = 0.9,
         rival_memory: int = 8,
         min_accept_cells: int = 0,
         retry_growth: float = 0.02,
@@ -246,6 +272,9 @@ class MapMergeTracker:
             ("recheck_slack_cells", recheck_slack_cells, integer(0, 10)),
             ("recheck_min_run_cells", recheck_min_run_cells, integer(1, 1000)),
             ("relocate_tol_cells", relocate_tol_cells, number(0.0, 1000.0)),
+            ("refit_refused", refit_refused, boolean),
+            ("drift_slack_cells", drift_slack_cells, integer(0, 50)),
+            ("drift_keep_above", drift_keep_above, number(0.0, 1.0)),
             ("rival_memory", rival_memory, integer(0, 1000)),
             ("min_accept_cells", min_accept_cells, integer(0)),
             ("retry_growth", retry_growth, number(0.0, 10.0)),
@@ -263,6 +292,9 @@ class MapMergeTracker:
         self.recheck_slack_cells = int(recheck_slack_cells)
         self.recheck_min_run_cells = int(recheck_min_run_cells)
         self.relocate_tol_cells = float(relocate_tol_cells)
+        self.refit_refused = bool(refit_refused)
+        self.drift_slack_cells = int(drift_slack_cells)
+        self.drift_keep_above = float(drift_keep_above)
         self.rival_memory = int(rival_memory)
         self.min_accept_cells = int(min_accept_cells)
         self.retry_growth = float(retry_growth)
@@ -368,7 +400,7 @@ class MapMergeTracker:
         is at ``offsets`` (col, row) in the canvases. Pure: reads no tracker state that the
         main thread changes, so it may run in the worker thread."""
         (ca, ra), (cb, rb) = offsets
-        old_now = held_now = None
+        old_now = held_now = drift_held = None
         if kind == "recheck":
             assert T_old is not None
             T_crop = chain(translation(-ca, -ra), T_old, translation(cb, rb))
@@ -378,8 +410,12 @@ class MapMergeTracker:
             if self.recheck_slack_cells > 0 or self.recheck_min_run_cells > 1:
                 noisy = Verifier(codes_a, codes_b, slack=self.recheck_slack_cells)
                 held_now = noisy.structured(T_crop, self.recheck_min_run_cells).score
+            drift_held = None
+            if held_now < self.drop_below and self.drift_slack_cells > 0:
+                drifted = Verifier(codes_a, codes_b, slack=self.drift_slack_cells)
+                drift_held = drifted.structured(T_crop, self.recheck_min_run_cells).score
             if held_now < self.drop_below and self.relocate_tol_cells <= 0:
-                return _Outcome(None, None, old_now, held_now)
+                return _Outcome(None, None, old_now, held_now, drift_held)
         # A merger that needs the robots' ids and crop offsets (the benchmark's oracle) says so.
         pair = getattr(self._merger_obj, "merge_pair", None)
         res = pair(i, j, a, b, (ca, ra), (cb, rb)) if pair is not None else self._merge(a, b)
@@ -388,7 +424,12 @@ class MapMergeTracker:
             # crop -> canvas cells by chain, not @ (BLAS): the same bits on every CPU
             T = chain(translation(ca, ra), res.transform, translation(-cb, -rb))
         if kind != "attempt":
-            return _Outcome(res, T, old_now, held_now)
+            refit = None
+            contradicted = held_now is not None and held_now < self.drop_below
+            if T is None and T_old is not None and self.refit_refused and contradicted:
+                box_j = (rb, rb + b.shape[0], cb, cb + b.shape[1])
+                refit = self._drift_refit(res, T_old, (ca, ra), (cb, rb), box_j)
+            return _Outcome(res, T, old_now, held_now, drift_held, refit=refit)
         found = tuple(
             chain(translation(ca, ra), np.asarray(R, dtype=np.float64), translation(-cb, -rb))
             for R in res.info.get("rivals", ())
@@ -397,7 +438,49 @@ class MapMergeTracker:
         if T is not None and rivals:
             box_j = (rb, rb + b.shape[0], cb, cb + b.shape[1])
             standing = tuple(self._standing(a, b, offsets, T, rivals, box_j))
-        return _Outcome(res, T, old_now, held_now, found, standing)
+        return _Outcome(res, T, old_now, held_now, rivals=found, standing=standing)
+
+    def _drift_refit(
+        self,
+        res: MergeResult,
+        T_old: Transform,
+        off_a: tuple[int, int],
+        off_b: tuple[int, int],
+        box_j: Box,
+    ) -> Transform | None:
+        """The pose a refused re-check keeps pair (i, j) merged at, or None (drop).
+
+        Odometry drift bends the maps as they grow, so late in an episode no rigid pose of the
+        right place reaches the acceptance bar. The place still stands when the merger's best pose
+        (``info["best_transform"]``) lies within ``relocate_tol_cells`` of the kept one, agrees
+        within the maps' noise at least ``drop_below`` (the bar a kept pose is judged by) and
+        beats every rival farther than that from the kept pose by the merger's margin in raw
+        index. Pure (canvas cells in and out)."""
+        info = res.info
+        best, consistency = info.get("best_transform"), info.get("consistency")
+        agreement = info.get("best_agreement")
+        if best is None or consistency is None or agreement is None:
+            return None  # not the semantic merger, or refused before it judged a pose
+        if float(consistency) < self.drop_below:
+            return None
+
+        def canvas(X: Any) -> Transform:
+            return chain(
+                translation(*off_a),
+                np.asarray(X, dtype=np.float64),
+                translation(-off_b[0], -off_b[1]),
+            )
+
+        T_best = canvas(best)
+        if not self._same(T_old, T_best, box_j, self.relocate_tol_cells):
+            return None
+        margin = _RIVAL_RULE.min_margin
+        for R, ag in zip(info.get("rivals", ()), info.get("rival_agreements", ()), strict=True):
+            if self._same(T_old, canvas(R), box_j, self.relocate_tol_cells):
+                continue  # the same place, refitted otherwise: no rival
+            if agreement.score - ag.score < margin:
+                return None  # another place explains the maps about as well
+        return T_best
 
     def _standing(
         self,
@@ -586,6 +669,14 @@ class MapMergeTracker:
                 # The same place, refitted to maps that odometry drift has bent: keep the pair
                 # merged with the merger's new pose (it passed every rule on these maps).
                 self._replace_edge(i, j, out.T, out.result.score)
+                return
+            if out.refit is not None and out.result is not None:
+                # Refused, but the best pose is still the kept place (drift, not a wrong place)
+                self._replace_edge(i, j, out.refit, out.result.score)
+                return
+            if out.drift_held is not None and out.drift_held >= self.drift_keep_above:
+                # Contradicted only by walls a drift's width apart: the maps bent, the place
+                # stands (a look-alike place lays walls across open space)
                 return
             # The maps grew and now contradict the kept transform: un-merge this pair.
             del self._edges[(i, j)]

@@ -13,7 +13,7 @@ from mrexplore.experiments.merge_cases import rotate_map
 from mrexplore.grid import OCCUPIED as OCC
 from mrexplore.grid import UNKNOWN, invert_transform
 from mrexplore.merge import MapMergeTracker, MergeResult
-from mrexplore.merge.common import translation
+from mrexplore.merge.common import Agreement, translation
 from mrexplore.truth import merge_error
 
 
@@ -365,6 +365,7 @@ def test_recheck_refits_a_contradicted_transform_the_merger_finds_again_nearby(
         recheck_every=5,
         confirmations=1,
         relocate_tol_cells=tol,
+        drift_slack_cells=0,  # this rule alone
     )
     tr.update([ca, cb], step=1)
     assert tr.merged(0)
@@ -375,6 +376,136 @@ def test_recheck_refits_a_contradicted_transform_the_merger_finds_again_nearby(
         T = tr.transform(0, 1)
         assert T is not None
         np.testing.assert_allclose(T, T_true @ translation(-6, 0), atol=1e-6)
+
+
+class _RefusesWithBest:
+    """A first answer accepting ``T0``; then refusals that report a best pose, its noise-aware
+    consistency and rivals, as the semantic merger's ``info`` does (crop cells)."""
+
+    def __init__(
+        self,
+        T0: np.ndarray,
+        best: np.ndarray,
+        consistency: float,
+        rivals: list[tuple[np.ndarray, float]],
+    ) -> None:
+        self.T0, self.best, self.consistency, self.rivals = T0, best, consistency, rivals
+        self.calls = 0
+
+    def merge(self, a: np.ndarray, b: np.ndarray) -> MergeResult:
+        self.calls += 1
+        if self.calls == 1:
+            return MergeResult(matched=True, transform=self.T0, score=0.99)
+        info = {
+            "best_transform": self.best,
+            "consistency": self.consistency,
+            "best_agreement": Agreement(80, 20),  # raw index 0.80
+            "rivals": [R for R, _ in self.rivals],
+            "rival_agreements": [
+                Agreement(round(100 * s), 100 - round(100 * s)) for _, s in self.rivals
+            ],
+        }
+        return MergeResult(
+            matched=False, transform=None, score=0.8, reason="scripted refusal", info=info
+        )
+
+
+@pytest.mark.parametrize(
+    ("shift", "consistency", "rival", "refit", "kept"),
+    [
+        (6, 0.90, None, True, True),  # drift: the best pose is the kept place, 6 cells on
+        (6, 0.90, (40, 0.70), True, True),  # a far pose explains clearly less: no rival
+        (6, 0.90, (-4, 0.79), True, True),  # a near pose: the same place, refitted otherwise
+        (6, 0.90, (40, 0.79), True, False),  # a far pose explains about as well: dropped
+        (6, 0.80, None, True, False),  # the best pose itself is contradicted: dropped
+        (14, 0.90, None, True, False),  # the best pose is another place: dropped
+        (6, 0.90, None, False, False),  # refit_refused off: dropped, as before
+    ],
+)
+def test_recheck_keeps_a_drifted_place_the_merger_ranks_first_but_refuses(
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray],
+    shift: int,
+    consistency: float,
+    rival: tuple[int, float] | None,
+    refit: bool,
+    kept: bool,
+) -> None:
+    """Drift bends the maps so that no rigid pose reaches the acceptance bar: the merger
+    refuses, yet its best pose may still be the kept place. The pair stays merged, at that pose,
+    only when it lies within ``relocate_tol_cells`` (10) of the kept one, agrees within the
+    maps' noise at least ``drop_below`` (0.85) and beats every farther rival by the merger's
+    margin (0.03 in raw index; the best's is 0.80)."""
+    ca, cb, T_true = robots
+    from mrexplore.merge.common import Verifier, known_bbox
+
+    ra0, _, ca0, _ = known_bbox(ca)  # type: ignore[misc]
+    rb0, _, cb0, _ = known_bbox(cb)  # type: ignore[misc]
+    T_crop = translation(-ca0, -ra0) @ T_true @ translation(cb0, rb0)
+    moved = np.full_like(cb, UNKNOWN)
+    moved[:, 6:] = cb[:, :-6]  # robot 1's map drifts 6 cells: the kept pose is contradicted
+    assert Verifier(ca, moved, slack=2).structured(T_true, 5).score < 0.85
+    # in crop cells (the moved map's crop moved with it) the best pose sits `shift` cells on
+    best = T_crop @ translation(6 - shift, 0)
+    rivals = [] if rival is None else [(T_crop @ translation(-rival[0], 0), rival[1])]
+    merger = _RefusesWithBest(T_crop, best, consistency, rivals)
+    tr = MapMergeTracker(
+        2,
+        merger=merger,
+        merge_every=1,
+        recheck_every=5,
+        confirmations=1,
+        refit_refused=refit,
+        drift_slack_cells=0,  # this rule alone (a 6-cell drift is also kept by the next test's)
+    )
+    tr.update([ca, cb], step=1)
+    assert tr.merged(0)
+    for step in range(2, 11):
+        tr.update([ca, moved], step=step)
+    assert merger.calls > 1 and tr.merged(0) is kept
+    if kept:
+        T = tr.transform(0, 1)
+        assert T is not None
+        np.testing.assert_allclose(T, T_true @ translation(-shift, 0), atol=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("shift", "slack", "kept"),
+    [
+        (6, 6, True),  # walls 6 cells off: within the drift slack, the place stands
+        (6, 0, False),  # the rule off: dropped
+        (15, 6, False),  # 15 cells: beyond it, dropped
+    ],
+)
+def test_recheck_keeps_a_transform_contradicted_only_within_a_drifts_width(
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray], shift: int, slack: int, kept: bool
+) -> None:
+    """Robot 1's map slides ``shift`` cells (drift); the merger refuses every re-check without
+    a pose. The kept transform stays while its walls lie within ``drift_slack_cells`` of the
+    other map's, unchanged."""
+    ca, cb, T_true = robots
+    from mrexplore.merge.common import Verifier, known_bbox
+
+    ra0, _, ca0, _ = known_bbox(ca)  # type: ignore[misc]
+    rb0, _, cb0, _ = known_bbox(cb)  # type: ignore[misc]
+    T_crop = translation(-ca0, -ra0) @ T_true @ translation(cb0, rb0)
+    moved = np.full_like(cb, UNKNOWN)
+    moved[:, shift:] = cb[:, :-shift]
+    assert Verifier(ca, moved, slack=2).structured(T_true, 5).score < 0.85  # contradicted
+    tr = MapMergeTracker(
+        2,
+        merger=_Seq([T_crop, None]),
+        merge_every=1,
+        recheck_every=5,
+        confirmations=1,
+        drift_slack_cells=slack,
+    )
+    tr.update([ca, cb], step=1)
+    assert tr.merged(0)
+    for step in range(2, 11):
+        tr.update([ca, moved], step=step)
+    assert tr.merged(0) is kept
+    if kept:
+        np.testing.assert_allclose(tr.transform(0, 1), T_true, atol=1e-9)  # crop round trip
 
 
 def test_tracker_fed_map_changes_equals_the_scanning_tracker() -> None:

@@ -100,6 +100,12 @@ class EnvConfig(Options):
             that on real robots; 0 = in the step that starts it, no thread). A fixed delay, not
             "when ready": the same seed gives the same run on any machine.
         comm_range_m: maps are exchanged only while robots are within this distance (None = always).
+        sighting_range_m: robots that see each other within this distance (metres, no wall
+            between them) measure each other's relative pose, and the merge tracker looks for
+            the transform between their maps near the guess that follows (a rendezvous;
+            :mod:`mrexplore.environment.sighting`). None (default): no sightings.
+        sighting_noise_range_m, sighting_noise_bearing_rad, sighting_noise_heading_rad: standard
+            deviations of that measurement (defaults 0.05 m, 0.02 rad, 0.05 rad).
     Episode and reward:
         target_coverage: exploration ends when the coverage (``coverage_mode``) reaches this
             share of the reachable free cells.
@@ -174,6 +180,10 @@ class EnvConfig(Options):
     recheck_every: int = option(RECHECK_EVERY_DEFAULT, RECHECK_EVERY_CHECK)
     merge_latency_steps: int = option(8, MERGE_LATENCY_CHECK)
     comm_range_m: float | None = option(None, optional(positive))
+    sighting_range_m: float | None = option(None, optional(positive))
+    sighting_noise_range_m: float = option(0.05, non_negative)
+    sighting_noise_bearing_rad: float = option(0.02, non_negative)
+    sighting_noise_heading_rad: float = option(0.05, non_negative)
     target_coverage: float = option(0.95, number(0.0, 1.0, low_open=True))
     coverage_mode: CoverageMode = option("observed", one_of("observed", "held"))
     max_time_s: float = option(600.0, positive)

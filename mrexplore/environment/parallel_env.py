@@ -71,6 +71,7 @@ from mrexplore.environment.infos import (
 )
 from mrexplore.environment.observations import ObservationBuilder, ObservationFormat
 from mrexplore.environment.radio import Radio
+from mrexplore.environment.sighting import SightingSensor, sightings
 from mrexplore.environment.state import EpisodeState
 from mrexplore.environment.task import make_task
 from mrexplore.errors import ConfigError
@@ -146,6 +147,16 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
                 f"radio: its agents {radio.agents} must be the env's {self.possible_agents}"
             )
         self.radio = radio if radio is not None else Radio(self.possible_agents, cfg.comm_range_m)
+        self._sighting = (
+            None
+            if cfg.sighting_range_m is None
+            else SightingSensor(
+                cfg.sighting_range_m,
+                cfg.sighting_noise_range_m,
+                cfg.sighting_noise_bearing_rad,
+                cfg.sighting_noise_heading_rad,
+            )
+        )
         self.viewer = viewer if viewer is not None else render_frame
         self.fusion = FusionStage(
             self.possible_agents,
@@ -470,9 +481,29 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         maps = {a: m.to_int8() for a, m in zip(self.possible_agents, sim.maps, strict=True)}
         # The maps track their known and changed boxes: the tracker need not scan canvases.
         changes = {a: m.change() for a, m in zip(self.possible_agents, sim.maps, strict=True)}
-        self.fusion.update(maps, int(sim.steps), links, attempt=attempt, changes=changes)
+        seen = self._sightings(sim) if attempt and self._sighting is not None else None
+        self.fusion.update(
+            maps, int(sim.steps), links, attempt=attempt, changes=changes, sightings=seen
+        )
         ep.transforms = {a: self.fusion.transforms(a) for a in self.possible_agents}
         self.radio.hear(ep.transforms, sim.pose_cell)
+
+    def _sightings(self, sim: Any) -> dict[tuple[int, int], Any]:
+        """This step's sightings of unmerged pairs (noise drawn from the run's generator)."""
+        assert self._sighting is not None
+        pairs = self.fusion.unmerged_pairs()
+        if not pairs:
+            return {}
+        return sightings(
+            self._sighting,
+            sim.world.walls,
+            sim.true_poses,
+            sim.world.cell_of(sim.true_poses[:, :2]),
+            [sim.pose_cell(k) for k in range(sim.n_robots)],
+            sim.resolution_m,
+            pairs,
+            self._run_rng,
+        )
 
     def _observe(self, ep: EpisodeState) -> Observations:
         out = {}

@@ -13,7 +13,11 @@ odometry noise on (:data:`LOOP_ENV_OPTIONS`). Variants (same world, same seed, s
 - ``seeded`` (asked for by name, not in the default set): 2 robots, :class:`SeededMerger`: the
   semantic merger with the true pose added to its hypotheses, judged by the same rules. Between
   ``semantic`` and ``seeded`` lies what the search misses; between ``seeded`` and ``oracle``,
-  what the decision rules (and the evidence the maps hold) refuse.
+  what the decision rules (and the evidence the maps hold) refuse;
+- ``sighting`` (asked for by name): 2 robots, the default merger, with sightings on
+  (``sighting_range_m`` :data:`SIGHTING_RANGE_M`, the lidar's range): robots that see each
+  other measure their relative pose, and the tracker looks near the guess that follows (a
+  rendezvous; :mod:`mrexplore.environment.sighting`).
 
 Per episode it records whether the maps were merged, the first merge, the task time, whether
 the target was reached, whether a transform >= 5 cells off the truth was held at any step, the
@@ -55,8 +59,10 @@ from mrexplore.merge.common import MergeResult, translation, warp_into
 WORLDS: tuple[str, ...] = ("symmetric_office", "twin_wings", "tb3_office", "depot")
 #: Variants: merger for two robots, or one robot (the default set of the study).
 VARIANTS: tuple[str, ...] = ("semantic", "oracle", "none", "single")
-#: Every variant the study can run (``seeded`` is a diagnostic, asked for by name).
-ALL_VARIANTS: tuple[str, ...] = (*VARIANTS, "seeded")
+#: Every variant the study can run (``seeded`` and ``sighting`` are asked for by name).
+ALL_VARIANTS: tuple[str, ...] = (*VARIANTS, "seeded", "sighting")
+#: ``sighting_range_m`` of the ``sighting`` variant: the lidar's default range (metres).
+SIGHTING_RANGE_M = 4.0
 POLICY = "coordinated-frontier"
 #: Env options of every episode: random start headings, range noise 2 cm (std), odometry
 #: translation noise 1 % of the distance, heading noise 0.005 rad per radian turned and
@@ -209,6 +215,8 @@ def episode_options(
     }
     opts["n_robots"] = 1 if variant == "single" else 2
     opts["merger"] = None if variant in ("none", "single") else "semantic"
+    if variant == "sighting":
+        opts["sighting_range_m"] = SIGHTING_RANGE_M
     return opts
 
 

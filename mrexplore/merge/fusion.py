@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from mrexplore.grid import MapChange, check_int8_map
+from mrexplore.grid import MapChange, Transform, check_int8_map
 from mrexplore.options import MERGE_EVERY_DEFAULT, RECHECK_EVERY_DEFAULT
 from mrexplore.types import Box, Merger
 
@@ -126,6 +126,7 @@ class FusionStage:
         links: NDArray[np.bool_] | None = None,
         attempt: bool = True,
         changes: Mapping[str, MapChange] | None = None,
+        sightings: Mapping[tuple[int, int], Transform] | None = None,
     ) -> None:
         """Feed this step's own-frame maps (one per agent, int8 -1/0/100).
 
@@ -133,7 +134,8 @@ class FusionStage:
         False records the maps without a merge attempt (at ``reset``: single-scan maps).
         ``changes``: optionally, per agent, what the map's owner knows of its changes (known
         and changed boxes, :class:`mrexplore.grid.MapChange`), which spares the tracker a scan
-        of every canvas.
+        of every canvas. ``sightings``: ``{(i, j): T_ij}`` guesses from robots that saw each
+        other (agent indices, i < j; see :meth:`~mrexplore.merge.MapMergeTracker.update`).
         """
         missing = [a for a in self.agents if a not in local_maps]
         if missing:
@@ -145,7 +147,9 @@ class FusionStage:
         if self.tracker is None:
             return
         hints = None if changes is None else [changes.get(a) for a in self.agents]
-        self.tracker.update(self._maps, step, links, attempt=attempt, changes=hints)
+        self.tracker.update(
+            self._maps, step, links, attempt=attempt, changes=hints, sightings=sightings
+        )
         for a in self.agents:
             if self._first_merge_step[a] is None and self.tracker.merged(self.index[a]):
                 self._first_merge_step[a] = step
@@ -164,6 +168,18 @@ class FusionStage:
             return False
         tracker = self.tracker
         return bool(self._memoised("merged", agent, lambda: tracker.merged(self.index[agent])))
+
+    def unmerged_pairs(self) -> list[tuple[int, int]]:
+        """Agent index pairs (i < j) whose maps are not merged (directly or through others)."""
+        if self.tracker is None:
+            return []
+        n = len(self.agents)
+        return [
+            (i, j)
+            for i in range(n)
+            for j in range(i + 1, n)
+            if self.tracker.transform(i, j) is None
+        ]
 
     def first_merge_step(self, agent: str) -> int | None:
         """The step at which ``agent`` was first merged, or None."""

@@ -7,11 +7,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from conftest import two_rooms
 
 from mrexplore.errors import ConfigError, GridError
 from mrexplore.experiments.merge_cases import rotate_map
 from mrexplore.grid import OCCUPIED as OCC
-from mrexplore.grid import UNKNOWN, invert_transform
+from mrexplore.grid import UNKNOWN, chain, invert_transform
 from mrexplore.merge import MapMergeTracker, MergeResult
 from mrexplore.merge.common import Agreement, translation
 from mrexplore.truth import merge_error
@@ -506,6 +507,39 @@ def test_recheck_keeps_a_transform_contradicted_only_within_a_drifts_width(
     assert tr.merged(0) is kept
     if kept:
         np.testing.assert_allclose(tr.transform(0, 1), T_true, atol=1e-9)  # crop round trip
+
+
+@pytest.mark.parametrize("sighted", [False, True])
+def test_a_sighting_merges_look_alike_rooms_the_maps_alone_cannot_tell_apart(
+    sighted: bool,
+) -> None:
+    """Robot 1's map is the left room of two identical ones that robot 0 knows, so alone
+    every attempt is refused as ambiguous (and the tracker remembers the other room as a
+    rival). A sighting (a guess of T_01 a few cells and degrees off) makes the pair due for
+    an attempt at once, although the maps have not grown, and confines it to the guess's
+    region, where the pose is unique: merged at the true place, the remembered rival
+    outside the region no longer standing against it."""
+    from mrexplore.merge.semantic import _turn_about
+
+    a = two_rooms()
+    canvas_a = np.full((200, 400), UNKNOWN, dtype=np.int8)
+    canvas_a[40:160, 60:320] = a
+    canvas_b = np.full((200, 200), UNKNOWN, dtype=np.int8)
+    canvas_b[30:150, 20:151] = a[:, :131]
+    T_true = translation(40.0, 10.0)  # b's canvas cells -> a's (the left room)
+    guess = chain(T_true, _turn_about(3.0, 85.0, 90.0), translation(5.0, -4.0))
+    tr = MapMergeTracker(2, merge_every=1, confirmations=1, resolution_m=0.05)
+    maps = [canvas_a, canvas_b]
+    tr.update(maps, step=1)
+    result = tr.last_result(0, 1)
+    assert not tr.merged(0) and result is not None and result.reason.startswith("ambiguous")
+    for step in range(2, 5):
+        tr.update(maps, step=step, sightings={(0, 1): guess} if sighted else None)
+    assert tr.merged(0) is sighted
+    if sighted:
+        T = tr.transform(0, 1)
+        assert T is not None
+        np.testing.assert_allclose(T[:2, 2], T_true[:2, 2], atol=1.0)
 
 
 def test_tracker_fed_map_changes_equals_the_scanning_tracker() -> None:

@@ -203,6 +203,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         self.window = HumanWindow(self.metadata["render_fps"]) if render_mode == "human" else None
         self._rng: np.random.Generator | None = None
         self._run_rng = np.random.default_rng(0)
+        self._sight_rng = np.random.default_rng(1)
         #: the current episode, None before the first reset
         self.episode: EpisodeState | None = None
 
@@ -240,6 +241,9 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         if seed is not None or self._rng is None:
             self._rng = np.random.default_rng(seed)
         world_rng, start_rng, goal_rng, self._run_rng = self._rng.spawn(4)
+        # sightings draw from a child of the run's generator: the run's own draws (lidar and
+        # odometry noise) stay what they are with sightings off
+        self._sight_rng = self._run_rng.spawn(1)[0]
         starts = self._fixed_starts(options)
         world = self._fixed_world or load_world(self.config.world, rng=world_rng)
         sim = Simulation(world, self.config.n_robots, self._sim_config)
@@ -489,7 +493,8 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         self.radio.hear(ep.transforms, sim.pose_cell)
 
     def _sightings(self, sim: Any) -> dict[tuple[int, int], Any]:
-        """This step's sightings of unmerged pairs (noise drawn from the run's generator)."""
+        """This step's sightings of unmerged pairs (noise drawn from the sightings' own child
+        of the run's generator)."""
         assert self._sighting is not None
         pairs = self.fusion.unmerged_pairs()
         if not pairs:
@@ -502,7 +507,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
             [sim.pose_cell(k) for k in range(sim.n_robots)],
             sim.resolution_m,
             pairs,
-            self._run_rng,
+            self._sight_rng,
         )
 
     def _observe(self, ep: EpisodeState) -> Observations:

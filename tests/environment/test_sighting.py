@@ -95,16 +95,16 @@ def test_sighting_options_are_checked_at_the_door() -> None:
 
 
 def test_an_env_with_sightings_runs_the_same_for_the_same_seed() -> None:
-    """Sightings draw their noise from the run's generator: two runs of one seed agree. In
-    this one (random actions) the robots see each other and merge at step 137, near the
-    truth; without sightings they have not merged by step 160."""
+    """Sightings draw their noise from a child of the run's generator: two runs of one seed
+    agree. In this one (random actions) the robots see each other and merge at step 27, near
+    the truth; without sightings they have not merged by step 60 (they do at 117)."""
     runs = []
     for sighting in (4.0, 4.0, None):
         env = mrexplore.parallel_env(world="symmetric_office", sighting_range_m=sighting)
-        env.reset(seed=6)
-        rng = np.random.default_rng(6)
+        env.reset(seed=14)
+        rng = np.random.default_rng(14)
         trace = []
-        for _ in range(160):
+        for _ in range(60):
             _, _, _, _, infos = env.step({a: int(rng.integers(3)) for a in env.agents})
             trace.append((infos["robot_0"]["merged"], infos["robot_0"]["coverage"]))
         runs.append((trace, env.fusion.tracker.transform(0, 1), infos["robot_0"]))
@@ -114,3 +114,6 @@ def test_an_env_with_sightings_runs_the_same_for_the_same_seed() -> None:
     np.testing.assert_array_equal(T0, T1)
     assert 0.0 <= runs[0][2]["merge_error_cells"] < 5.0
     assert runs[2][1] is None
+    # the actions do not depend on the maps here, so what the sensors observed is the same
+    # with sightings on and off: the sightings' draws leave the run's own noise alone
+    assert [c for _, c in runs[0][0]] == [c for _, c in runs[2][0]]

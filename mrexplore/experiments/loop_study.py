@@ -443,7 +443,40 @@ def summarize(
                 if seeds and v != "oracle"
                 else None
             )
+        for v in SEMANTIC_OPTION_VARIANTS:
+            if v in variants and "semantic" in variants:
+                out[w][v]["minus_semantic"] = _against_semantic(
+                    [e for e in episodes if e["world"] == w], v
+                )
     return out
+
+
+#: Variants that are the semantic merger with one option or diagnostic: the study also prints
+#: each one's paired difference to ``semantic`` when both ran.
+SEMANTIC_OPTION_VARIANTS: tuple[str, ...] = ("seeded", "sighting")
+
+
+def _against_semantic(episodes: Sequence[Mapping[str, Any]], variant: str) -> dict[str, Any]:
+    """``variant`` against ``semantic`` on the (world, seed) episodes both ran: the paired
+    task-time difference (mean, 95 % CI, s) and in how many episodes the first merge came
+    earlier / later (never merging counts as latest)."""
+    from mrexplore.experiments.evaluate import paired
+
+    runs = {(e["world"], e["variant"], e["seed"]): e for e in episodes}
+    keys = sorted((w, s) for (w, v, s) in runs if v == variant and (w, "semantic", s) in runs)
+    pairs = [(runs[(w, variant, s)], runs[(w, "semantic", s)]) for w, s in keys]
+
+    def first(e: Mapping[str, Any]) -> float:
+        return float(e["first_merge_time_s"]) if e["merged"] else math.inf
+
+    return {
+        "task_time_s": paired(
+            [float(a["task_time_s"]) for a, _ in pairs], [float(b["task_time_s"]) for _, b in pairs]
+        ),
+        "first_merge_earlier": sum(first(a) < first(b) for a, b in pairs),
+        "first_merge_later": sum(first(a) > first(b) for a, b in pairs),
+        "episodes": len(pairs),
+    }
 
 
 def _paired_text(p: Mapping[str, Any] | None) -> str:
@@ -459,6 +492,14 @@ def _gain_text(s: Mapping[str, Any]) -> str:
     if all(x is None for x in shares):
         return "-"
     return " / ".join("-" if x is None else f"{x:.0%}" for x in shares)
+
+
+def _against_semantic_text(variant: str, d: Mapping[str, Any], where: str = "") -> str:
+    return (
+        f"{where + ': ' if where else ''}{variant} minus semantic, paired over "
+        f"{d['episodes']} episodes: task time {_paired_text(d['task_time_s'])}; first merge "
+        f"earlier in {d['first_merge_earlier']}, later in {d['first_merge_later']}"
+    )
 
 
 def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
@@ -526,7 +567,18 @@ def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
             lines.append(f"{w}:")
             for r in (cols, *body):
                 lines.append("  ".join(x.ljust(widths[k]) for k, x in enumerate(r)).rstrip())
+        for v, s in rows.items():
+            d = s.get("minus_semantic")
+            if d is not None:
+                lines += ["", _against_semantic_text(v, d)]
         lines.append("")
+    ran = doc.get("variants", ())
+    for v in SEMANTIC_OPTION_VARIANTS:
+        if v in ran and "semantic" in ran:
+            lines += [
+                _against_semantic_text(v, _against_semantic(doc["episodes"], v), "all worlds"),
+                "",
+            ]
     lines.append(
         "merged: episodes whose maps were merged; wrong: episodes in which a robot held a "
         "transform >= 5 cells off the truth, beyond what odometry drift explains, at some step; "

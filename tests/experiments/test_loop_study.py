@@ -196,6 +196,45 @@ def test_summary_and_tables() -> None:
     assert not math.isnan(s["oracle"]["task_time_std_s"])
 
 
+def test_an_option_variant_is_paired_with_the_default_merger() -> None:
+    """``sighting`` (and ``seeded``) runs are the semantic merger with one option: the study
+    prints each one's paired difference to ``semantic`` per world and over all worlds, and in
+    how many episodes the first merge came earlier or later (never merging is latest)."""
+    eps = [
+        _ep("semantic", 0, 300.0, 100.0),
+        _ep("semantic", 1, 400.0, None),
+        _ep("sighting", 0, 280.0, 60.0),
+        _ep("sighting", 1, 390.0, 90.0),
+        {**_ep("semantic", 0, 200.0, 50.0), "world": "v"},
+        {**_ep("sighting", 0, 200.0, 70.0), "world": "v"},
+    ]
+    s = summarize(eps, ["w", "v"], ["semantic", "sighting"])
+    d = s["w"]["sighting"]["minus_semantic"]
+    assert d["task_time_s"]["mean"] == -15.0 and d["episodes"] == 2
+    assert (d["first_merge_earlier"], d["first_merge_later"]) == (2, 0)
+    assert "minus_semantic" not in s["w"]["semantic"]
+    doc = {
+        "policy": "p",
+        "seeds": [0, 1],
+        "variants": ["semantic", "sighting"],
+        "episodes": eps,
+        "env_options": {
+            "range_noise_m": 0.02,
+            "odom_noise_trans": 0.01,
+            "odom_noise_rot": 0.005,
+            "odom_noise_rot_per_m": 0.001,
+            "target_coverage": 0.95,
+            "max_time_s": 600.0,
+        },
+        "summary": s,
+    }
+    text = format_tables(doc)
+    assert "sighting minus semantic, paired over 2 episodes: task time -15.0 s" in text
+    # over both worlds: -20, -10 and 0 s; the first merge earlier in 2, later in 1
+    assert "all worlds: sighting minus semantic, paired over 3 episodes: task time -10.0 s" in text
+    assert "first merge earlier in 2, later in 1" in text
+
+
 @pytest.mark.expensive
 def test_jobs_give_the_serial_results() -> None:
     kw: dict[str, Any] = {

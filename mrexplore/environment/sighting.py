@@ -95,6 +95,8 @@ def guess_from_sighting(
     in_i = chain(_pose(*est_i), _pose(x / resolution_m, y / resolution_m, th))
     c, r, t = est_j
     cs, sn = math.cos(t), math.sin(t)
+    # a rigid pose inverts by its transpose: no division by the determinant that
+    # grid.invert_transform's general closed form does
     inv_j = np.array([[cs, sn, -(cs * c + sn * r)], [-sn, cs, sn * c - cs * r], [0.0, 0.0, 1.0]])
     return chain(in_i, inv_j)
 

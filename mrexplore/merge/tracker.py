@@ -39,7 +39,6 @@ makes the rules deterministic; the pixels (change detection, fused maps) are in
 
 from __future__ import annotations
 
-import math
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor, Future, ThreadPoolExecutor
@@ -460,7 +459,10 @@ class MapMergeTracker:
             # sighting's region already excludes: a guided attempt asks a few square metres.
             res = prior_merge(a, b, prior=prior, min_common_m2=GUIDED_MIN_COMMON_M2)
             # the sighting rules out every place outside its region, remembered rivals too
-            rivals = [R for R in rivals if self._near_guess(R, guess, box_j)]
+            # (the region about the centre of j's known box, in canvas cells)
+            region = PosePrior(guess, self.prior_radius_cells, self.prior_turn_deg)
+            centre = np.array([(cb + cb + b.shape[1]) / 2.0, (rb + rb + b.shape[0]) / 2.0])
+            rivals = [R for R in rivals if region.admits(R, centre, guess)]
         else:
             res = self._merge(a, b)
         T = None
@@ -481,19 +483,6 @@ class MapMergeTracker:
         if T is not None and rivals:
             standing = tuple(self._standing(a, b, offsets, T, rivals, box_j))
         return _Outcome(res, T, old_now, held_now, rivals=found, standing=standing)
-
-    def _near_guess(self, T: Transform, guess: Transform, box_j: Box) -> bool:
-        """Whether pose ``T`` lies in a sighting's region around ``guess`` (canvas cells): the
-        centre of j's known box within ``prior_radius_cells`` of where the guess puts it, turned
-        by at most ``prior_turn_deg`` (the merger's :class:`~mrexplore.merge.PosePrior` region,
-        about the box's centre instead of its walls')."""
-        r0, r1, c0, c1 = box_j
-        centre = np.array([[(c0 + c1) / 2.0, (r0 + r1) / 2.0]])
-        (x1, y1), (x2, y2) = map_points(centre, T), map_points(centre, guess)
-        turn = math.atan2(T[1, 0], T[0, 0]) - math.atan2(guess[1, 0], guess[0, 0])
-        turn = abs((turn + math.pi) % (2 * math.pi) - math.pi)
-        near = math.hypot(float(x1[0] - x2[0]), float(y1[0] - y2[0])) <= self.prior_radius_cells
-        return near and math.degrees(turn) <= self.prior_turn_deg
 
     def _drift_refit(
         self,

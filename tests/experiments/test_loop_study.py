@@ -136,6 +136,17 @@ def test_outputs_are_not_overwritten_without_force(tmp_path: Path) -> None:
     assert "### small_office" in Path(f"{out}.md").read_text()
 
 
+#: The env options a study document records (what ``format_tables`` prints in its heading).
+_ENV_OPTIONS = {
+    "range_noise_m": 0.02,
+    "odom_noise_trans": 0.01,
+    "odom_noise_rot": 0.005,
+    "odom_noise_rot_per_m": 0.001,
+    "target_coverage": 0.95,
+    "max_time_s": 600.0,
+}
+
+
 def _ep(variant: str, seed: int, t: float, merged_at: float | None, **kw: Any) -> dict[str, Any]:
     return {
         "world": "w",
@@ -179,14 +190,7 @@ def test_summary_and_tables() -> None:
     doc = {
         "policy": "p",
         "seeds": [0, 1],
-        "env_options": {
-            "range_noise_m": 0.02,
-            "odom_noise_trans": 0.01,
-            "odom_noise_rot": 0.005,
-            "odom_noise_rot_per_m": 0.001,
-            "target_coverage": 0.95,
-            "max_time_s": 600.0,
-        },
+        "env_options": _ENV_OPTIONS,
         "summary": {"w": s},
     }
     text = format_tables(doc)
@@ -218,14 +222,7 @@ def test_an_option_variant_is_paired_with_the_default_merger() -> None:
         "seeds": [0, 1],
         "variants": ["semantic", "sighting"],
         "episodes": eps,
-        "env_options": {
-            "range_noise_m": 0.02,
-            "odom_noise_trans": 0.01,
-            "odom_noise_rot": 0.005,
-            "odom_noise_rot_per_m": 0.001,
-            "target_coverage": 0.95,
-            "max_time_s": 600.0,
-        },
+        "env_options": _ENV_OPTIONS,
         "summary": s,
     }
     text = format_tables(doc)

@@ -14,7 +14,7 @@ from mrexplore.experiments.merge_cases import rotate_map
 from mrexplore.grid import OCCUPIED as OCC
 from mrexplore.grid import UNKNOWN, chain, invert_transform
 from mrexplore.merge import MapMergeTracker, MergeResult
-from mrexplore.merge.common import Agreement, translation
+from mrexplore.merge.common import Agreement, known_bbox, translation
 from mrexplore.truth import merge_error
 
 
@@ -25,6 +25,26 @@ def _canvas(
     out = np.full(shape, UNKNOWN, dtype=np.int8)
     out[at[1] : at[1] + m.shape[0], at[0] : at[0] + m.shape[1]] = m
     return out, translation(*at)
+
+
+def _in_crops(ca: np.ndarray, cb: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """``T`` (cb's canvas cells -> ca's) in the cells of their known boxes: what the tracker
+    hands the merger, and what a scripted merger must answer in."""
+    ra0, _, ca0, _ = known_bbox(ca)  # type: ignore[misc]
+    rb0, _, cb0, _ = known_bbox(cb)  # type: ignore[misc]
+    return translation(-ca0, -ra0) @ T @ translation(cb0, rb0)
+
+
+def _merged_after_rechecks(
+    tr: MapMergeTracker, ca: np.ndarray, cb: np.ndarray, later: np.ndarray
+) -> bool:
+    """Merge at step 1 on ``(ca, cb)``, then feed ``(ca, later)`` for steps 2-10 (re-checks at
+    the tracker's ``recheck_every``): is the pair still merged?"""
+    tr.update([ca, cb], step=1)
+    assert tr.merged(0)
+    for step in range(2, 11):
+        tr.update([ca, later], step=step)
+    return tr.merged(0)
 
 
 @pytest.fixture(scope="module")
@@ -143,11 +163,7 @@ def test_recheck_replaces_only_a_clearly_better_transform(
 ) -> None:
     ca, cb, T_true = robots
     # The tracker crops maps to their known boxes; express the truth in cropped cells.
-    from mrexplore.merge.common import known_bbox
-
-    ra0, _, ca0, _ = known_bbox(ca)  # type: ignore[misc]
-    rb0, _, cb0, _ = known_bbox(cb)  # type: ignore[misc]
-    T_crop = translation(-ca0, -ra0) @ T_true @ translation(cb0, rb0)
+    T_crop = _in_crops(ca, cb, T_true)
     wrong = translation(40.0, 0.0) @ T_crop
     scripted = _Scripted([T_crop, wrong])
     tr = MapMergeTracker(2, merger=scripted, merge_every=1, recheck_every=2, confirmations=1)
@@ -284,22 +300,14 @@ def test_recheck_drops_a_transform_the_grown_maps_contradict(
     robots: tuple[np.ndarray, np.ndarray, np.ndarray],
 ) -> None:
     ca, cb, T_true = robots
-    from mrexplore.merge.common import known_bbox
-
-    ra0, _, ca0, _ = known_bbox(ca)  # type: ignore[misc]
-    rb0, _, cb0, _ = known_bbox(cb)  # type: ignore[misc]
-    T_crop = translation(-ca0, -ra0) @ T_true @ translation(cb0, rb0)
+    T_crop = _in_crops(ca, cb, T_true)
     seq = _Seq([T_crop, None])
     tr = MapMergeTracker(2, merger=seq, merge_every=1, recheck_every=5, confirmations=1)
-    tr.update([ca, cb], step=1)
-    assert tr.merged(0)
     # Robot 1's map now says something else where it overlaps robot 0's: its walls moved by
     # 15 cells (as if the kept transform had been a look-alike match). The re-check drops it.
     moved = np.full_like(cb, UNKNOWN)
     moved[:, 15:] = cb[:, :-15]
-    for step in range(2, 11):
-        tr.update([ca, moved], step=step)
-    assert not tr.merged(0) and tr.transform(0, 1) is None
+    assert not _merged_after_rechecks(tr, ca, cb, moved) and tr.transform(0, 1) is None
 
 
 @pytest.mark.parametrize("noise_aware", [True, False])
@@ -310,11 +318,9 @@ def test_recheck_keeps_a_transform_the_maps_contradict_only_within_their_noise(
     the drop judges the noise-aware agreement, as acceptance does, and keeps the true
     transform. The raw judgement (slack 0, runs of 1) drops it."""
     ca, cb, T_true = robots
-    from mrexplore.merge.common import Verifier, known_bbox
+    from mrexplore.merge.common import Verifier
 
-    ra0, _, ca0, _ = known_bbox(ca)  # type: ignore[misc]
-    rb0, _, cb0, _ = known_bbox(cb)  # type: ignore[misc]
-    T_crop = translation(-ca0, -ra0) @ T_true @ translation(cb0, rb0)
+    T_crop = _in_crops(ca, cb, T_true)
     noisy = cb.copy()
     free = np.zeros(cb.shape, dtype=bool)
     free[::4, ::4] = True  # pairs 2 cells apart: every speckle is its own group
@@ -335,11 +341,7 @@ def test_recheck_keeps_a_transform_the_maps_contradict_only_within_their_noise(
     tr = MapMergeTracker(
         2, merger=_Seq([T_crop]), merge_every=1, recheck_every=5, confirmations=1, **opts
     )
-    tr.update([ca, cb], step=1)
-    assert tr.merged(0)
-    for step in range(2, 11):
-        tr.update([ca, noisy], step=step)
-    assert tr.merged(0) is noise_aware
+    assert _merged_after_rechecks(tr, ca, cb, noisy) is noise_aware
 
 
 @pytest.mark.parametrize(("tol", "kept"), [(8.0, True), (5.0, False)])
@@ -350,12 +352,10 @@ def test_recheck_refits_a_contradicted_transform_the_merger_finds_again_nearby(
     and the merger, run on the same maps, accepts the refitted one 6 cells away. Within
     ``relocate_tol_cells`` the pair stays merged with the new pose; beyond it, it is dropped."""
     ca, cb, T_true = robots
-    from mrexplore.merge.common import Verifier, known_bbox
+    from mrexplore.merge.common import Verifier
 
-    ra0, _, ca0, _ = known_bbox(ca)  # type: ignore[misc]
-    rb0, _, cb0, _ = known_bbox(cb)  # type: ignore[misc]
     # in crop cells the refitted pose of the moved map is the same matrix (its crop moved too)
-    T_crop = translation(-ca0, -ra0) @ T_true @ translation(cb0, rb0)
+    T_crop = _in_crops(ca, cb, T_true)
     moved = np.full_like(cb, UNKNOWN)
     moved[:, 6:] = cb[:, :-6]
     assert Verifier(ca, moved, slack=2).structured(T_true, 5).score < 0.85  # contradicted
@@ -368,11 +368,7 @@ def test_recheck_refits_a_contradicted_transform_the_merger_finds_again_nearby(
         relocate_tol_cells=tol,
         drift_slack_cells=0,  # this rule alone
     )
-    tr.update([ca, cb], step=1)
-    assert tr.merged(0)
-    for step in range(2, 11):
-        tr.update([ca, moved], step=step)
-    assert tr.merged(0) is kept
+    assert _merged_after_rechecks(tr, ca, cb, moved) is kept
     if kept:
         T = tr.transform(0, 1)
         assert T is not None
@@ -437,11 +433,9 @@ def test_recheck_keeps_a_drifted_place_the_merger_ranks_first_but_refuses(
     maps' noise at least ``drop_below`` (0.85) and beats every farther rival by the merger's
     margin (0.03 in raw index; the best's is 0.80)."""
     ca, cb, T_true = robots
-    from mrexplore.merge.common import Verifier, known_bbox
+    from mrexplore.merge.common import Verifier
 
-    ra0, _, ca0, _ = known_bbox(ca)  # type: ignore[misc]
-    rb0, _, cb0, _ = known_bbox(cb)  # type: ignore[misc]
-    T_crop = translation(-ca0, -ra0) @ T_true @ translation(cb0, rb0)
+    T_crop = _in_crops(ca, cb, T_true)
     moved = np.full_like(cb, UNKNOWN)
     moved[:, 6:] = cb[:, :-6]  # robot 1's map drifts 6 cells: the kept pose is contradicted
     assert Verifier(ca, moved, slack=2).structured(T_true, 5).score < 0.85
@@ -458,11 +452,7 @@ def test_recheck_keeps_a_drifted_place_the_merger_ranks_first_but_refuses(
         refit_refused=refit,
         drift_slack_cells=0,  # this rule alone (a 6-cell drift is also kept by the next test's)
     )
-    tr.update([ca, cb], step=1)
-    assert tr.merged(0)
-    for step in range(2, 11):
-        tr.update([ca, moved], step=step)
-    assert merger.calls > 1 and tr.merged(0) is kept
+    assert _merged_after_rechecks(tr, ca, cb, moved) is kept and merger.calls > 1
     if kept:
         T = tr.transform(0, 1)
         assert T is not None
@@ -484,11 +474,9 @@ def test_recheck_keeps_a_transform_contradicted_only_within_a_drifts_width(
     a pose. The kept transform stays while its walls lie within ``drift_slack_cells`` of the
     other map's, unchanged."""
     ca, cb, T_true = robots
-    from mrexplore.merge.common import Verifier, known_bbox
+    from mrexplore.merge.common import Verifier
 
-    ra0, _, ca0, _ = known_bbox(ca)  # type: ignore[misc]
-    rb0, _, cb0, _ = known_bbox(cb)  # type: ignore[misc]
-    T_crop = translation(-ca0, -ra0) @ T_true @ translation(cb0, rb0)
+    T_crop = _in_crops(ca, cb, T_true)
     moved = np.full_like(cb, UNKNOWN)
     moved[:, shift:] = cb[:, :-shift]
     assert Verifier(ca, moved, slack=2).structured(T_true, 5).score < 0.85  # contradicted
@@ -500,11 +488,7 @@ def test_recheck_keeps_a_transform_contradicted_only_within_a_drifts_width(
         confirmations=1,
         drift_slack_cells=slack,
     )
-    tr.update([ca, cb], step=1)
-    assert tr.merged(0)
-    for step in range(2, 11):
-        tr.update([ca, moved], step=step)
-    assert tr.merged(0) is kept
+    assert _merged_after_rechecks(tr, ca, cb, moved) is kept
     if kept:
         np.testing.assert_allclose(tr.transform(0, 1), T_true, atol=1e-9)  # crop round trip
 
@@ -633,12 +617,8 @@ def test_a_remembered_rival_the_maps_still_support_blocks_a_look_alike(
     """An attempt is refused as ambiguous between two poses; later attempts offer only the
     wrong one (the search no longer finds the other). The remembered rival, which the maps
     support better, keeps the pair apart; without the memory the wrong pose is accepted."""
-    from mrexplore.merge.common import known_bbox
-
     ca, cb, T_true = robots
-    ra0, _, ca0, _ = known_bbox(ca)  # type: ignore[misc]
-    rb0, _, cb0, _ = known_bbox(cb)  # type: ignore[misc]
-    truth = translation(-ca0, -ra0) @ T_true @ translation(cb0, rb0)
+    truth = _in_crops(ca, cb, T_true)
     wrong = translation(40.0, 0.0) @ truth
     merger = _WithRivals([(None, [truth]), (wrong, []), (wrong, []), (wrong, [])])
     tr = MapMergeTracker(
@@ -655,12 +635,8 @@ def test_a_remembered_rival_the_maps_rule_out_is_forgotten(
 ) -> None:
     """The other way round: the remembered rival is the wrong pose; the maps contradict it, so
     the true pose is accepted after its two agreeing attempts, and the rival is forgotten."""
-    from mrexplore.merge.common import known_bbox
-
     ca, cb, T_true = robots
-    ra0, _, ca0, _ = known_bbox(ca)  # type: ignore[misc]
-    rb0, _, cb0, _ = known_bbox(cb)  # type: ignore[misc]
-    truth = translation(-ca0, -ra0) @ T_true @ translation(cb0, rb0)
+    truth = _in_crops(ca, cb, T_true)
     wrong = translation(40.0, 0.0) @ truth
     merger = _WithRivals([(None, [wrong]), (truth, []), (truth, [])])
     tr = MapMergeTracker(2, merger=merger, merge_every=1, recheck_every=0, retry_growth=0.0)

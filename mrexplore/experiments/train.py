@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import hashlib
 import importlib.resources
 import importlib.util
 import json
@@ -65,6 +66,41 @@ def save_for_inference(model: Any, path: str | Path) -> Path:
     return Path(path)
 
 
+def _init_file(init_from: str | Path) -> Path:
+    """The ``model.zip`` that ``--init-from`` names (a file, or a folder holding one)."""
+    path = Path(init_from)
+    if path.is_dir():
+        path = path / "model.zip"
+    if not path.is_file():
+        raise ConfigError(f"train: --init-from {init_from}: no such model.zip")
+    return path
+
+
+def _load_weights(model: Any, path: Path) -> None:
+    """Copy the network weights of the saved model at ``path`` into ``model`` (built from this
+    run's config); a model of other spaces or another network is refused by name."""
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    try:
+        data, params, _ = load_from_zip_file(str(path), device="cpu")
+    except Exception as err:  # a zip that SB3 cannot read: name the file, not the library
+        raise ConfigError(f"train: --init-from {path}: not a saved model ({err})") from None
+    for space in ("observation_space", "action_space"):
+        if data is None or data.get(space) != getattr(model, space):
+            raise ConfigError(
+                f"train: --init-from {path}: its {space.replace('_', ' ')} differs from this "
+                "run's env (another env config or action mode)"
+            )
+    try:
+        model.policy.load_state_dict(params["policy"])
+    except (KeyError, RuntimeError) as err:
+        first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        raise ConfigError(
+            f"train: --init-from {path}: its network does not fit this run's policy ({first}); "
+            "use the algorithm, policy and policy_kwargs it was trained with"
+        ) from None
+
+
 def _versions() -> dict[str, str]:
     import gymnasium
     import numpy
@@ -107,8 +143,15 @@ def train(
     n_copies: int | None = None,
     progress: bool = True,
     force: bool = False,
+    init_from: str | Path | None = None,
 ) -> dict[str, Any]:
     """Train, evaluate periodically against the frontier baselines, save; returns the config.
+
+    ``init_from``: a ``model.zip`` (or a policy folder holding one) of the same algorithm,
+    observation and action spaces and network: training starts from its weights (with fresh
+    optimizer moments, which an inference ``model.zip`` does not keep) instead of a random
+    network. ``timesteps`` then counts the new steps only; ``config.yaml`` records the file and
+    its SHA-256.
 
     Every argument is checked, and ``out`` refused when it is a file or a non-empty folder
     (without ``force``), before any work. ``final_eval_seeds=None`` scales the final
@@ -135,6 +178,7 @@ def train(
         if final_eval_seeds is None
         else _check_int("final_eval_seeds", final_eval_seeds, 0)
     )
+    init_file = None if init_from is None else _init_file(init_from)
     cfg = load_hyperparams(algo, hyperparams_file)
     env_opts = dict(cfg["env"])
     env_opts["world"] = training_world(world, env_opts.get("world", "random:symmetric_office"))
@@ -186,7 +230,9 @@ def train(
         },
         "versions": _versions(),
     }
-    write_text(out / "config.yaml", yaml.safe_dump(config, sort_keys=False))
+    if init_file is not None:
+        digest = hashlib.sha256(init_file.read_bytes()).hexdigest()
+        config["init_from"] = {"path": str(init_file), "sha256": digest}
 
     import torch
 
@@ -230,6 +276,10 @@ def train(
         policy_kwargs=copy.deepcopy(cfg.get("policy_kwargs") or None),
         **cfg["hyperparams"],
     )
+    if init_file is not None:
+        _load_weights(model, init_file)
+    # written once the start is known good: a refused --init-from leaves no config behind
+    write_text(out / "config.yaml", yaml.safe_dump(config, sort_keys=False))
     eval_env = {**env_opts, "task": "explore"}
     baseline_env = split_options(eval_env)[2]  # the planners act on the low-level env
     periodic_seeds = list(range(EVAL_SEED_BASE, EVAL_SEED_BASE + eval_seeds))
@@ -363,6 +413,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     p.add_argument("--n-copies", type=int, default=None)
     p.add_argument(
+        "--init-from",
+        default=None,
+        help="start from the weights of this model.zip (or policy folder) of the same "
+        "algorithm, spaces and network; --timesteps counts the new steps",
+    )
+    p.add_argument(
         "--env-runners",
         type=int,
         default=2,
@@ -378,6 +434,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.backend == "rllib":
         if args.algo != "ppo":
             raise ConfigError("train --backend rllib trains PPO only (--algo ppo)")
+        if args.init_from is not None:
+            raise ConfigError("train: --init-from needs --backend sb3")
         from mrexplore.experiments.train_rllib import train_rllib
 
         train_rllib(
@@ -408,5 +466,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         final_eval_seeds=args.final_eval_seeds,
         n_copies=args.n_copies,
         force=args.force,
+        init_from=args.init_from,
     )
     return 0

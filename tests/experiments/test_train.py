@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -301,3 +302,63 @@ def test_batched_training_refuses_what_it_cannot_batch_before_any_work(
     with pytest.raises(ConfigError, match=words):
         train(algo="ppo", timesteps=32, out=tmp_path / "run", hyperparams_file=path)
     assert not (tmp_path / "run").exists()
+
+
+def _goal_yaml(tmp_path: Path, name: str, net: list[int], lr: float = 3e-4) -> Path:
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(
+        yaml.safe_dump(
+            {
+                "policy": "MultiInputPolicy",
+                "n_copies": 1,
+                "env": GOAL_ENV,
+                "hyperparams": {"n_steps": 8, "batch_size": 8, "n_epochs": 1, "learning_rate": lr},
+                "policy_kwargs": {"net_arch": net},
+            }
+        )
+    )
+    return path
+
+
+@pytest.mark.expensive
+def test_init_from_starts_from_the_saved_weights_and_refuses_another_network(
+    tmp_path: Path,
+) -> None:
+    import torch
+    from sb3_contrib import MaskablePPO
+
+    quiet: dict[str, Any] = {
+        "eval_every": 10_000,
+        "eval_seeds": 1,
+        "final_eval_seeds": 0,
+        "progress": False,
+    }
+    first = tmp_path / "first"
+    train(
+        "maskable_ppo", 16, first, seed=1, hyperparams_file=_goal_yaml(tmp_path, "a", [16]), **quiet
+    )
+    # learning rate 0: the continued run's weights stay those it started from
+    frozen = _goal_yaml(tmp_path, "frozen", [16], lr=0.0)
+    config = train(
+        "maskable_ppo",
+        16,
+        tmp_path / "second",
+        seed=2,
+        hyperparams_file=frozen,
+        init_from=first,
+        **quiet,
+    )
+    assert config["init_from"]["path"] == str(first / "model.zip")
+    assert len(config["init_from"]["sha256"]) == 64
+    a = MaskablePPO.load(str(first / "model.zip"), device="cpu").policy.state_dict()
+    b = MaskablePPO.load(str(tmp_path / "second" / "model.zip"), device="cpu").policy.state_dict()
+    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+    other = _goal_yaml(tmp_path, "wide", [32])
+    with pytest.raises(ConfigError, match="does not fit"):
+        train(
+            "maskable_ppo", 16, tmp_path / "third", hyperparams_file=other, init_from=first, **quiet
+        )
+    assert not any((tmp_path / "third").iterdir())  # no config of a run that did not start
+    with pytest.raises(ConfigError, match=r"no such model\.zip"):
+        train("maskable_ppo", 16, tmp_path / "fourth", init_from=tmp_path / "nowhere", **quiet)
+    assert not (tmp_path / "fourth").exists()  # refused before any work

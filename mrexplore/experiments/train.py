@@ -34,7 +34,7 @@ from mrexplore.experiments.evaluate import (
     write_evaluation,
 )
 from mrexplore.experiments.train_setup import final_eval_seed_count, training_world
-from mrexplore.experiments.trained import ALGOS, CONTRIB_ALGOS, TrainedTeamPolicy, algo_class
+from mrexplore.experiments.trained import ALGOS, TrainedTeamPolicy, algo_class
 from mrexplore.io_safety import atomic_path, check_out_dir, write_text
 
 
@@ -260,7 +260,7 @@ def train(
             batched=batched,
             **env_opts,
         )
-    if algo in CONTRIB_ALGOS:
+    if algo == "maskable_ppo":
         from mrexplore.wrappers.action_masks import VecActionMasks
 
         inner = VecActionMasks(inner)

@@ -17,10 +17,12 @@ from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError
 
-ALGOS = ("ppo", "a2c", "dqn", "maskable_ppo")
+ALGOS = ("ppo", "a2c", "dqn", "maskable_ppo", "recurrent_ppo")
 #: Algorithms from sb3-contrib (``pip install sb3-contrib``): ``maskable_ppo`` is its
-#: ``MaskablePPO``, for the goal-level env's action masks.
-CONTRIB_ALGOS = ("maskable_ppo",)
+#: ``MaskablePPO``, for the goal-level env's action masks; ``recurrent_ppo`` its
+#: ``RecurrentPPO`` (an LSTM policy: memory across decisions; it takes no masks, so a masked
+#: choice falls back to the env's row 0, and the mask is one more input).
+CONTRIB_ALGOS = ("maskable_ppo", "recurrent_ppo")
 #: Env options that shape the observation (and, for the goal level, the actions): a trained
 #: policy must run with the ones it saw.
 OBSERVATION_OPTIONS = (
@@ -83,7 +85,9 @@ def model_algo(model_path: str | Path) -> str | None:
         raise ConfigError(f"{model_path} is not a stable-baselines3 model file (bad 'data')")
     if "clip_range" in data:
         policy_class = json.dumps(data.get("policy_class", "")).lower()
-        return "maskable_ppo" if "maskable" in policy_class else "ppo"
+        if "maskable" in policy_class:
+            return "maskable_ppo"
+        return "recurrent_ppo" if "lstm" in policy_class else "ppo"
     if "target_update_interval" in data:
         return "dqn"
     if "n_steps" in data:
@@ -98,14 +102,14 @@ def observation_options(folder: str | Path) -> dict[str, Any]:
 
 
 def algo_class(algo: str) -> Any:
-    """The SB3 class for ``algo`` (``ppo``, ``a2c``, ``dqn``; ``maskable_ppo`` from
-    sb3-contrib), with an install hint."""
+    """The SB3 class for ``algo`` (``ppo``, ``a2c``, ``dqn``; ``maskable_ppo`` and
+    ``recurrent_ppo`` from sb3-contrib), with an install hint."""
     if algo in CONTRIB_ALGOS:
         try:
-            from sb3_contrib import MaskablePPO
+            import sb3_contrib
         except ImportError as exc:  # pragma: no cover - exercised only without the extra
             raise ImportError(f"{algo} needs sb3-contrib: pip install 'mrexplore[train]'") from exc
-        return MaskablePPO
+        return sb3_contrib.MaskablePPO if algo == "maskable_ppo" else sb3_contrib.RecurrentPPO
     try:
         import stable_baselines3 as sb3
     except ImportError as exc:  # pragma: no cover - exercised only without the extra
@@ -133,6 +137,10 @@ class TrainedTeamPolicy:
         self.model = model
         self.agents = list(agents)
         self.deterministic = deterministic
+        # recurrent models (sb3-contrib's RecurrentPPO): each robot's LSTM state, carried
+        # from one decision to the next and cleared by reset(); None = episode start
+        self.recurrent = _is_recurrent(model)
+        self._lstm: dict[str, tuple[NDArray[np.float32], NDArray[np.float32]]] = {}
 
     @classmethod
     def load(
@@ -162,7 +170,8 @@ class TrainedTeamPolicy:
 
     def reset(self, rng: np.random.Generator) -> None:
         """Seed the action sampling from ``rng`` (SB3 samples with torch's generator), so the same
-        episode seed gives the same run."""
+        episode seed gives the same run. A recurrent model's memory starts empty again."""
+        self._lstm = {}
         if not self.deterministic:
             import torch
 
@@ -185,11 +194,36 @@ class TrainedTeamPolicy:
                 kwargs["action_masks"] = batch["action_mask"].astype(bool)
         else:
             batch = np.stack([observations[a] for a in agents])
+        if self.recurrent:
+            return self._act_recurrent(agents, batch)
         actions, _ = self.model.predict(batch, deterministic=self.deterministic, **kwargs)
         return {a: int(x) for a, x in zip(agents, np.asarray(actions).reshape(-1), strict=False)}
 
     def act(self, views: Mapping[str, Any]) -> dict[str, int]:
         raise TypeError("TrainedTeamPolicy acts on observations: call act_obs(observations)")
+
+    def _act_recurrent(self, agents: list[str], batch: Any) -> dict[str, int]:
+        """One decision of a recurrent model for ``agents`` (one batch), each robot with its
+        own LSTM state: ``(n_layers, 1, hidden)`` hidden and cell arrays per robot, stacked
+        along axis 1 for the call."""
+        starts = np.array([a not in self._lstm for a in agents])
+        state = None
+        if not starts.all():
+            shape = self.model.policy.lstm_hidden_state_shape  # (n_layers, 1, hidden)
+            zero = np.zeros(shape, dtype=np.float32)
+            hs, cs = zip(*(self._lstm.get(a, (zero, zero)) for a in agents), strict=True)
+            state = (np.concatenate(hs, axis=1), np.concatenate(cs, axis=1))
+        actions, (h, c) = self.model.predict(
+            batch, state=state, episode_start=starts, deterministic=self.deterministic
+        )
+        for k, a in enumerate(agents):
+            self._lstm[a] = (h[:, k : k + 1].copy(), c[:, k : k + 1].copy())
+        return {a: int(x) for a, x in zip(agents, np.asarray(actions).reshape(-1), strict=False)}
+
+
+def _is_recurrent(model: Any) -> bool:
+    """Whether ``model`` keeps an LSTM state between calls (sb3-contrib's ``RecurrentPPO``)."""
+    return hasattr(getattr(model, "policy", None), "lstm_hidden_state_shape")
 
 
 def _takes_masks(model: Any) -> bool:

@@ -362,3 +362,42 @@ def test_init_from_starts_from_the_saved_weights_and_refuses_another_network(
     with pytest.raises(ConfigError, match=r"no such model\.zip"):
         train("maskable_ppo", 16, tmp_path / "fourth", init_from=tmp_path / "nowhere", **quiet)
     assert not (tmp_path / "fourth").exists()  # refused before any work
+
+
+@pytest.mark.expensive
+def test_recurrent_ppo_carries_each_robots_memory_and_clears_it_on_reset(tmp_path: Path) -> None:
+    from mrexplore.experiments.trained import model_algo
+
+    hyper = tmp_path / "lstm.yaml"
+    hyper.write_text(
+        yaml.safe_dump(
+            {
+                "policy": "MultiInputLstmPolicy",
+                "n_copies": 1,
+                "env": GOAL_ENV,
+                "hyperparams": {"n_steps": 8, "batch_size": 8, "n_epochs": 1},
+                "policy_kwargs": {"net_arch": [16], "lstm_hidden_size": 8},
+            }
+        )
+    )
+    out = tmp_path / "policy"
+    train("recurrent_ppo", 16, out, seed=1, hyperparams_file=hyper, eval_every=10_000,
+          eval_seeds=1, final_eval_seeds=0, progress=False)  # fmt: skip
+    assert model_algo(out / "model.zip") == "recurrent_ppo"
+    penv = mrexplore.parallel_env(**{**GOAL_ENV, "world": "small_office"})
+    obs, _ = penv.reset(seed=0)
+    team = TrainedTeamPolicy.load(out, penv.possible_agents, deterministic=True)
+    assert team.recurrent
+    team.reset(np.random.default_rng(0))
+    first = team.act_obs(obs)
+    assert set(first) == set(penv.possible_agents)
+    assert all(0 <= x < 4 for x in first.values())
+    h, _c = team._lstm["robot_0"]
+    assert h.shape == (1, 1, 8) and np.any(h != 0)  # the state moved from its zero start
+    # one robot alone gets the state it had in the batch: the same action as in a batch
+    again = TrainedTeamPolicy.load(out, penv.possible_agents, deterministic=True)
+    again.reset(np.random.default_rng(0))
+    assert again.act_obs({"robot_1": obs["robot_1"]}) == {"robot_1": first["robot_1"]}
+    team.reset(np.random.default_rng(0))
+    assert team._lstm == {}
+    assert team.act_obs(obs) == first  # a new episode starts from zero memory again

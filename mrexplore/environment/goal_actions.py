@@ -79,7 +79,9 @@ class GoalConfig:
     Attributes:
         goal_candidates: K, candidate goals per decision (rows of the observation), >= 1.
         goal_max_steps: simulator steps per decision at most (10 = 2.5 s, the frontier
-            policies' ``replan_every``), >= 1.
+            policies' ``replan_every``), >= 1. Above 10 it also raises the executors'
+            ``replan_every`` (the age at which a plan is renewed) to match, unless
+            ``executor_options`` sets it.
         goal_memory: 0 (default) or 1: frame stacking aligned to candidates. With 1, every row
             also holds the features the same frontier (its target within 1 m) had at the
             previous decision (zeros when it is new), so the observation is ``(K, 2F)``: the
@@ -159,7 +161,12 @@ class GoalActionEnv(ParallelEnv[AgentID, dict[str, NDArray[Any]], int]):
             }
         )
         self._act_space: gymnasium.spaces.Discrete = gymnasium.spaces.Discrete(k)
-        self._executor_options = dict(executor_options or {})
+        # A decision also ends at the executor's age re-plan (``replan_every``, 10 by default):
+        # unless given, it grows with goal_max_steps, else a longer decision would be cut at 10.
+        self._executor_options = {
+            "replan_every": max(10, self.config.goal_max_steps),
+            **(executor_options or {}),
+        }
         # the square of the far gain feature: what one scan from the target could reveal
         self._sensor_range_m = float(getattr(getattr(low, "config", None), "max_range_m", 4.0))
         self.executors: dict[AgentID, GoalExecutor] = {}

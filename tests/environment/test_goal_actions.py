@@ -186,3 +186,18 @@ def test_a_world_the_generator_cannot_build_is_drawn_again() -> None:
     obs, _ = env.reset(seed=215)
     obs2, _ = mrexplore.parallel_env(action_mode="goal", world=spec, n_robots=2).reset(seed=215)
     assert _equal(obs, obs2)  # still a function of the seed
+
+
+def test_goal_max_steps_above_ten_lengthens_decisions() -> None:
+    # the executors' age re-plan (replan_every 10) used to end every decision by step 10
+    longest = {}
+    for m in (10, 40):
+        env = _goal_env(goal_max_steps=m)
+        env.reset(seed=3)
+        steps = []
+        while env.agents and len(steps) < 30:
+            _obs, _rew, _term, _trunc, infos = env.step(dict.fromkeys(env.agents, 1))
+            steps.append(infos["robot_0"]["decision_steps"])
+        longest[m] = max(steps)
+        assert longest[m] <= m
+    assert longest[10] == 10 and longest[40] > 10

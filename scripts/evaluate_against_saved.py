@@ -96,6 +96,8 @@ def main() -> None:
     low = split_options(env)[2]
     agents = [f"robot_{i}" for i in range(int(env.get("n_robots", 2)))]
     name = f"trained ({config.get('algo', 'ppo')})"
+    # the saved rows carry the saved policy's algorithm, which may differ (recurrent_ppo)
+    saved_name = f"trained ({read_config(saved_folder).get('algo', 'ppo')})"
     new = _learned(args.folder, agents)
     old = _learned(saved_folder, agents)
     by_world: dict[str, Any] = {}
@@ -103,7 +105,7 @@ def main() -> None:
     vs_saved: dict[str, Any] = {}
     for w in args.worlds:
         saved_rows = saved_doc["worlds"][w]["results"]
-        saved_learned = {m: saved_rows[f"{name}, {m}"] for m in ("greedy", "sampled")}
+        saved_learned = {m: saved_rows[f"{saved_name}, {m}"] for m in ("greedy", "sampled")}
         print(f"world {w}: checking the saved rows reproduce", flush=True)
         coord = evaluate_policies(
             {PAIRED_BASELINE: lambda ag: make_team_policy(PAIRED_BASELINE, ag)},

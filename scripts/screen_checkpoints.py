@@ -91,6 +91,8 @@ def main(argv: list[str] | None = None) -> int:
                 raise ConfigError(f"{r}: not a mrexplore train folder (no config.yaml)")
         if args.json:
             check_outputs([args.json], force=args.force)
+        if len({r.name for r in runs}) < len(runs):
+            raise ConfigError("two runs share a folder name (their candidates' labels)")
         cands = [(r, label, f) for r in runs for label, f in candidates(r)]
         if not cands:
             raise ConfigError("no checkpoints or model.zip in the given runs")
@@ -98,13 +100,26 @@ def main(argv: list[str] | None = None) -> int:
         print(f"screen_checkpoints: {err}", file=sys.stderr)
         return 2
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
-    agents = ["robot_0", "robot_1"]
     doc: dict[str, Any] = {"seeds": seeds, "max_time_s": args.max_time_s, "worlds": {}}
     diffs: dict[str, list[float]] = {label: [] for _, label, _ in cands}
+    configs = {r: read_config(r) for r in runs}
+    n_robots = int(eval_env_options(configs[runs[0]]).get("n_robots", 2))
+    agents = [f"robot_{i}" for i in range(n_robots)]
+    # each candidate loaded once, then run on every world
+    teams = {
+        label: TrainedTeamPolicy(
+            algo_class(str(configs[run].get("algo", "ppo"))).load(str(f), device="cpu"),
+            agents,
+            deterministic=True,
+        )
+        for run, label, f in cands
+    }
     for world in args.worlds:
-        first_cfg = read_config(runs[0])
-        base_opts = {**eval_env_options(first_cfg), "world": world, "max_time_s": args.max_time_s}
-        agents = [f"robot_{i}" for i in range(int(base_opts.get("n_robots", 2)))]
+        base_opts = {
+            **eval_env_options(configs[runs[0]]),
+            "world": world,
+            "max_time_s": args.max_time_s,
+        }
         low = split_options(base_opts)[2]  # the planner acts on the low-level env
         base = evaluate_policies(
             {BASELINE: lambda ag: make_team_policy(BASELINE, ag)}, low, seeds, progress=False
@@ -112,11 +127,9 @@ def main(argv: list[str] | None = None) -> int:
         b_values, b_reached = _time_to_95(base)
         print(f"[{world}] {BASELINE}: {statistics.fmean(b_values):.1f} s, {b_reached}/{len(seeds)}")
         rows: dict[str, Any] = {BASELINE: {"time_to_0.95": b_values, "reached": b_reached}}
-        for run, label, model_file in cands:
-            cfg = read_config(run)
-            opts = {**eval_env_options(cfg), "world": world, "max_time_s": args.max_time_s}
-            model = algo_class(str(cfg.get("algo", "ppo"))).load(str(model_file), device="cpu")
-            team = TrainedTeamPolicy(model, agents, deterministic=True)
+        for run, label, _ in cands:
+            opts = {**eval_env_options(configs[run]), "world": world, "max_time_s": args.max_time_s}
+            team = teams[label]
             s = evaluate_policies({label: lambda ag, t=team: t}, opts, seeds, progress=False)
             values, reached = _time_to_95(s[label])
             d = paired(values, b_values)

@@ -138,7 +138,7 @@ class TrainedTeamPolicy:
         self.agents = list(agents)
         self.deterministic = deterministic
         # recurrent models (sb3-contrib's RecurrentPPO): each robot's LSTM state, carried
-        # from one decision to the next and cleared by reset(); None = episode start
+        # from one decision to the next and cleared by reset(); a robot absent = episode start
         self.recurrent = _is_recurrent(model)
         self._lstm: dict[str, tuple[NDArray[np.float32], NDArray[np.float32]]] = {}
 
@@ -195,17 +195,18 @@ class TrainedTeamPolicy:
         else:
             batch = np.stack([observations[a] for a in agents])
         if self.recurrent:
-            return self._act_recurrent(agents, batch)
-        actions, _ = self.model.predict(batch, deterministic=self.deterministic, **kwargs)
+            actions = self._predict_recurrent(agents, batch)
+        else:
+            actions, _ = self.model.predict(batch, deterministic=self.deterministic, **kwargs)
         return {a: int(x) for a, x in zip(agents, np.asarray(actions).reshape(-1), strict=False)}
 
     def act(self, views: Mapping[str, Any]) -> dict[str, int]:
         raise TypeError("TrainedTeamPolicy acts on observations: call act_obs(observations)")
 
-    def _act_recurrent(self, agents: list[str], batch: Any) -> dict[str, int]:
-        """One decision of a recurrent model for ``agents`` (one batch), each robot with its
+    def _predict_recurrent(self, agents: list[str], batch: Any) -> Any:
+        """The actions of a recurrent model for ``agents`` (one batch), each robot with its
         own LSTM state: ``(n_layers, 1, hidden)`` hidden and cell arrays per robot, stacked
-        along axis 1 for the call."""
+        along axis 1 for the call and kept for the next one."""
         starts = np.array([a not in self._lstm for a in agents])
         state = None
         if not starts.all():
@@ -218,7 +219,7 @@ class TrainedTeamPolicy:
         )
         for k, a in enumerate(agents):
             self._lstm[a] = (h[:, k : k + 1].copy(), c[:, k : k + 1].copy())
-        return {a: int(x) for a, x in zip(agents, np.asarray(actions).reshape(-1), strict=False)}
+        return actions
 
 
 def _is_recurrent(model: Any) -> bool:

@@ -38,6 +38,12 @@ def test_refuses_reported_seeds_and_a_folder_that_is_no_run(tmp_path: Path, caps
     assert "overlaps the seeds of reported evaluations" in capsys.readouterr().err
     assert screen.main([str(tmp_path), "--worlds", "small_office"]) == 2
     assert "not a mrexplore train folder" in capsys.readouterr().err
+    twins = [tmp_path / d / "run" for d in ("a", "b")]
+    for r in twins:
+        r.mkdir(parents=True)
+        (r / "config.yaml").write_text("algo: maskable_ppo\n")
+    assert screen.main([*map(str, twins), "--worlds", "small_office"]) == 2
+    assert "share a folder name" in capsys.readouterr().err
 
 
 @pytest.mark.expensive

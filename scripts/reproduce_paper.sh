@@ -9,6 +9,8 @@
 #      the default merger on ten seeds no rule was chosen on (13-22), with and without the
 #      wall-area rule and the polish margin; merge_heldout2.{json,md}: ten more (23-32), kept
 #      unseen until the polish margin (chosen on 13-22) was judged on them;
+#      merge_heldout3.{json,md}: ten more (33-42, aliased pairs too), unseen until the slide
+#      test was judged on them, with and without it;
 #      merge_seeded.{json,md}: the default beside the diagnostic `seeded` (the true pose handed
 #      in as one more hypothesis) on the 1,320 cases of merge_seeds: search misses vs refusals;
 #      merge_guided.{json,md}: the default beside `guided` (a rough guess of the pose, a
@@ -19,7 +21,9 @@
 #      loop_seeded.{json,md}: the semantic merger with the true pose among its hypotheses
 #      (the four worlds), which tells the search's share of the gap from the rules';
 #      loop_heldout{,_exact}.{json,md}: semantic and oracle on seeds 2000-2019, which no rule
-#      was chosen on, noise on and off;
+#      was chosen on, noise on and off; loop_heldout2.{json,md}: seeds 4000-4019, unseen until
+#      the slide test and the run rule (chosen on 3000-3019) were judged on them;
+#      loop_rules_off.{json,md}: the study's seeds with those two rules off (--merge-options);
 #      loop_sighting{,_heldout}.{json,md}: the semantic merger with sightings on (robots that
 #      see each other measure their relative pose: a rendezvous) beside it and the oracle, on
 #      seeds 1000-1019 and 2000-2019
@@ -29,7 +33,7 @@
 #   4. goal_policy_eval/{office,twin,tb3}/eval.{json,png}: the shipped learned goal chooser
 #      (policies/goal_ppo_2r) against the frontier planners on 50 held-out worlds of each family,
 #      on this version's merger
-# It replaces the committed files, so it asks for --force. About an hour and a half on 2 cores.
+# It replaces the committed files, so it asks for --force. About an hour and three quarters on 2 cores.
 # Every figure but the timings (ms, steps/s) comes out the same on any machine with the pinned
 # versions (requirements/constraints.txt); timings depend on the machine and its load.
 set -euo pipefail
@@ -46,7 +50,8 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
   --semantic-variant paper_candidates=true \
   --semantic-variant shared_weight=0 --semantic-variant consistency_polish=false \
   --semantic-variant min_cross_cells=0 --semantic-variant min_wall_area_m2=0 \
-  --semantic-variant polish_margin=0 --out "$out/merge_ablation" --force
+  --semantic-variant polish_margin=0 --semantic-variant slide_test=false \
+  --out "$out/merge_ablation" --force
 mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
   --seeds 0-9,12 --out "$out/merge_seeds" --force
 mrexplore bench merge --methods semantic,orb --n 30 --families large --seeds 0-9 \
@@ -59,6 +64,8 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
   --out "$out/merge_heldout" --force
 mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
   --seeds 23-32 --semantic-variant polish_margin=0 --out "$out/merge_heldout2" --force
+mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
+  --seeds 33-42 --semantic-variant slide_test=false --out "$out/merge_heldout3" --force
 mrexplore bench merge --methods semantic,seeded --n 30 --families symmetric,real,noisy,lidar \
   --seeds 0-9,12 --out "$out/merge_seeded" --force
 mrexplore bench merge --methods semantic,guided --n 30 \
@@ -72,6 +79,10 @@ mrexplore bench loop --variants semantic oracle --seeds 20 --first-seed 2000 --j
   --out "$out/loop_heldout" --force
 mrexplore bench loop --variants semantic oracle --seeds 20 --first-seed 2000 --jobs 2 \
   --noise off --out "$out/loop_heldout_exact" --force
+mrexplore bench loop --variants semantic oracle --seeds 20 --first-seed 4000 --jobs 2 \
+  --out "$out/loop_heldout2" --force
+mrexplore bench loop --variants semantic --seeds 20 --jobs 2 \
+  --merge-options slide_test=false,keep_run_on_refusal=false --out "$out/loop_rules_off" --force
 mrexplore bench loop --variants semantic sighting oracle --seeds 20 --jobs 2 \
   --out "$out/loop_sighting" --force
 mrexplore bench loop --variants semantic sighting oracle --seeds 20 --first-seed 2000 --jobs 2 \

@@ -51,6 +51,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError, MrexploreError
+from mrexplore.experiments.merge_bench import parse_options
 from mrexplore.experiments.task_time import NAV_WARMUP_S
 from mrexplore.grid import UNKNOWN, Int8Grid, chain
 from mrexplore.merge.common import MergeResult, translation, warp_into
@@ -63,6 +64,8 @@ VARIANTS: tuple[str, ...] = ("semantic", "oracle", "none", "single")
 ALL_VARIANTS: tuple[str, ...] = (*VARIANTS, "seeded", "sighting")
 #: ``sighting_range_m`` of the ``sighting`` variant: the lidar's default range (metres).
 SIGHTING_RANGE_M = 4.0
+#: The variants that merge with the env's named semantic merger (``--merge-options`` apply).
+MERGER_VARIANTS: tuple[str, ...] = ("semantic", "sighting")
 POLICY = "coordinated-frontier"
 #: Env options of every episode: random start headings, range noise 2 cm (std), odometry
 #: translation noise 1 % of the distance, heading noise 0.005 rad per radian turned and
@@ -206,8 +209,11 @@ def episode_options(
     noise: bool = True,
     task: str = "explore",
     nav_goal: str = "far",
+    merge_options: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """Env options of one episode of ``variant`` (the oracle's merger object not included)."""
+    """Env options of one episode of ``variant`` (the oracle's merger object not included);
+    ``merge_options`` go to the variants that merge with the named semantic merger (its options
+    and the tracker's, as the env's ``merge_options``)."""
     opts: dict[str, Any] = {
         **study_env_options(noise, task, nav_goal),
         "world": world,
@@ -217,6 +223,8 @@ def episode_options(
     opts["merger"] = None if variant in ("none", "single") else "semantic"
     if variant == "sighting":
         opts["sighting_range_m"] = SIGHTING_RANGE_M
+    if merge_options and variant in MERGER_VARIANTS:
+        opts["merge_options"] = dict(merge_options)
     return opts
 
 
@@ -228,12 +236,13 @@ def run_loop_episode(
     noise: bool = True,
     task: str = "explore",
     nav_goal: str = "far",
+    merge_options: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """One episode of the study; a JSON-friendly record (simulated seconds, NaN -> None)."""
     from mrexplore.experiments.episode import run_episode
     from mrexplore.experiments.task_time import make_team
 
-    opts = episode_options(world, variant, max_time_s, noise, task, nav_goal)
+    opts = episode_options(world, variant, max_time_s, noise, task, nav_goal, merge_options)
     oracle = None
     if variant in ("oracle", "seeded"):
         oracle = OracleMerger() if variant == "oracle" else SeededMerger()
@@ -258,7 +267,9 @@ def run_loop_episode(
     }
 
 
-def _run_task(task: tuple[str, str, int, float, bool, str, str]) -> dict[str, Any]:
+def _run_task(
+    task: tuple[str, str, int, float, bool, str, str, dict[str, Any] | None],
+) -> dict[str, Any]:
     import cv2
 
     cv2.setNumThreads(1)  # one core per process: --jobs decides the parallelism
@@ -274,6 +285,7 @@ def validate(
     jobs: int,
     task: str = "explore",
     nav_goal: str = "far",
+    merge_options: Mapping[str, Any] | None = None,
 ) -> None:
     """Check every option before any work; a bad one is a :class:`ConfigError` naming it."""
     from mrexplore.world import load_world
@@ -308,6 +320,13 @@ def validate(
         raise ConfigError(
             f"loop study: --nav-goal must be one of {list(NAV_GOALS)}, got {nav_goal!r}"
         )
+    if merge_options:
+        from mrexplore.merge.fusion import FusionStage
+
+        try:  # the tracker checks every name and value, as the env would at its first reset
+            FusionStage(["a", "b"], "semantic", merge_options=merge_options, resolution_m=0.05)
+        except ConfigError as exc:
+            raise ConfigError(f"loop study: --merge-options: {exc}") from exc
     if task == "navigate" and max_time_s <= NAV_WARMUP_S:
         raise ConfigError(
             f"loop study: --max-time-s ({max_time_s}) must exceed the navigation warm-up "
@@ -326,16 +345,21 @@ def run_study(
     noise: bool = True,
     task: str = "explore",
     nav_goal: str = "far",
+    merge_options: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Run every (world, variant, seed) episode of ``task``; returns the JSON document.
+
+    ``merge_options``: options of the semantic merger and its tracker for the variants that
+    use them (:data:`MERGER_VARIANTS`), e.g. ``{"min_common_m2": 10.0}``: a rule's ablation.
 
     With ``jobs > 1`` the episodes run in that many processes (spawned, so no state is shared);
     the records come back in the serial order, identical to a serial run.
     """
-    validate(worlds, seeds, first_seed, variants, max_time_s, jobs, task, nav_goal)
+    validate(worlds, seeds, first_seed, variants, max_time_s, jobs, task, nav_goal, merge_options)
+    mo = dict(merge_options) if merge_options else None
     seed_list = list(range(first_seed, first_seed + seeds))
     tasks = [
-        (w, v, s, float(max_time_s), bool(noise), task, nav_goal)
+        (w, v, s, float(max_time_s), bool(noise), task, nav_goal, mo)
         for w in worlds
         for v in variants
         for s in seed_list
@@ -363,6 +387,7 @@ def run_study(
             **study_env_options(noise, task, nav_goal),
             "max_time_s": float(max_time_s),
         },
+        "merge_options": mo or {},
         "worlds": list(worlds),
         "variants": list(variants),
         "seeds": seed_list,
@@ -519,6 +544,9 @@ def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
         f"headings, range noise {o['range_noise_m']} m, odometry noise {o['odom_noise_trans']} "
         f"/ {o['odom_noise_rot']} rad/rad / {o['odom_noise_rot_per_m']} rad/m; {what}"
     )
+    if doc.get("merge_options"):
+        opts = ",".join(f"{k}={v}" for k, v in doc["merge_options"].items())
+        head += f"; merger options {opts} (variants {', '.join(MERGER_VARIANTS)})"
     cols = (
         "variant",
         "merged",
@@ -623,6 +651,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--nav-goal", default="far", help=f"navigate: of {list(NAV_GOALS)} (default far)"
     )
     p.add_argument(
+        "--merge-options",
+        default="",
+        metavar="K=V,K=V",
+        help="options of the semantic merger and its tracker for the variants "
+        f"{list(MERGER_VARIANTS)}, e.g. min_common_m2=10,confirmations=3 (a rule's ablation)",
+    )
+    p.add_argument(
         "--noise",
         choices=("on", "off"),
         default="on",
@@ -633,6 +668,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     stem = Path(args.out)
     outputs = [Path(f"{stem}.json"), Path(f"{stem}.md")]
     try:
+        merge_options = parse_options(args.merge_options, flag="--merge-options")
         validate(
             args.worlds,
             args.seeds,
@@ -642,6 +678,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             args.jobs,
             args.task,
             args.nav_goal,
+            merge_options,
         )
         existing = [str(f) for f in outputs if f.exists()]
         if existing and not args.force:
@@ -656,6 +693,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             noise=args.noise == "on",
             task=args.task,
             nav_goal=args.nav_goal,
+            merge_options=merge_options,
         )
     except ConfigError as exc:
         print(f"mrexplore bench loop: error: {exc}")

@@ -456,7 +456,7 @@ def parse_seeds(text: str) -> list[int]:
     return out
 
 
-def parse_options(text: str) -> dict[str, Any]:
+def parse_options(text: str, flag: str = "--semantic-variant") -> dict[str, Any]:
     """``"k=v,k=v"`` -> options; values are read as int, float, true/false, else text.
 
     >>> parse_options("slack_cells=0,min_score=0.95,paper_candidates=true")
@@ -466,7 +466,7 @@ def parse_options(text: str) -> dict[str, Any]:
     for part in filter(None, (x.strip() for x in text.split(","))):
         key, sep, raw = part.partition("=")
         if not sep or not key:
-            raise ConfigError(f"--semantic-variant: expected k=v pairs, got {part!r}")
+            raise ConfigError(f"{flag}: expected k=v pairs, got {part!r}")
         value: Any = raw
         if raw.lower() in ("true", "false"):
             value = raw.lower() == "true"

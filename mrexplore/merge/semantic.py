@@ -334,6 +334,46 @@ def _consistency_polish(
     return best_T, best_c
 
 
+def _support_tensor(
+    wall_a: NDArray[np.bool_],
+    wall_b: NDArray[np.bool_],
+    T: Transform,
+    precise: bool = False,
+    cells_b: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None,
+) -> NDArray[np.float64] | None:
+    """``sum n n^T`` (2 x 2, (col, row) axes) of :func:`cross_support`, None without support."""
+    rb, cb = np.nonzero(wall_b) if cells_b is None else cells_b
+    T = np.asarray(T, dtype=np.float64)
+    c = np.rint(T[0, 0] * cb + T[0, 1] * rb + T[0, 2]).astype(np.int64)
+    r = np.rint(T[1, 0] * cb + T[1, 1] * rb + T[1, 2]).astype(np.int64)
+    h, w = wall_a.shape
+    inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
+    c, r = c[inside], r[inside]
+    if c.size == 0:
+        return None
+    # The filters below reach 21 cells (blur 4 + Sobel 1 + blur 16): a window that far around
+    # b's landed walls gives the same tensor there as the whole map, at a fraction of the cost.
+    r0, c0 = max(int(r.min()) - _TENSOR_REACH, 0), max(int(c.min()) - _TENSOR_REACH, 0)
+    r1, c1 = min(int(r.max()) + _TENSOR_REACH + 1, h), min(int(c.max()) + _TENSOR_REACH + 1, w)
+    win = wall_a[r0:r1, c0:c1]
+    r, c = r - r0, c - c0
+    near = cv2.dilate(win.view(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    on = near[r, c]
+    c, r = c[on], r[on]
+    if c.size == 0:
+        return None
+    dtype, depth = (np.float64, cv2.CV_64F) if precise else (np.float32, cv2.CV_32F)
+    img = cv2.GaussianBlur(win.astype(dtype), (0, 0), 1.0)
+    gx = cv2.Sobel(img, depth, 1, 0, ksize=3)
+    gy = cv2.Sobel(img, depth, 0, 1, ksize=3)
+    jxx = cv2.GaussianBlur(gx * gx, (0, 0), 4.0)
+    jyy = cv2.GaussianBlur(gy * gy, (0, 0), 4.0)
+    jxy = cv2.GaussianBlur(gx * gy, (0, 0), 4.0)
+    ang = 0.5 * np.arctan2(2.0 * jxy[r, c], jxx[r, c] - jyy[r, c]).astype(np.float64)
+    u = np.stack([np.cos(ang), np.sin(ang)], axis=1)
+    return np.asarray(u.T @ u, dtype=np.float64)
+
+
 def cross_support(
     wall_a: NDArray[np.bool_],
     wall_b: NDArray[np.bool_],
@@ -356,36 +396,62 @@ def cross_support(
     answer with a threshold recomputes it with ``precise=True`` (float64) when it lies near.
     ``cells_b``: ``np.nonzero(wall_b)``, when the caller has it.
     """
-    rb, cb = np.nonzero(wall_b) if cells_b is None else cells_b
-    T = np.asarray(T, dtype=np.float64)
-    c = np.rint(T[0, 0] * cb + T[0, 1] * rb + T[0, 2]).astype(np.int64)
-    r = np.rint(T[1, 0] * cb + T[1, 1] * rb + T[1, 2]).astype(np.int64)
-    h, w = wall_a.shape
-    inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
-    c, r = c[inside], r[inside]
-    if c.size == 0:
+    M = _support_tensor(wall_a, wall_b, T, precise, cells_b)
+    return 0.0 if M is None else float(np.linalg.eigvalsh(M)[0])
+
+
+def slide_direction(
+    wall_a: NDArray[np.bool_],
+    wall_b: NDArray[np.bool_],
+    T: Transform,
+    cells_b: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None,
+) -> NDArray[np.float64] | None:
+    """The unit direction (col, row) of a's cells along which the agreeing walls pin pose ``T``
+    least (the eigenvector of :func:`cross_support`'s smallest eigenvalue, float64), None
+    without agreeing walls. Its sign is fixed (first non-zero component positive)."""
+    M = _support_tensor(wall_a, wall_b, T, True, cells_b)
+    if M is None:
+        return None
+    # rounded: the tensor's last bits differ between CPUs' SIMD paths, the slide must not
+    v = np.round(np.linalg.eigh(M)[1][:, 0], 9)
+    if v[0] < 0 or (v[0] == 0 and v[1] < 0):
+        v = -v
+    return np.asarray(v / math.hypot(float(v[0]), float(v[1])), dtype=np.float64)
+
+
+#: Slides (cells, each way) of :func:`_standing_slide`: from beyond a wrong merge's 5 cells to
+#: the length of a room, where the coarse search's peaks take over.
+SLIDES_CELLS = (5.0, 10.0, 20.0, 40.0)
+
+
+def _standing_slide(
+    verify: Verifier,
+    best: _Hypothesis,
+    wall_a: NDArray[np.bool_],
+    wall_b: NDArray[np.bool_],
+    cells_b: tuple[NDArray[np.intp], NDArray[np.intp]],
+    o: SemanticOptions,
+) -> float | None:
+    """The first slide (cells, signed) of the best pose along its least pinned direction that
+    stands as a rival to it by the merger's rival rule (explains at least ``rival_support`` of
+    its agreeing walls and is not beaten by ``min_margin`` in index and ``min_evidence_cells``
+    contradicting wall cells), or None when the maps contradict every slide of
+    :data:`SLIDES_CELLS` both ways: the pose is pinned by what the wall normals miss (door
+    gaps, wall ends, free space beyond them)."""
+    assert best.agreement is not None
+    v = slide_direction(wall_a, wall_b, best.T, cells_b)
+    if v is None:
         return 0.0
-    # The filters below reach 21 cells (blur 4 + Sobel 1 + blur 16): a window that far around
-    # b's landed walls gives the same tensor there as the whole map, at a fraction of the cost.
-    r0, c0 = max(int(r.min()) - _TENSOR_REACH, 0), max(int(c.min()) - _TENSOR_REACH, 0)
-    r1, c1 = min(int(r.max()) + _TENSOR_REACH + 1, h), min(int(c.max()) + _TENSOR_REACH + 1, w)
-    win = wall_a[r0:r1, c0:c1]
-    r, c = r - r0, c - c0
-    near = cv2.dilate(win.view(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
-    on = near[r, c]
-    c, r = c[on], r[on]
-    if c.size == 0:
-        return 0.0
-    dtype, depth = (np.float64, cv2.CV_64F) if precise else (np.float32, cv2.CV_32F)
-    img = cv2.GaussianBlur(win.astype(dtype), (0, 0), 1.0)
-    gx = cv2.Sobel(img, depth, 1, 0, ksize=3)
-    gy = cv2.Sobel(img, depth, 0, 1, ksize=3)
-    jxx = cv2.GaussianBlur(gx * gx, (0, 0), 4.0)
-    jyy = cv2.GaussianBlur(gy * gy, (0, 0), 4.0)
-    jxy = cv2.GaussianBlur(gx * gy, (0, 0), 4.0)
-    ang = 0.5 * np.arctan2(2.0 * jxy[r, c], jxx[r, c] - jyy[r, c]).astype(np.float64)
-    u = np.stack([np.cos(ang), np.sin(ang)], axis=1)
-    return float(np.linalg.eigvalsh(u.T @ u)[0])
+    for d in SLIDES_CELLS:
+        for sign in (1.0, -1.0):
+            moved = chain(translation(sign * d * float(v[0]), sign * d * float(v[1])), best.T)
+            r = verify(moved)
+            if r.agree < o.rival_support * best.agreement.agree:
+                continue
+            excess = (r.disagree - best.agreement.disagree) * verify.cells_per_sample
+            if best.agreement.score - r.score < o.min_margin or excess < o.min_evidence_cells:
+                return sign * d
+    return None
 
 
 def _agreeing_cells(
@@ -512,6 +578,7 @@ class SemanticOptions(Options):
     consistency_polish: bool = option(True, boolean)
     polish_margin: float = option(0.01, number(0.0, 1.0))
     min_cross_cells: float = option(10.0, number(0.0, math.inf))
+    slide_test: bool = option(True, boolean)
     rival_perfect_cells: int = option(250, integer(0))
     min_wall_area_m2: float = option(4.0, number(0.0, math.inf))
 
@@ -554,6 +621,10 @@ def merge_semantic(
     - ``min_cross_cells`` (10; 0 = off): refuse a pose whose agreeing walls pin it less than this
       (:func:`cross_support`, wall cells) across their direction: one straight wall or a
       corridor slides;
+    - ``slide_test`` (True): a pose under ``min_cross_cells`` is still pinned when the maps
+      contradict every slide of it along that direction by 5, 10, 20 and 40 cells both ways
+      (each beaten as a rival is: ``min_margin`` and ``min_evidence_cells``): door gaps, wall
+      ends and the floor beyond them pin a corridor the wall normals cannot;
     - ``min_wall_area_m2`` (4.0; 0 = off): refuse a pose whose agreeing walls fit in a smaller
       rectangle (:func:`agreeing_area`, m^2): one object, a rack or a pillar, fits every copy of
       it;
@@ -814,6 +885,7 @@ def merge_semantic(
     common = dict(n_hypotheses=len(hyps), runner_up_score=runner, overlap_cells=overlap_cells)
     info["best_source"] = best.source
     info["consistency"] = best_consistency
+    info["consistent"] = bool(best_consistency >= min_score)
     if best_consistency < min_score:
         return refuse(
             f"best hypothesis agrees only {best_consistency:.2f} < {min_score:.2f} "
@@ -853,11 +925,19 @@ def merge_semantic(
             cross = cross_support(wall_a, wall_b, best.T, precise=True, cells_b=icp.cells_b)
         cross = round(cross, 2)
         info["cross_cells"] = cross
-        if cross < o.min_cross_cells:
+        pinned, slid = cross >= o.min_cross_cells, None
+        if not pinned and o.slide_test:
+            # few walls cross the slide direction, but door gaps and wall ends may still pin the
+            # pose: slide it along that direction and ask whether the maps contradict every slide
+            slid = _standing_slide(verify, best, wall_a, wall_b, icp.cells_b, o)
+            info["slide_rival_cells"] = slid
+            pinned = slid is None
+        if not pinned:
+            slide = "" if slid is None else f"; a slide of {slid:+g} cells stands as a rival"
             return refuse(
                 f"the agreeing walls do not pin the pose along them (cross support {cross:.1f} "
-                f"wall cells < {o.min_cross_cells:g}): a slide along one wall or corridor fits "
-                "as well",
+                f"wall cells < {o.min_cross_cells:g}{slide}): a slide along one wall or "
+                "corridor fits as well",
                 score=best.score,
                 **common,
             )

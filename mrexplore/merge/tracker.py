@@ -108,6 +108,9 @@ class _Outcome:
     # where the kept transform does, within the maps' noise and without a far rival (None:
     # not so, or the merger reports no best pose)
     refit: Transform | None = None
+    # attempt the merger refused although its best pose was consistent (a refusal for
+    # uniqueness, pinning or shared area): that pose (canvas cells); None otherwise
+    consistent_best: Transform | None = None
 
 
 @dataclass
@@ -226,6 +229,14 @@ class MapMergeTracker:
         confirm_growth: an agreeing attempt confirms the pending transform only when the shared
             wall cells under it (``MergeResult.overlap_cells``) grew by this share since the
             attempt before (default 0: any agreeing attempt on grown maps confirms).
+        keep_run_on_refusal: an attempt the merger refuses although its best pose is the
+            pending transform (within ``confirm_tol_cells``) and consistent with the maps, i.e.
+            refused for uniqueness, pinning or shared area, keeps the run of agreeing attempts
+            instead of breaking it (it does not extend the run). A rival it reported is
+            remembered and must be ruled out before the run can end in a merge
+            (``rival_memory``). Default True (measured in ``docs/merging.md``, item 20); False:
+            every refusal breaks the run. Semantic merger only (it reports whether its best
+            pose was consistent).
         merge_latency_steps: an attempt or re-check started at step t is applied at step
             t + this, computed meanwhile in a worker thread on copies of the maps, so no step
             waits for the merger (default 0: computed and applied in the step that starts it).
@@ -267,6 +278,7 @@ class MapMergeTracker:
         min_accept_cells: int = 0,
         retry_growth: float = 0.02,
         confirm_growth: float = 0.0,
+        keep_run_on_refusal: bool = True,
         merge_latency_steps: int = 0,
         executor: Executor | None = None,
         **merge_options: Any,
@@ -291,6 +303,7 @@ class MapMergeTracker:
             ("min_accept_cells", min_accept_cells, integer(0)),
             ("retry_growth", retry_growth, number(0.0, 10.0)),
             ("confirm_growth", confirm_growth, number(0.0, 10.0)),
+            ("keep_run_on_refusal", keep_run_on_refusal, boolean),
             ("merge_latency_steps", merge_latency_steps, MERGE_LATENCY_CHECK),
         ):
             validate("MapMergeTracker", name, value, check)
@@ -313,6 +326,7 @@ class MapMergeTracker:
         self.min_accept_cells = int(min_accept_cells)
         self.retry_growth = float(retry_growth)
         self.confirm_growth = float(confirm_growth)
+        self.keep_run_on_refusal = bool(keep_run_on_refusal)
         self.merge_latency_steps = int(merge_latency_steps)
         # made on first use unless given (not pickled: an unpickled tracker makes its own)
         self._pool: Executor | None = executor
@@ -482,7 +496,21 @@ class MapMergeTracker:
         standing = None
         if T is not None and rivals:
             standing = tuple(self._standing(a, b, offsets, T, rivals, box_j))
-        return _Outcome(res, T, old_now, held_now, rivals=found, standing=standing)
+        consistent_best = None
+        best = res.info.get("best_transform")
+        if T is None and best is not None and res.info.get("consistent", False):
+            consistent_best = chain(
+                translation(ca, ra), np.asarray(best, dtype=np.float64), translation(-cb, -rb)
+            )
+        return _Outcome(
+            res,
+            T,
+            old_now,
+            held_now,
+            rivals=found,
+            standing=standing,
+            consistent_best=consistent_best,
+        )
 
     def _drift_refit(
         self,
@@ -632,6 +660,16 @@ class MapMergeTracker:
             # a refusal breaks the run of agreements; so does a pose a remembered rival, which
             # the maps do not rule out yet, explains as well (an aisle like another aisle), or
             # one resting on too little wall to tell a place from a look-alike
+            if (
+                self.keep_run_on_refusal
+                and pending is not None
+                and not thin
+                and out.consistent_best is not None
+                and self._same(pending[0], out.consistent_best, bbox_j)
+            ):
+                # ... but not a refusal that found the pending pose best and consistent again:
+                # nothing contradicts it, and the rival it saw is remembered (above)
+                return
             self._pending.pop((i, j), None)
             return
         T = out.T

@@ -111,6 +111,9 @@ def test_seeded_merger_judges_the_truth_by_the_semantic_rules() -> None:
         ["--task", "dance"],
         ["--task", "navigate", "--nav-goal", "moon"],
         ["--task", "navigate", "--max-time-s", "100"],
+        ["--merge-options", "min_comon_m2=10"],
+        ["--merge-options", "min_common_m2=-1"],
+        ["--merge-options", "confirmations"],
     ],
 )
 def test_bad_options_fail_before_any_work(
@@ -120,6 +123,25 @@ def test_bad_options_fail_before_any_work(
     assert main([*argv, "--out", str(out)]) == 2
     assert "error" in capsys.readouterr().out
     assert not list(tmp_path.iterdir())
+
+
+def test_merge_options_reach_the_semantic_variants_only(tmp_path: Path) -> None:
+    """``--merge-options`` go to the env's ``merge_options`` of the variants that merge with the
+    named semantic merger; the oracle, the seeded diagnostic and the baselines keep theirs. The
+    options are recorded and printed."""
+    from mrexplore.experiments.loop_study import episode_options
+
+    mo = {"min_common_m2": 10.0, "confirmations": 3}
+    for v in ("semantic", "sighting"):
+        assert episode_options("depot", v, 60.0, merge_options=mo)["merge_options"] == mo
+    for v in ("oracle", "seeded", "none", "single"):
+        assert "merge_options" not in episode_options("depot", v, 60.0, merge_options=mo)
+    out = tmp_path / "study"
+    argv = ["--worlds", "small_office", "--seeds", "1", "--variants", "semantic"]
+    argv += ["--max-time-s", "2", "--merge-options", "confirmations=3", "--out", str(out)]
+    assert main(argv) == 0
+    assert json.loads(Path(f"{out}.json").read_text())["merge_options"] == {"confirmations": 3}
+    assert "merger options confirmations=3" in Path(f"{out}.md").read_text()
 
 
 def test_outputs_are_not_overwritten_without_force(tmp_path: Path) -> None:

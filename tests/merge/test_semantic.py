@@ -474,8 +474,52 @@ def test_min_cross_cells_refuses_a_match_on_one_wall(
 ) -> None:
     a, b, _ = office_pair
     assert merge_maps(a, b, min_cross_cells=10).matched  # a room's walls pin the pose
-    res = merge_maps(a, b, min_cross_cells=1e6)
+    res = merge_maps(a, b, min_cross_cells=1e6, slide_test=False)
     assert not res.matched and "pin the pose" in res.reason
+    # with the slide test, the room's walls contradict every slide: pinned after all
+    slid = merge_maps(a, b, min_cross_cells=1e6, slide_test=True)
+    assert slid.matched and slid.info["slide_rival_cells"] is None
+
+
+def _corridor(doors: tuple[int, ...]) -> np.ndarray:
+    """A 6 m corridor (walls 2 cells thick, 10 cells apart) seen from inside, with 0.8 m door
+    gaps in its upper wall at the given columns and a little floor seen through each."""
+    m = np.full((100, 160), UNKNOWN, dtype=np.int8)
+    m[40:54, 20:140] = FREE
+    m[40:42, 20:140] = OCCUPIED
+    m[52:54, 20:140] = OCCUPIED
+    for d in doors:
+        m[40:42, 20 + d : 36 + d] = FREE
+        m[30:40, 16 + d : 40 + d] = FREE
+    return m
+
+
+@pytest.mark.parametrize(("doors", "pinned"), [((20, 80), True), ((50,), False), ((), False)])
+def test_a_slide_along_a_corridor_must_be_contradicted(
+    doors: tuple[int, ...], pinned: bool
+) -> None:
+    """A corridor's walls give no cross support (the wall normals all point across it); its
+    door gaps may still pin the pose: two doors contradict every slide of 5 to 40 cells by the
+    rival rule's margins, one door does not (a 5-cell slide contradicts ~16 wall cells of ~900),
+    nor does a plain corridor."""
+    from mrexplore.merge.common import MapCodes, Verifier
+    from mrexplore.merge.semantic import (
+        SemanticOptions,
+        _Hypothesis,
+        _standing_slide,
+        cross_support,
+    )
+
+    a = _corridor(doors)
+    walls = a >= OCCUPIED
+    assert cross_support(walls, walls, np.eye(3)) < 1.0
+    verify = Verifier(MapCodes(a), MapCodes(a), max_samples=0)
+    best = _Hypothesis(np.eye(3), "given", verify(np.eye(3)))
+    options = SemanticOptions(slide_test=True)
+    slid = _standing_slide(verify, best, walls, walls, np.nonzero(walls), options)
+    assert (slid is None) == pinned
+    if not pinned:
+        assert slid is not None and abs(slid) == 5.0  # the shortest slide stands
 
 
 @pytest.mark.parametrize(("seed", "index"), [(5, 16), (6, 1), (6, 2)])

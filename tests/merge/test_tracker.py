@@ -233,9 +233,11 @@ def test_incremental_fusion_equals_fusion_from_scratch() -> None:
 
 
 class _Seq:
-    """A merger answering with a scripted sequence of transforms (None = refuse)."""
+    """A merger answering with a scripted sequence of transforms (None = refuse; a tuple
+    ``(T, consistent)`` = refuse with best pose T, consistent with the maps or not, as the
+    semantic merger reports a refusal for uniqueness, pinning or shared area)."""
 
-    def __init__(self, answers: list[np.ndarray | None]) -> None:
+    def __init__(self, answers: list[np.ndarray | tuple[np.ndarray, bool] | None]) -> None:
         self.answers = answers
         self.calls = 0
 
@@ -244,6 +246,9 @@ class _Seq:
         self.calls += 1
         if T is None:
             return MergeResult(matched=False, transform=None, score=0.5, reason="scripted refusal")
+        if isinstance(T, tuple):
+            info = {"best_transform": T[0], "consistent": T[1]}
+            return MergeResult(False, None, 0.9, reason="scripted refusal", info=info)
         return MergeResult(matched=True, transform=T, score=0.99)
 
 
@@ -267,13 +272,20 @@ def _growing_maps(k: int) -> list[np.ndarray]:
         ([translation(3.0, 0.0), None, translation(3.0, 0.0)], 3),
         # the second attempt disagrees (10 cells away): it starts a new run
         ([translation(3.0, 0.0), translation(13.0, 0.0)], 2),
+        # a refusal whose best pose is the pending one, consistent: the run goes on
+        ([translation(3.0, 0.0), (translation(3.0, 0.0), True), translation(3.0, 0.0)], 2),
+        # ... but not when that pose was inconsistent, or lies elsewhere
+        ([translation(3.0, 0.0), (translation(3.0, 0.0), False), translation(3.0, 0.0)], 3),
+        ([translation(3.0, 0.0), (translation(13.0, 0.0), True), translation(3.0, 0.0)], 3),
     ],
 )
 def test_a_transform_needs_agreeing_attempts_on_growing_maps(
-    answers: list[np.ndarray | None], merged_at: int
+    answers: list[np.ndarray | tuple[np.ndarray, bool] | None], merged_at: int
 ) -> None:
     seq = _Seq(answers)
-    tr = MapMergeTracker(2, merger=seq, merge_every=1, recheck_every=0, confirmations=2)
+    tr = MapMergeTracker(
+        2, merger=seq, merge_every=1, recheck_every=0, confirmations=2, keep_run_on_refusal=True
+    )
     tr.update(_growing_maps(0), step=0)
     tr.update(_growing_maps(0), step=1)  # nothing changed: no new evidence, no attempt
     assert seq.calls == 1 and not tr.merged(0)
@@ -283,6 +295,18 @@ def test_a_transform_needs_agreeing_attempts_on_growing_maps(
             assert k == merged_at
             break
     assert tr.merged(0)
+
+
+def test_every_refusal_breaks_the_run_when_asked() -> None:
+    """``keep_run_on_refusal=False``: the rule before, a consistent refusal breaks the run."""
+    T = translation(3.0, 0.0)
+    seq = _Seq([T, (T, True), T])
+    tr = MapMergeTracker(
+        2, merger=seq, merge_every=1, recheck_every=0, confirmations=2, keep_run_on_refusal=False
+    )
+    for k in range(4):
+        tr.update(_growing_maps(k), step=k)
+        assert tr.merged(0) == (k == 3)
 
 
 def test_no_attempt_when_told_not_to() -> None:

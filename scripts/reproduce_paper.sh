@@ -10,7 +10,8 @@
 #      wall-area rule and the polish margin; merge_heldout2.{json,md}: ten more (23-32), kept
 #      unseen until the polish margin (chosen on 13-22) was judged on them;
 #      merge_heldout3.{json,md}: ten more (33-42, aliased pairs too), unseen until the slide
-#      test was judged on them, with and without it;
+#      test was judged on them, with and without it; merge_slide.{json,md}: the slide test
+#      (off by default) on the cases of merge_seeds and seeds 0-9 and 12's aliased pairs;
 #      merge_seeded.{json,md}: the default beside the diagnostic `seeded` (the true pose handed
 #      in as one more hypothesis) on the 1,320 cases of merge_seeds: search misses vs refusals;
 #      merge_guided.{json,md}: the default beside `guided` (a rough guess of the pose, a
@@ -23,7 +24,7 @@
 #      loop_heldout{,_exact}.{json,md}: semantic and oracle on seeds 2000-2019, which no rule
 #      was chosen on, noise on and off; loop_heldout2.{json,md}: seeds 4000-4019, unseen until
 #      the slide test and the run rule (chosen on 3000-3019) were judged on them;
-#      loop_rules_off.{json,md}: the study's seeds with those two rules off (--merge-options);
+#      loop_rules_on.{json,md}: the study's seeds with those two rules on (--merge-options);
 #      loop_sighting{,_heldout}.{json,md}: the semantic merger with sightings on (robots that
 #      see each other measure their relative pose: a rendezvous) beside it and the oracle, on
 #      seeds 1000-1019 and 2000-2019
@@ -50,8 +51,7 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
   --semantic-variant paper_candidates=true \
   --semantic-variant shared_weight=0 --semantic-variant consistency_polish=false \
   --semantic-variant min_cross_cells=0 --semantic-variant min_wall_area_m2=0 \
-  --semantic-variant polish_margin=0 --semantic-variant slide_test=false \
-  --out "$out/merge_ablation" --force
+  --semantic-variant polish_margin=0 --out "$out/merge_ablation" --force
 mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
   --seeds 0-9,12 --out "$out/merge_seeds" --force
 mrexplore bench merge --methods semantic,orb --n 30 --families large --seeds 0-9 \
@@ -65,7 +65,9 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
 mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
   --seeds 23-32 --semantic-variant polish_margin=0 --out "$out/merge_heldout2" --force
 mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
-  --seeds 33-42 --semantic-variant slide_test=false --out "$out/merge_heldout3" --force
+  --seeds 33-42 --semantic-variant slide_test=true --out "$out/merge_heldout3" --force
+mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
+  --seeds 0-9,12 --semantic-variant slide_test=true --out "$out/merge_slide" --force
 mrexplore bench merge --methods semantic,seeded --n 30 --families symmetric,real,noisy,lidar \
   --seeds 0-9,12 --out "$out/merge_seeded" --force
 mrexplore bench merge --methods semantic,guided --n 30 \
@@ -82,7 +84,7 @@ mrexplore bench loop --variants semantic oracle --seeds 20 --first-seed 2000 --j
 mrexplore bench loop --variants semantic oracle --seeds 20 --first-seed 4000 --jobs 2 \
   --out "$out/loop_heldout2" --force
 mrexplore bench loop --variants semantic --seeds 20 --jobs 2 \
-  --merge-options slide_test=false,keep_run_on_refusal=false --out "$out/loop_rules_off" --force
+  --merge-options slide_test=true,keep_run_on_refusal=true --out "$out/loop_rules_on" --force
 mrexplore bench loop --variants semantic sighting oracle --seeds 20 --jobs 2 \
   --out "$out/loop_sighting" --force
 mrexplore bench loop --variants semantic sighting oracle --seeds 20 --first-seed 2000 --jobs 2 \

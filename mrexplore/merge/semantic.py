@@ -578,7 +578,7 @@ class SemanticOptions(Options):
     consistency_polish: bool = option(True, boolean)
     polish_margin: float = option(0.01, number(0.0, 1.0))
     min_cross_cells: float = option(10.0, number(0.0, math.inf))
-    slide_test: bool = option(True, boolean)
+    slide_test: bool = option(False, boolean)
     rival_perfect_cells: int = option(250, integer(0))
     min_wall_area_m2: float = option(4.0, number(0.0, math.inf))
 
@@ -621,7 +621,7 @@ def merge_semantic(
     - ``min_cross_cells`` (10; 0 = off): refuse a pose whose agreeing walls pin it less than this
       (:func:`cross_support`, wall cells) across their direction: one straight wall or a
       corridor slides;
-    - ``slide_test`` (True): a pose under ``min_cross_cells`` is still pinned when the maps
+    - ``slide_test`` (False): a pose under ``min_cross_cells`` is still pinned when the maps
       contradict every slide of it along that direction by 5, 10, 20 and 40 cells both ways
       (each beaten as a rival is: ``min_margin`` and ``min_evidence_cells``): door gaps, wall
       ends and the floor beyond them pin a corridor the wall normals cannot;

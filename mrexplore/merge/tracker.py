@@ -234,8 +234,8 @@ class MapMergeTracker:
             refused for uniqueness, pinning or shared area, keeps the run of agreeing attempts
             instead of breaking it (it does not extend the run). A rival it reported is
             remembered and must be ruled out before the run can end in a merge
-            (``rival_memory``). Default True (measured in ``docs/merging.md``, item 20); False:
-            every refusal breaks the run. Semantic merger only (it reports whether its best
+            (``rival_memory``). Default False: every refusal breaks the run (measured in
+            ``docs/merging.md``, item 20). Semantic merger only (it reports whether its best
             pose was consistent).
         merge_latency_steps: an attempt or re-check started at step t is applied at step
             t + this, computed meanwhile in a worker thread on copies of the maps, so no step
@@ -278,7 +278,7 @@ class MapMergeTracker:
         min_accept_cells: int = 0,
         retry_growth: float = 0.02,
         confirm_growth: float = 0.0,
-        keep_run_on_refusal: bool = True,
+        keep_run_on_refusal: bool = False,
         merge_latency_steps: int = 0,
         executor: Executor | None = None,
         **merge_options: Any,

@@ -111,6 +111,37 @@ class _Outcome:
     # attempt the merger refused although its best pose was consistent (a refusal for
     # uniqueness, pinning or shared area): that pose (canvas cells); None otherwise
     consistent_best: Transform | None = None
+    # attempt: the merger's best pose (canvas cells), accepted or not (None: not reported)
+    best: Transform | None = None
+
+
+@dataclass(frozen=True)
+class AttemptRecord:
+    """One merge attempt of a pair as the tracker applied it, for diagnostics
+    (:attr:`MapMergeTracker.attempt_observer`; ``scripts/merge_timeline.py``).
+
+    Attributes:
+        step: the step the attempt took effect (its start + ``merge_latency_steps``).
+        i, j: the pair (robot j's map into robot i's).
+        result: the merger's answer (reason, score, ``overlap_cells``, info).
+        T: the pose it accepted (canvas cells, j's -> i's), None when refused.
+        best: its best pose, also when refused (canvas cells; None when not reported).
+        standing: remembered rivals that still stand against ``T``.
+        thin: ``T`` rests on fewer than ``min_accept_cells`` wall cells.
+        pending: agreeing attempts in the pair's run after this one (0: no run).
+        merged: the pair is merged after this attempt.
+    """
+
+    step: int
+    i: int
+    j: int
+    result: MergeResult
+    T: Transform | None
+    best: Transform | None
+    standing: int
+    thin: bool
+    pending: int
+    merged: bool
 
 
 @dataclass
@@ -333,6 +364,9 @@ class MapMergeTracker:
         self._jobs: list[_Job] = []
         self._merge = _resolve_merger(merger, dict(merge_options))
         self._merger_obj = merger
+        #: Called with an :class:`AttemptRecord` after every applied merge attempt (diagnostics;
+        #: None: nothing). Not pickled with the tracker.
+        self.attempt_observer: Callable[[AttemptRecord], None] | None = None
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -496,12 +530,13 @@ class MapMergeTracker:
         standing = None
         if T is not None and rivals:
             standing = tuple(self._standing(a, b, offsets, T, rivals, box_j))
-        consistent_best = None
         best = res.info.get("best_transform")
-        if T is None and best is not None and res.info.get("consistent", False):
-            consistent_best = chain(
+        best_T = None
+        if best is not None:
+            best_T = chain(
                 translation(ca, ra), np.asarray(best, dtype=np.float64), translation(-cb, -rb)
             )
+        consistent = T is None and bool(res.info.get("consistent", False))
         return _Outcome(
             res,
             T,
@@ -509,7 +544,8 @@ class MapMergeTracker:
             held_now,
             rivals=found,
             standing=standing,
-            consistent_best=consistent_best,
+            consistent_best=best_T if consistent else None,
+            best=best_T,
         )
 
     def _drift_refit(
@@ -624,6 +660,23 @@ class MapMergeTracker:
             self._results[(i, j)] = out.result
         if job.kind == "attempt":
             self._decide_attempt(i, j, out, job.bbox_j)
+            if self.attempt_observer is not None and out.result is not None:
+                thin = out.result.overlap_cells < self.min_accept_cells
+                pending = self._pending.get((i, j))
+                self.attempt_observer(
+                    AttemptRecord(
+                        job.due,
+                        i,
+                        j,
+                        out.result,
+                        out.T,
+                        out.best,
+                        len(out.standing or ()),
+                        bool(thin),
+                        0 if pending is None else int(pending[1]),
+                        self.transform(i, j) is not None,
+                    )
+                )
         else:
             self._decide_recheck(i, j, out, job.T_old, job.bbox_j)
 
@@ -783,6 +836,7 @@ class MapMergeTracker:
         """Pickle without the worker thread: jobs under way are waited for and kept as done."""
         state = self.__dict__.copy()
         state["_pool"] = None
+        state["attempt_observer"] = None
         state["_jobs"] = [
             _Job(
                 jb.kind,

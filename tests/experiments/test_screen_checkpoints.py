@@ -3,7 +3,6 @@ screening seeds, and the refusals (seeds overlapping the reported ones, a folder
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 from types import ModuleType
@@ -12,8 +11,8 @@ import pytest
 import yaml
 
 from mrexplore.experiments.train import train
+from tests.helpers import load_script
 
-SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "screen_checkpoints.py"
 GOAL_ENV = {
     "world": "small_office",
     "n_robots": 2,
@@ -25,11 +24,7 @@ GOAL_ENV = {
 
 
 def _script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("screen_checkpoints", SCRIPT)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("screen_checkpoints")
 
 
 def test_refuses_reported_seeds_and_a_folder_that_is_no_run(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]

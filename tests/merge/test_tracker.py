@@ -309,6 +309,29 @@ def test_every_refusal_breaks_the_run_when_asked() -> None:
         assert tr.merged(0) == (k == 3)
 
 
+def test_the_attempt_observer_sees_every_applied_attempt() -> None:
+    """``attempt_observer`` gets one record per attempt, in order: the merger's answer, the pose
+    it accepted, the run's length after it and whether the pair is merged; a tracker pickles
+    without it."""
+    import pickle
+
+    from mrexplore.merge.tracker import AttemptRecord
+
+    T = translation(3.0, 0.0)
+    seq = _Seq([T, None, T, T])
+    tr = MapMergeTracker(2, merger=seq, merge_every=1, recheck_every=0, confirmations=2)
+    seen: list[AttemptRecord] = []
+    tr.attempt_observer = seen.append
+    for k in range(4):
+        tr.update(_growing_maps(k), step=k)
+    assert [r.step for r in seen] == [0, 1, 2, 3]
+    assert [r.T is not None for r in seen] == [True, False, True, True]
+    assert [r.pending for r in seen] == [1, 0, 1, 0]
+    assert [r.merged for r in seen] == [False, False, False, True]
+    assert seen[1].result.reason == "scripted refusal" and (seen[0].i, seen[0].j) == (0, 1)
+    assert pickle.loads(pickle.dumps(tr)).attempt_observer is None
+
+
 def test_no_attempt_when_told_not_to() -> None:
     seq = _Seq([translation(3.0, 0.0)])
     tr = MapMergeTracker(2, merger=seq, merge_every=1, confirmations=1)

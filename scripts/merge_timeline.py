@@ -1,0 +1,194 @@
+"""Where the first merge waits: every in-loop merge attempt against the truth (issue 11).
+
+Runs loop-study episodes of the ``semantic`` variant (``mrexplore bench loop``'s settings:
+coordinated frontiers, random headings, noise on) with ``merge_latency_steps`` 0, so that each
+attempt is decided in the step that starts it, and logs every attempt of every pair through
+:attr:`mrexplore.merge.MapMergeTracker.attempt_observer`: the merger's reason, its best pose's
+error against the truth (the largest displacement of the corners of robot j's known box, cells),
+and the known space the two maps share under the true transform (m^2). The truth is read by this
+script only (evaluation); nothing of it reaches the merger.
+
+Per world it prints, as medians over the episodes (an episode that never gets there counts at
+the time limit): when the maps first share known space under the truth, when that reaches 10 and
+20 m^2, when the merger's best pose is the truth (within ``--truth-cells``) with 20 m^2 shared,
+the first attempt the merger accepted, and the merge; then, per band of true shared space, in how
+many attempts the best pose was the truth.
+
+    python scripts/merge_timeline.py --worlds symmetric_office twin_wings --seeds 20 \\
+        --first-seed 3000 --json timeline.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mrexplore.errors import ConfigError
+from mrexplore.experiments.episode import run_episode
+from mrexplore.experiments.loop_study import POLICY, episode_options, validate
+from mrexplore.experiments.merge_bench import parse_options
+from mrexplore.experiments.task_time import make_team
+from mrexplore.grid import UNKNOWN, Transform, known_bbox, map_points
+from mrexplore.merge.common import warp_into
+from mrexplore.merge.tracker import AttemptRecord
+
+#: Bands of true shared space (m^2) of the per-band count.
+BANDS_M2 = (0.0, 10.0, 20.0, 30.0, 40.0)
+
+
+def corner_error(T1: Transform, T2: Transform, box: tuple[int, int, int, int]) -> float:
+    """Largest distance (cells) between the corners of ``box`` (r0, r1, c0, c1) under two poses."""
+    r0, r1, c0, c1 = box
+    corners = np.array([[c0, r0], [c1, r0], [c0, r1], [c1, r1]], dtype=np.float64)
+    (x1, y1), (x2, y2) = map_points(corners, T1), map_points(corners, T2)
+    return float(np.hypot(x1 - x2, y1 - y2).max())
+
+
+def run_one(
+    world: str, seed: int, max_time_s: float, merge_options: dict[str, Any]
+) -> dict[str, Any]:
+    """One episode; its attempts with the truth beside them (simulated seconds)."""
+    opts = episode_options(world, "semantic", max_time_s, merge_options=merge_options)
+    opts["merge_latency_steps"] = 0
+    attempts: list[dict[str, Any]] = []
+    holder: dict[str, Any] = {}
+
+    def observe(rec: AttemptRecord) -> None:
+        sim = holder["env"].sim
+        mi, mj = sim.maps[rec.i].to_int8(), sim.maps[rec.j].to_int8()
+        T_true = sim.true_transform(rec.i, rec.j)
+        shared = np.count_nonzero((mi != UNKNOWN) & (warp_into(mj, T_true, mi.shape) != UNKNOWN))
+        box = known_bbox(mj)
+        err = None
+        if rec.best is not None and box is not None:
+            err = corner_error(rec.best, T_true, box)
+        attempts.append(
+            {
+                "t_s": rec.step * sim.config.robot.dt_s,
+                "pair": [rec.i, rec.j],
+                "shared_m2": float(shared) * sim.resolution_m**2,
+                "best_error_cells": err,
+                "accepted_by_merger": rec.T is not None,
+                "reason": rec.result.reason,
+                "pending": rec.pending,
+                "merged": rec.merged,
+            }
+        )
+
+    def prepare(env: Any) -> None:
+        holder["env"] = env
+        env.fusion.tracker.attempt_observer = observe
+
+    team = make_team(POLICY, ["robot_0", "robot_1"], "explore")
+    r = run_episode(opts, team, seed, prepare=prepare)
+    return {
+        "world": world,
+        "seed": seed,
+        "first_merge_time_s": r.first_merge_time_s,
+        "task_time_s": r.task_time_s,
+        "wrong_merge": r.wrong_merge,
+        "attempts": attempts,
+    }
+
+
+def _first(attempts: list[dict[str, Any]], cond: Any, limit: float) -> float:
+    return next((a["t_s"] for a in attempts if cond(a)), limit)
+
+
+def summarize(episodes: list[dict[str, Any]], limit: float, truth_cells: float) -> list[str]:
+    """The printed lines: per world, the medians and the per-band counts."""
+
+    def near(a: dict[str, Any]) -> bool:
+        return a["best_error_cells"] is not None and a["best_error_cells"] <= truth_cells
+
+    lines = []
+    for world in dict.fromkeys(e["world"] for e in episodes):
+        eps = [e for e in episodes if e["world"] == world]
+        cols = {
+            "shared > 0": lambda a: a["shared_m2"] > 0,
+            ">= 10 m^2": lambda a: a["shared_m2"] >= 10,
+            ">= 20 m^2": lambda a: a["shared_m2"] >= 20,
+            "truth best, >= 20 m^2": lambda a: a["shared_m2"] >= 20 and near(a),
+            "first match": lambda a: a["accepted_by_merger"],
+        }
+        meds = {
+            k: statistics.median(_first(e["attempts"], c, limit) for e in eps)
+            for k, c in cols.items()
+        }
+        merged = statistics.median(
+            e["first_merge_time_s"] if e["first_merge_time_s"] is not None else limit for e in eps
+        )
+        wrong = sum(bool(e["wrong_merge"]) for e in eps)
+        lines.append(
+            f"{world} ({len(eps)} episodes, {wrong} wrong): medians "
+            + ", ".join(f"{k} {v:.1f} s" for k, v in meds.items())
+            + f", merged {merged:.1f} s"
+        )
+        bands = []
+        for lo, hi in zip(BANDS_M2, (*BANDS_M2[1:], float("inf")), strict=True):
+            sel = [
+                a
+                for e in eps
+                for a in e["attempts"]
+                if lo <= a["shared_m2"] < hi and a["shared_m2"] > 0 and not a["merged"]
+            ]
+            bands.append(f"{lo:g}-{hi:g} m^2: {sum(near(a) for a in sel)}/{len(sel)}")
+        lines.append("  attempts before the merge, best pose the truth: " + "; ".join(bands))
+    return lines
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Parse, check every option at the door, run, print; returns the exit code."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
+    ap.add_argument("--worlds", nargs="+", default=["symmetric_office", "twin_wings"])
+    ap.add_argument("--seeds", type=int, default=20)
+    ap.add_argument("--first-seed", type=int, default=3000)
+    ap.add_argument("--max-time-s", type=float, default=600.0)
+    ap.add_argument("--merge-options", default="", metavar="K=V,K=V")
+    ap.add_argument("--truth-cells", type=float, default=15.0, help="best pose = truth within")
+    ap.add_argument("--json", default=None, help="write every attempt here")
+    ap.add_argument("--force", action="store_true", help="overwrite an existing --json")
+    args = ap.parse_args(argv)
+    try:
+        mo = parse_options(args.merge_options, flag="--merge-options")
+        validate(
+            args.worlds,
+            args.seeds,
+            args.first_seed,
+            ["semantic"],
+            args.max_time_s,
+            1,
+            merge_options=mo,
+        )
+        if not args.truth_cells > 0:
+            raise ConfigError(f"--truth-cells must be positive, got {args.truth_cells}")
+        if args.json and Path(args.json).exists() and not args.force:
+            raise ConfigError(f"{args.json} exists; pass --force to overwrite")
+    except ConfigError as exc:
+        print(f"merge_timeline: error: {exc}", file=sys.stderr)
+        return 2
+    episodes = []
+    for world in args.worlds:
+        for seed in range(args.first_seed, args.first_seed + args.seeds):
+            ep = run_one(world, seed, args.max_time_s, mo)
+            print(
+                f"{world} {seed}: first merge {ep['first_merge_time_s']}, "
+                f"{len(ep['attempts'])} attempts",
+                flush=True,
+            )
+            episodes.append(ep)
+    print("\n".join(summarize(episodes, args.max_time_s, args.truth_cells)))
+    if args.json:
+        Path(args.json).write_text(json.dumps({"merge_options": mo, "episodes": episodes}))
+        print(f"wrote {args.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

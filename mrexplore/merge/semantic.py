@@ -419,6 +419,19 @@ def slide_direction(
     return np.asarray(v / math.hypot(float(v[0]), float(v[1])), dtype=np.float64)
 
 
+def stands_as_rival(
+    best: Agreement, other: Agreement, cells_per_sample: float, o: SemanticOptions
+) -> bool:
+    """Does a far pose with agreement ``other`` stand as a rival to the best pose (``best``)?
+    It does when it explains at least ``o.rival_support`` of the best's agreeing wall cells and
+    is not beaten by ``o.min_margin`` in index and ``o.min_evidence_cells`` more contradicting
+    wall cells (``cells_per_sample``: wall cells per verified sample)."""
+    if other.agree < o.rival_support * best.agree:
+        return False
+    excess = (other.disagree - best.disagree) * cells_per_sample
+    return best.score - other.score < o.min_margin or excess < o.min_evidence_cells
+
+
 #: Slides (cells, each way) of :func:`_standing_slide`: from beyond a wrong merge's 5 cells to
 #: the length of a room, where the coarse search's peaks take over.
 SLIDES_CELLS = (5.0, 10.0, 20.0, 40.0)
@@ -433,11 +446,10 @@ def _standing_slide(
     o: SemanticOptions,
 ) -> float | None:
     """The first slide (cells, signed) of the best pose along its least pinned direction that
-    stands as a rival to it by the merger's rival rule (explains at least ``rival_support`` of
-    its agreeing walls and is not beaten by ``min_margin`` in index and ``min_evidence_cells``
-    contradicting wall cells), or None when the maps contradict every slide of
-    :data:`SLIDES_CELLS` both ways: the pose is pinned by what the wall normals miss (door
-    gaps, wall ends, free space beyond them)."""
+    stands as a rival to it (:func:`stands_as_rival`), 0.0 when no wall of b lands on one of a
+    (nothing pins it), or None when the maps contradict every slide of :data:`SLIDES_CELLS`
+    both ways: the pose is pinned by what the wall normals miss (door gaps, wall ends, free
+    space beyond them)."""
     assert best.agreement is not None
     v = slide_direction(wall_a, wall_b, best.T, cells_b)
     if v is None:
@@ -445,11 +457,7 @@ def _standing_slide(
     for d in SLIDES_CELLS:
         for sign in (1.0, -1.0):
             moved = chain(translation(sign * d * float(v[0]), sign * d * float(v[1])), best.T)
-            r = verify(moved)
-            if r.agree < o.rival_support * best.agreement.agree:
-                continue
-            excess = (r.disagree - best.agreement.disagree) * verify.cells_per_sample
-            if best.agreement.score - r.score < o.min_margin or excess < o.min_evidence_cells:
+            if stands_as_rival(best.agreement, verify(moved), verify.cells_per_sample, o):
                 return sign * d
     return None
 

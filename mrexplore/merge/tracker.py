@@ -61,7 +61,7 @@ from mrexplore.grid import (
 from mrexplore.merge.api import METHODS, merge_maps
 from mrexplore.merge.common import MapCodes, MergeResult, Verifier, translation
 from mrexplore.merge.compositor import MapCompositor
-from mrexplore.merge.semantic import PosePrior, SemanticOptions
+from mrexplore.merge.semantic import PosePrior, SemanticOptions, stands_as_rival
 from mrexplore.options import (
     MERGE_EVERY_CHECK,
     MERGE_EVERY_DEFAULT,
@@ -108,9 +108,6 @@ class _Outcome:
     # where the kept transform does, within the maps' noise and without a far rival (None:
     # not so, or the merger reports no best pose)
     refit: Transform | None = None
-    # attempt the merger refused although its best pose was consistent (a refusal for
-    # uniqueness, pinning or shared area): that pose (canvas cells); None otherwise
-    consistent_best: Transform | None = None
     # attempt: the merger's best pose (canvas cells), accepted or not (None: not reported)
     best: Transform | None = None
 
@@ -536,17 +533,7 @@ class MapMergeTracker:
             best_T = chain(
                 translation(ca, ra), np.asarray(best, dtype=np.float64), translation(-cb, -rb)
             )
-        consistent = T is None and bool(res.info.get("consistent", False))
-        return _Outcome(
-            res,
-            T,
-            old_now,
-            held_now,
-            rivals=found,
-            standing=standing,
-            consistent_best=best_T if consistent else None,
-            best=best_T,
-        )
+        return _Outcome(res, T, old_now, held_now, rivals=found, standing=standing, best=best_T)
 
     def _drift_refit(
         self,
@@ -608,19 +595,13 @@ class MapMergeTracker:
         def crop(X: Transform) -> Transform:
             return chain(translation(-ca, -ra), X, translation(cb, rb))
 
-        rule = _RIVAL_RULE
         best = verify(crop(T))
-        out = []
-        for R in rivals:
-            if self._same(R, T, box_j, rule.far_cells):
-                continue  # the same place: no rival
-            r = verify(crop(R))
-            if r.agree < rule.rival_support * best.agree:
-                continue
-            excess = (r.disagree - best.disagree) * verify.cells_per_sample
-            if best.score - r.score < rule.min_margin or excess < rule.min_evidence_cells:
-                out.append(R)
-        return out
+        return [
+            R
+            for R in rivals
+            if not self._same(R, T, box_j, _RIVAL_RULE.far_cells)  # else the same place
+            and stands_as_rival(best, verify(crop(R)), verify.cells_per_sample, _RIVAL_RULE)
+        ]
 
     def _start(self, kind: str, i: int, j: int, step: int) -> None:
         """Start an attempt or re-check of (i, j) on the current maps; apply it now (latency 0)
@@ -717,8 +698,11 @@ class MapMergeTracker:
                 self.keep_run_on_refusal
                 and pending is not None
                 and not thin
-                and out.consistent_best is not None
-                and self._same(pending[0], out.consistent_best, bbox_j)
+                and out.T is None
+                and out.best is not None
+                and out.result is not None
+                and out.result.info.get("consistent", False)  # refused after the consistency test
+                and self._same(pending[0], out.best, bbox_j)
             ):
                 # ... but not a refusal that found the pending pose best and consistent again:
                 # nothing contradicts it, and the rival it saw is remembered (above)

@@ -442,6 +442,45 @@ class Verifier:
         return Agreement(ab + aa, db + da, share)
 
 
+def agreeing_cells(
+    cells: tuple[NDArray[np.intp], NDArray[np.intp]], T: Transform, codes: NDArray[np.uint8]
+) -> tuple[NDArray[np.bool_], NDArray[np.int64], NDArray[np.int64]]:
+    """Which of the wall ``cells`` (rows, cols) land, mapped by ``T`` to the nearest cell, on a
+    wall of the other map or on free space within a cell of one (``codes``: the verifier's
+    agreeing codes), and the (cols, rows) they land on."""
+    rows, cols = cells
+    c, r = (np.rint(x).astype(np.int64) for x in map_points(np.stack([cols, rows], axis=1), T))
+    h, w = codes.shape
+    inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
+    got = np.full(c.size, CODE_UNKNOWN, dtype=np.uint8)
+    got[inside] = codes[r[inside], c[inside]]
+    return (got == CODE_WALL) | (got == CODE_FREE_NEAR_WALL), c, r
+
+
+def rectangle_area(points: NDArray[np.integer]) -> float:
+    """Area (cells^2) of the smallest rectangle, at any angle, around integer ``points`` (N, 2);
+    0 when fewer than three or all on one line.
+
+    Exact on any CPU: the rectangle's sides run along the edges of the points' convex hull
+    (integer vectors), so its extents are integer dot products and its area one correctly
+    rounded division per edge.
+
+    >>> rectangle_area(np.array([[0, 0], [4, 0], [4, 3], [0, 3], [2, 1]]))
+    12.0
+    """
+    if points.shape[0] < 3:
+        return 0.0
+    hull = cv2.convexHull(points.astype(np.int32)).reshape(-1, 2).astype(np.int64)
+    if hull.shape[0] < 3:
+        return 0.0
+    edges = np.roll(hull, -1, axis=0) - hull  # (H, 2) integer edge vectors
+    along = hull @ edges.T  # (H, H) integer projections of every hull point on every edge
+    across = hull @ np.stack([-edges[:, 1], edges[:, 0]], axis=1).T
+    extent = (along.max(axis=0) - along.min(axis=0)) * (across.max(axis=0) - across.min(axis=0))
+    # each edge's rectangle: extents scaled by |edge|^2, one correctly rounded division each
+    return float((extent / (edges**2).sum(axis=1)).min())
+
+
 # --------------------------------------------------------------------------------------------
 # composition
 # --------------------------------------------------------------------------------------------

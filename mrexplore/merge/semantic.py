@@ -26,13 +26,15 @@ Pipeline (all on the maps cropped to their known bounding boxes):
    by ``min_margin`` in index and ``min_evidence_cells`` disagreeing cells. Two look-alike rooms
    pass the first and fail the second: refused, to be merged later once more is known.
    Enough shared knowledge (``min_overlap``, ``min_overlap_cells``, ``min_common_m2``) is asked
-   for too. Measurements behind each default: ``docs/merging.md``.
+   for too, evidence that is more than one object (``min_wall_area_m2``, ``min_object_m2``),
+   and last the poses that move the best by either map's repeats must be beaten as rivals are
+   (``repeat_rivals``). Measurements behind each default: ``docs/merging.md``.
 
 The steps' machinery lives beside this module (:mod:`~mrexplore.merge.rotation`,
-:mod:`~mrexplore.merge.coarse`, :mod:`~mrexplore.merge.icp`, the verifier in
-:mod:`~mrexplore.merge.common`); what stays here is the options and the pipeline that threads
-the cropped maps and verifiers through the five steps, read top to bottom (its size: the 25
-options and that one pipeline).
+:mod:`~mrexplore.merge.coarse`, :mod:`~mrexplore.merge.icp`, :mod:`~mrexplore.merge.repeats`,
+the verifier in :mod:`~mrexplore.merge.common`); what stays here is the options and the
+pipeline that threads the cropped maps and verifiers through the five steps, read top to bottom
+(its size: the options and that one pipeline).
 """
 
 from __future__ import annotations
@@ -57,23 +59,23 @@ from mrexplore.grid import (
 )
 from mrexplore.merge.coarse import CoarseMatcher
 from mrexplore.merge.common import (
-    CODE_FREE_NEAR_WALL,
-    CODE_UNKNOWN,
-    CODE_WALL,
     Agreement,
     MapCodes,
     MergeResult,
     Verifier,
+    agreeing_cells,
     chain,
     compose,
     detector_check,
     known_bbox,
     map_points,
+    rectangle_area,
     rigid_inverse,
     translation,
     warp_into,
 )
 from mrexplore.merge.icp import WallICP
+from mrexplore.merge.repeats import one_object_area, repeat_shifts
 from mrexplore.merge.rotation import direction_histogram, rotation_candidates, wall_normals
 from mrexplore.options import Options, boolean, integer, number, option
 
@@ -248,22 +250,81 @@ def _slide_hypotheses(
     cos_phi, sin_phi = math.cos(phi), math.sin(phi)
     dirs = np.array([[cos_phi, sin_phi], [-sin_phi, cos_phi]])
     shifts = np.concatenate([s * ks[:, None] * d[None, :] for d in dirs for s in (1.0, -1.0)])
+    return _shifted_hypotheses(
+        best, shifts, "slide", screen, quick, verify, icp, min_overlap, min_overlap_cells, keep
+    )
+
+
+def _repeat_hypotheses(
+    best: _Hypothesis,
+    repeats_a: Sequence[tuple[float, float]],
+    repeats_b: Sequence[tuple[float, float]],
+    screen: Verifier,
+    quick: Verifier,
+    verify: Verifier,
+    icp: WallICP,
+    min_overlap: float,
+    min_overlap_cells: int,
+    keep: int = 2,
+) -> list[_Hypothesis]:
+    """Hypotheses that move the best pose by either map's repeats (:mod:`.repeats`): b laid on
+    the next copy of what it matched in a (a's repeat), or b's next copy of what it showed laid
+    where the first one was (b's repeat, turned into a's frame by the pose's rotation).
+
+    A map that shows one rack twice makes every pose on one copy ambiguous with the other, and
+    the coarse search's few peaks per rotation need not include it: the merger judges these
+    poses as rivals of the best (a moved pose that explains more refuses too; it never becomes
+    the best, so this check can come last and cost only a pose about to be merged).
+    """
+    R = np.asarray(best.T, dtype=np.float64)[:2, :2]
+    moves = [np.asarray(s, dtype=np.float64) for s in repeats_a]
+    moves += [R @ np.asarray(s, dtype=np.float64) for s in repeats_b]  # T t(s) = t(R s) T
+    if not moves:
+        return []
+    return _shifted_hypotheses(
+        best,
+        np.stack(moves),
+        "repeat",
+        screen,
+        quick,
+        verify,
+        icp,
+        min_overlap,
+        min_overlap_cells,
+        keep,
+    )
+
+
+def _shifted_hypotheses(
+    best: _Hypothesis,
+    shifts: NDArray[np.float64],
+    source: str,
+    screen: Verifier,
+    quick: Verifier,
+    verify: Verifier,
+    icp: WallICP,
+    min_overlap: float,
+    min_overlap_cells: int,
+    keep: int,
+) -> list[_Hypothesis]:
+    """The best pose moved by each of the (K, 2) ``shifts`` (cells in a, ``translation(s) @
+    T``): all screened in one pass, the ``3 keep`` best polished by a short ICP, and the
+    ``keep`` best of those refined fully and verified; those that still overlap enough."""
     agree, disagree = screen.shifted(best.T, shifts)
     order = np.argsort(-(agree - 10 * disagree), kind="stable")[: 3 * keep]  # ties: shift order
     out = [
         _Hypothesis(
             chain(translation(*shifts[k]), best.T),
-            "slide",
+            source,
             Agreement(int(agree[k]), int(disagree[k])),
         )
         for k in order
         if agree[k] > 0
     ]
     refined: list[_Hypothesis] = []
-    for hyp in out[: 3 * keep]:
+    for hyp in out:
         hyp.T = icp(hyp.T, iters=4, max_dist=3.0, n_points=400)
         hyp.agreement = quick(hyp.T)
-    out = [h for h in out[: 3 * keep] if h.agreement is not None]
     out.sort(key=lambda h: -h.evidence)
     for hyp in out[:keep]:
         hyp.T = icp(hyp.T, iters=10, max_dist=3.0)
@@ -462,21 +523,6 @@ def _standing_slide(
     return None
 
 
-def _agreeing_cells(
-    cells: tuple[NDArray[np.intp], NDArray[np.intp]], T: Transform, codes: NDArray[np.uint8]
-) -> tuple[NDArray[np.bool_], NDArray[np.int64], NDArray[np.int64]]:
-    """Which of the wall ``cells`` (rows, cols) land, mapped by ``T`` to the nearest cell, on a
-    wall of the other map or on free space within a cell of one (``codes``: the verifier's
-    agreeing codes), and the (cols, rows) they land on."""
-    rows, cols = cells
-    c, r = (np.rint(x).astype(np.int64) for x in map_points(np.stack([cols, rows], axis=1), T))
-    h, w = codes.shape
-    inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
-    got = np.full(c.size, CODE_UNKNOWN, dtype=np.uint8)
-    got[inside] = codes[r[inside], c[inside]]
-    return (got == CODE_WALL) | (got == CODE_FREE_NEAR_WALL), c, r
-
-
 def agreeing_area(a: MapCodes, b: MapCodes, T: Transform, tolerance: int = 1) -> float:
     """How much of the maps the evidence of a pose covers, in cells^2 of a: the area of the
     smallest rectangle, at any angle, around the wall cells that agree under ``T`` (b cells ->
@@ -485,27 +531,17 @@ def agreeing_area(a: MapCodes, b: MapCodes, T: Transform, tolerance: int = 1) ->
     and a's walls that land so on b. 0 when fewer than three agree or all on one line.
 
     A rack or a pillar gives a square metre or a few however well it matches, and every copy
-    of it matches as well; a room's or a corridor's walls cover it. Exact on any CPU: the
-    rectangle's sides run along the edges of the cells' convex hull (integer vectors), so its
-    extents are integer dot products and its area one division per edge.
+    of it matches as well; a room's or a corridor's walls cover it (exact on any CPU:
+    :func:`~mrexplore.merge.common.rectangle_area`).
     """
-    on_b, cb, rb = _agreeing_cells(b.wall_cells(), T, a.codes(tolerance))
-    on_a, _, _ = _agreeing_cells(a.wall_cells(), rigid_inverse(T), b.codes(tolerance))
+    on_b, cb, rb = agreeing_cells(b.wall_cells(), T, a.codes(tolerance))
+    on_a, _, _ = agreeing_cells(a.wall_cells(), rigid_inverse(T), b.codes(tolerance))
     ra, ca = a.wall_cells()
-    pts = np.concatenate(
-        [np.stack([cb[on_b], rb[on_b]], axis=1), np.stack([ca[on_a], ra[on_a]], axis=1)]
+    return rectangle_area(
+        np.concatenate(
+            [np.stack([cb[on_b], rb[on_b]], axis=1), np.stack([ca[on_a], ra[on_a]], axis=1)]
+        )
     )
-    if pts.shape[0] < 3:
-        return 0.0
-    hull = cv2.convexHull(pts.astype(np.int32)).reshape(-1, 2).astype(np.int64)
-    if hull.shape[0] < 3:
-        return 0.0
-    edges = np.roll(hull, -1, axis=0) - hull  # (H, 2) integer edge vectors
-    along = hull @ edges.T  # (H, H) integer projections of every hull point on every edge
-    across = hull @ np.stack([-edges[:, 1], edges[:, 0]], axis=1).T
-    extent = (along.max(axis=0) - along.min(axis=0)) * (across.max(axis=0) - across.min(axis=0))
-    # each edge's rectangle: extents scaled by |edge|^2, one correctly rounded division each
-    return float((extent / (edges**2).sum(axis=1)).min())
 
 
 #: Within this many cells of ``min_cross_cells`` the cross support is recomputed in float64
@@ -587,8 +623,10 @@ class SemanticOptions(Options):
     polish_margin: float = option(0.01, number(0.0, 1.0))
     min_cross_cells: float = option(10.0, number(0.0, math.inf))
     slide_test: bool = option(False, boolean)
+    repeat_rivals: int = option(4, integer(0, 100))
     rival_perfect_cells: int = option(250, integer(0))
     min_wall_area_m2: float = option(4.0, number(0.0, math.inf))
+    min_object_m2: float = option(20.0, number(0.0, math.inf))
 
     def check_together(self) -> None:
         if self.detector is not None and not self.paper_candidates:
@@ -636,6 +674,13 @@ def merge_semantic(
     - ``min_wall_area_m2`` (4.0; 0 = off): refuse a pose whose agreeing walls fit in a smaller
       rectangle (:func:`agreeing_area`, m^2): one object, a rack or a pillar, fits every copy of
       it;
+    - ``min_object_m2`` (20.0; 0 = off): refuse a pose whose agreeing walls lie (95 %) on one
+      connected wall structure in each map, when the larger of the two fits in a smaller
+      rectangle (:func:`~mrexplore.merge.repeats.one_object_area`, m^2): a rack seen whole
+      matches every copy of it, and the copies may lie where neither map has looked;
+    - ``repeat_rivals`` (4; 0 = off): last, move the pose about to be merged by each map's 4
+      strongest repeats (:func:`~mrexplore.merge.repeats.repeat_shifts`, at least 4 ``scale``
+      cells long) and judge the moved poses as rivals: a copy the coarse search never tried;
     - ``paper_candidates`` (False): add the seed paper's trusted-point matches as hypotheses
       (``detector``, default harris, picks their keypoints; 3-4x slower, one more correct merge
       in 166 bench pairs).
@@ -956,6 +1001,57 @@ def merge_semantic(
             return refuse(
                 f"the walls that agree fit in {area_m2:.2f} m^2 (need {o.min_wall_area_m2:g} "
                 "m^2): one object, a rack or a pillar, fits every copy of it",
+                score=best.score,
+                **common,
+            )
+    if o.min_object_m2 > 0:
+        object_cells = one_object_area(codes_a, codes_b, best.T)
+        if object_cells is not None:
+            object_m2 = object_cells * resolution_m**2
+            info["object_m2"] = object_m2
+            if object_m2 < o.min_object_m2:
+                return refuse(
+                    f"the walls that agree lie on one structure in each map, no larger than "
+                    f"{object_m2:.1f} m^2 (need {o.min_object_m2:g} m^2): an object matches "
+                    "every copy of it, seen or not",
+                    score=best.score,
+                    **common,
+                )
+    if o.repeat_rivals > 0:
+        # Last, since it costs an autocorrelation of each map (~2 ms) and only a pose about to
+        # be merged needs it: the poses that move the best by either map's repeats, judged as
+        # rivals are (a copy the search never tried; it only refuses, never picks the best)
+        moved = _repeat_hypotheses(
+            best,
+            repeat_shifts(ac, scale, o.repeat_rivals, 4.0 * scale),
+            repeat_shifts(bc, scale, o.repeat_rivals, 4.0 * scale),
+            screen,
+            quick,
+            verify,
+            icp,
+            min_overlap,
+            min_overlap_cells,
+        )
+        for h in moved:
+            assert h.agreement is not None
+            if (
+                not in_prior(h)
+                or _mean_shift(h.T, best.T, pts) < far_cells
+                or not (
+                    perfect(h)
+                    or stands_as_rival(best.agreement, h.agreement, verify.cells_per_sample, o)
+                )
+            ):
+                continue
+            info["rivals"].append(
+                chain(translation(bba[2], bba[0]), h.T, translation(-bbb[2], -bbb[0]))
+            )
+            info["rival_agreements"].append(h.agreement)
+            return refuse(
+                f"ambiguous: the maps repeat: best {best.score:.3f} vs {h.score:.3f} for a pose "
+                f"{_mean_shift(h.T, best.T, pts):.0f} cells away, moved by a repeat of a map "
+                f"({h.agreement.agree} agreeing, {h.agreement.disagree} disagreeing wall "
+                f"samples against {best.agreement.agree} and {best.agreement.disagree})",
                 score=best.score,
                 **common,
             )

@@ -531,7 +531,9 @@ def test_min_wall_area_m2_refuses_a_match_on_one_object(seed: int, index: int) -
     from mrexplore.experiments.merge_cases import aliased_cases
 
     case = aliased_cases(index + 1, seed)[index]
-    loose = merge_maps(case.a, case.b, resolution_m=case.resolution_m, min_wall_area_m2=0)
+    loose = merge_maps(
+        case.a, case.b, resolution_m=case.resolution_m, min_wall_area_m2=0, min_object_m2=0
+    )
     assert classify(case, loose.matched, loose.transform)[0] == "wrong"
     res = merge_maps(case.a, case.b, resolution_m=case.resolution_m)
     assert not res.matched and "walls that agree fit in" in res.reason

@@ -10,7 +10,9 @@
 #      wall-area rule and the polish margin; merge_heldout2.{json,md}: ten more (23-32), kept
 #      unseen until the polish margin (chosen on 13-22) was judged on them;
 #      merge_heldout3.{json,md}: ten more (33-42, aliased pairs too), unseen until the slide
-#      test was judged on them, with and without it; merge_slide.{json,md}: the slide test
+#      test was judged on them, with and without it; merge_heldout4.{json,md}: ten more
+#      (53-62), unseen until the repeat rivals and the one-object rule (chosen on 0-9, 12 and
+#      33-52) were judged on them, with and without both; merge_slide.{json,md}: the slide test
 #      (off by default) on the cases of merge_seeds and seeds 0-9 and 12's aliased pairs;
 #      merge_seeded.{json,md}: the default beside the diagnostic `seeded` (the true pose handed
 #      in as one more hypothesis) on the 1,320 cases of merge_seeds: search misses vs refusals;
@@ -51,7 +53,8 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
   --semantic-variant paper_candidates=true \
   --semantic-variant shared_weight=0 --semantic-variant consistency_polish=false \
   --semantic-variant min_cross_cells=0 --semantic-variant min_wall_area_m2=0 \
-  --semantic-variant polish_margin=0 --out "$out/merge_ablation" --force
+  --semantic-variant polish_margin=0 --semantic-variant min_object_m2=0 \
+  --semantic-variant repeat_rivals=0 --out "$out/merge_ablation" --force
 mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
   --seeds 0-9,12 --out "$out/merge_seeds" --force
 mrexplore bench merge --methods semantic,orb --n 30 --families large --seeds 0-9 \
@@ -66,6 +69,9 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
   --seeds 23-32 --semantic-variant polish_margin=0 --out "$out/merge_heldout2" --force
 mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
   --seeds 33-42 --semantic-variant slide_test=true --out "$out/merge_heldout3" --force
+mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
+  --seeds 53-62 --semantic-variant repeat_rivals=0,min_object_m2=0 \
+  --out "$out/merge_heldout4" --force
 mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
   --seeds 0-9,12 --semantic-variant slide_test=true --out "$out/merge_slide" --force
 mrexplore bench merge --methods semantic,seeded --n 30 --families symmetric,real,noisy,lidar \

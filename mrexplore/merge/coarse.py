@@ -106,6 +106,7 @@ class CoarseMatcher:
         self.s = s
         self.p = ratio_power
         wa, fa = _pool(a, s)
+        self._wa = wa
         self.ha, self.wa = wa.shape
         hb = -(-max_b_shape[0] // s)
         wb = -(-max_b_shape[1] // s)
@@ -121,15 +122,22 @@ class CoarseMatcher:
             self.FAF = _spectrum(fa * (1.0 - _dilate(wa)), (self.H, self.W))
             self.FAWW = _spectrum(wa, (self.H, self.W))
 
-    def peaks(self, b: Int8Grid, k: int, nms: int = 2) -> list[tuple[float, float, float]]:
+    def peaks(self, b: Int8Grid | None, k: int, nms: int = 2) -> list[tuple[float, float, float]]:
         """The ``k`` best separated translations ``(dc, dr, S)`` (cells, full resolution) that map
-        b's cells onto a's cells."""
+        b's cells onto a's cells. ``b=None``: a itself (its repeats, with the ratio score; b's
+        two spectra are then a's own, not computed again)."""
         s = self.s
-        wb, fb = _pool(b, s)
         shape = (self.H, self.W)
-        FB1 = _spectrum(wb, shape)
+        if b is None:
+            if self.p == 0:
+                raise ValueError("CoarseMatcher.peaks(None, ...) needs the ratio score (p > 0)")
+            wb, FB1, FB2 = self._wa, self.FAWW, self.FAF
+        else:
+            wb, fb = _pool(b, s)
+            FB1 = _spectrum(wb, shape)
+            if self.p > 0:
+                FB2 = _spectrum(fb * (1.0 - _dilate(wb)), shape)
         if self.p > 0:
-            FB2 = _spectrum(fb * (1.0 - _dilate(wb)), shape)
             # agreement and disagreement apart: rank by agree * (agree / (agree + dis))^p, which
             # favours clean alignments over large but contradicted overlaps (repetitive shelves)
             # both are counts of 0/1 blocks: rounded, they are exact on every CPU (the FFT's

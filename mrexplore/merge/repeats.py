@@ -53,7 +53,7 @@ def repeat_shifts(
     # is and not at the plateau's corner; none near the zero shift.
     apart = 3 * scale
     groups: list[tuple[float, list[tuple[float, float]]]] = [(math.inf, [(0.0, 0.0)])]
-    for dc, dr, score in matcher.peaks(grid, 9 * (k + 1)):
+    for dc, dr, score in matcher.peaks(None, 9 * (k + 1)):
         home = next(
             (g for g in groups if math.hypot(dc - g[1][0][0], dr - g[1][0][1]) < apart), None
         )

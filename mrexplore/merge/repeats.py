@@ -33,7 +33,7 @@ from mrexplore.merge.common import MapCodes, agreeing_cells, rectangle_area, rig
 def repeat_shifts(
     grid: Int8Grid, scale: int, k: int, min_cells: float
 ) -> list[tuple[float, float]]:
-    """The ``k`` translations ``(dc, dr)`` (cells, multiples of ``scale``) under which the map's
+    """The ``k`` translations ``(dc, dr)`` (cells, to about ``scale``) under which the map's
     pooled walls agree best with its own, best first, each at least ``min_cells`` long.
 
     The coarse matcher's ratio score of the map against itself (its autocorrelation): the zero

@@ -195,7 +195,9 @@ def candidate_lines(res: MergeResult, resolution_m: float, max_rivals: int = 3) 
     lines = ["the best pose and its rivals, far poses that explain half as much or more (b -> a):"]
     lines.append(_pose_line("best ", np.asarray(best), info.get("best_agreement"), resolution_m))
     shown: list[NDArray[np.float64]] = [np.asarray(best)]
-    for T, ag in zip(rivals, ags, strict=True):
+    # strongest first (the merger lists a rival moved by a map's repeat, its last check, last)
+    pairs = sorted(zip(rivals, ags, strict=True), key=lambda p: -(p[1].score if p[1] else 0.0))
+    for T, ag in pairs:
         T = np.asarray(T)
         if any(_near(T, S) for S in shown):
             continue  # the same place as one listed, a cell or a degree apart

@@ -178,3 +178,27 @@ def test_a_prior_in_metres_picks_the_room(tmp_path: Path, capsys) -> None:  # ty
     zero = ["--prior", "0,0,0", "--prior-radius-m", "0"]
     assert main([str(pa), str(pb), "-o", str(tmp_path / "z.yaml"), *zero]) == 2
     assert "--prior-radius-m" in capsys.readouterr().err
+
+
+def test_the_refusals_rivals_are_listed_strongest_first() -> None:
+    """The merger appends a rival found by its last check (a map's repeat) after the others;
+    the user reads the strongest first, the one most likely to be the truth."""
+    from mrexplore.experiments.merge_files import candidate_lines
+    from mrexplore.merge.common import Agreement, MergeResult, translation
+
+    weak, strong = translation(50.0, 0.0), translation(-90.0, 0.0)
+    res = MergeResult(
+        matched=False,
+        transform=None,
+        score=0.99,
+        method="semantic",
+        reason="ambiguous: the maps repeat: ...",
+        info={
+            "best_transform": np.eye(3),
+            "best_agreement": Agreement(900, 9),
+            "rivals": [weak, strong],
+            "rival_agreements": [Agreement(500, 50), Agreement(880, 0)],
+        },
+    )
+    lines = candidate_lines(res, 0.05)
+    assert "(-90.0, 0.0) cells" in lines[2] and "(50.0, 0.0) cells" in lines[3]

@@ -122,3 +122,15 @@ def test_compiled_coarse_peaks_equal_the_numpy_path(
     np.multiply(a0, want, out=want)
     want = np.round(want, 6).astype(np.float32)
     assert ratio_scores(ag, ds).tobytes() == want.tobytes()
+
+
+def test_peaks_of_the_map_itself_reuse_its_spectra() -> None:
+    """``peaks(None, k)`` (a's repeats, from a's own spectra) gives exactly the peaks of
+    ``peaks(a, k)``; the linear score has no such shortcut and says so."""
+    rng = np.random.default_rng(3)
+    a = np.where(rng.random((90, 130)) < 0.1, 100, 0).astype(np.int8)
+    a[:, 100:] = -1
+    m = CoarseMatcher(a, 4, a.shape, w_free=0.0, ratio_power=2.0)
+    assert m.peaks(None, 20) == m.peaks(a, 20)
+    with pytest.raises(ValueError, match="ratio score"):
+        CoarseMatcher(a, 4, a.shape, w_free=0.2).peaks(None, 5)

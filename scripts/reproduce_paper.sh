@@ -36,7 +36,8 @@
 #   4. goal_policy_eval/{office,twin,tb3}/eval.{json,png}: the shipped learned goal chooser
 #      (policies/goal_ppo_2r) against the frontier planners on 50 held-out worlds of each family,
 #      on this version's merger
-# It replaces the committed files, so it asks for --force. About an hour and three quarters on 2 cores.
+# It replaces the committed files, so it asks for --force. About two hours on 2 cores (measured
+# 2026-11-26: the merge steps ~50 min, the loop, task-time and evaluation steps ~70 min).
 # Every figure but the timings (ms, steps/s) comes out the same on any machine with the pinned
 # versions (requirements/constraints.txt); timings depend on the machine and its load.
 set -euo pipefail

@@ -219,28 +219,21 @@ def _paper_hypotheses(
     return [chain(translation(*(ta[i] - tb[j])), T_rot) for i, j in zip(ii, jj, strict=True)]
 
 
-def _slide_hypotheses(
-    best: _Hypothesis,
+def _slide_shifts(
     normals_a: tuple[NDArray[np.float64], NDArray[np.float64]],
     b_shape: tuple[int, int],
     step: float,
-    screen: Verifier,
-    quick: Verifier,
-    verify: Verifier,
-    icp: WallICP,
-    min_overlap: float,
-    min_overlap_cells: int,
-    keep: int = 2,
-) -> list[_Hypothesis]:
-    """Hypotheses that slide the best pose along a's two wall directions.
+) -> NDArray[np.float64]:
+    """Shifts (K, 2), cells in a, that slide a pose along a's two wall directions: multiples of
+    ``step`` along a's dominant wall direction and its normal, both ways, up to b's diagonal.
 
     Rows of identical shelves or a long corridor make a *ridge* in the coarse score: sliding b
     along the walls keeps every wall on a wall, and the coarse peak sits where the overlap is
     largest, which need not be the truth (seen on the warehouse map: a perfectly consistent
-    pose 140 cells from the truth). Shifting the best pose by multiples of ``step`` cells along
-    a's dominant wall direction and its normal, screening each shift, and refining the ``keep``
-    best, puts the other poses on the ridge into the verification: either one explains more
-    (it becomes the best) or one explains as much (the rival test refuses).
+    pose 140 cells from the truth). The best pose moved by these shifts
+    (:func:`_shifted_hypotheses`) puts the other poses on the ridge into the verification:
+    either one explains more (it becomes the best) or one explains as much (the rival test
+    refuses).
     """
     hist = direction_histogram(normals_a)
     phi = math.radians(float(np.argmax(hist)))  # wall normal direction mod 90 deg
@@ -249,50 +242,28 @@ def _slide_hypotheses(
     ks = np.arange(step, reach, step)
     cos_phi, sin_phi = math.cos(phi), math.sin(phi)
     dirs = np.array([[cos_phi, sin_phi], [-sin_phi, cos_phi]])
-    shifts = np.concatenate([s * ks[:, None] * d[None, :] for d in dirs for s in (1.0, -1.0)])
-    return _shifted_hypotheses(
-        best, shifts, "slide", screen, quick, verify, icp, min_overlap, min_overlap_cells, keep
-    )
+    return np.concatenate([s * ks[:, None] * d[None, :] for d in dirs for s in (1.0, -1.0)])
 
 
-def _repeat_hypotheses(
-    best: _Hypothesis,
+def _repeat_moves(
+    T: Transform,
     repeats_a: Sequence[tuple[float, float]],
     repeats_b: Sequence[tuple[float, float]],
-    screen: Verifier,
-    quick: Verifier,
-    verify: Verifier,
-    icp: WallICP,
-    min_overlap: float,
-    min_overlap_cells: int,
-    keep: int = 2,
-) -> list[_Hypothesis]:
-    """Hypotheses that move the best pose by either map's repeats (:mod:`.repeats`): b laid on
-    the next copy of what it matched in a (a's repeat), or b's next copy of what it showed laid
-    where the first one was (b's repeat, turned into a's frame by the pose's rotation).
+) -> NDArray[np.float64]:
+    """Shifts (K, 2), cells in a, that move the pose ``T`` by either map's repeats
+    (:mod:`.repeats`): b laid on the next copy of what it matched in a (a's repeat), or b's next
+    copy of what it showed laid where the first one was (b's repeat, turned into a's frame by
+    the pose's rotation: ``T @ translation(s) = translation(R s) @ T``).
 
     A map that shows one rack twice makes every pose on one copy ambiguous with the other, and
-    the coarse search's few peaks per rotation need not include it: the merger judges these
-    poses as rivals of the best (a moved pose that explains more refuses too; it never becomes
-    the best, so this check can come last and cost only a pose about to be merged).
+    the coarse search's few peaks per rotation need not include it: the merger judges the
+    moved poses as rivals of the best (a moved pose that explains more refuses too; it never
+    becomes the best, so this check can come last and cost only a pose about to be merged).
     """
-    R = np.asarray(best.T, dtype=np.float64)[:2, :2]
+    R = np.asarray(T, dtype=np.float64)[:2, :2]
     moves = [np.asarray(s, dtype=np.float64) for s in repeats_a]
-    moves += [R @ np.asarray(s, dtype=np.float64) for s in repeats_b]  # T t(s) = t(R s) T
-    if not moves:
-        return []
-    return _shifted_hypotheses(
-        best,
-        np.stack(moves),
-        "repeat",
-        screen,
-        quick,
-        verify,
-        icp,
-        min_overlap,
-        min_overlap_cells,
-        keep,
-    )
+    moves += [R @ np.asarray(s, dtype=np.float64) for s in repeats_b]
+    return np.stack(moves) if moves else np.zeros((0, 2), dtype=np.float64)
 
 
 def _shifted_hypotheses(
@@ -305,7 +276,7 @@ def _shifted_hypotheses(
     icp: WallICP,
     min_overlap: float,
     min_overlap_cells: int,
-    keep: int,
+    keep: int = 2,
 ) -> list[_Hypothesis]:
     """The best pose moved by each of the (K, 2) ``shifts`` (cells in a, ``translation(s) @
     T``): all screened in one pass, the ``3 keep`` best polished by a short ICP, and the
@@ -771,6 +742,11 @@ def merge_semantic(
         hyp.agreement = screen(hyp.T)
     hyps.sort(key=lambda h: -(h.agreement.agree - h.agreement.disagree if h.agreement else 0))
     to_crops = translation(-bba[2], -bba[0]), translation(bbb[2], bbb[0])
+
+    def to_full(T: Transform) -> Transform:
+        """A pose between the crops as one between the full maps (b's cells -> a's)."""
+        return chain(translation(bba[2], bba[0]), T, translation(-bbb[2], -bbb[0]))
+
     region: tuple[PosePrior, Transform, NDArray[np.float64]] | None = None
     if prior is not None:
         # only poses near the guess; the coarse ones with room for their ~scale/2 cells of error
@@ -831,19 +807,16 @@ def merge_semantic(
         if h.agreement is not None
         and verify.overlap_ok(h.agreement, min_overlap, min_overlap_cells)
     ]
-    if slide_step > 0 and chosen:
-        chosen += _slide_hypotheses(
-            max(chosen, key=lambda h: h.evidence),
-            normals_a,
-            bc.shape,
-            slide_step,
-            screen,
-            quick,
-            verify,
-            icp,
-            min_overlap,
-            min_overlap_cells,
+
+    def moved(h: _Hypothesis, shifts: NDArray[np.float64], source: str) -> list[_Hypothesis]:
+        """``h`` moved by each of ``shifts``, screened and refined with this merge's tools."""
+        return _shifted_hypotheses(
+            h, shifts, source, screen, quick, verify, icp, min_overlap, min_overlap_cells
         )
+
+    if slide_step > 0 and chosen:
+        best_so_far = max(chosen, key=lambda h: h.evidence)
+        chosen += moved(best_so_far, _slide_shifts(normals_a, bc.shape, slide_step), "slide")
     chosen = [h for h in chosen if in_prior(h)]  # refined and slid: still near the guess?
     info["n_candidates"] = len(hyps)
     if not chosen:
@@ -862,10 +835,7 @@ def merge_semantic(
     # true pose whose rooms coincide but whose walls a bent map blurs.
     credit_shared_space(chosen)  # their poses moved in the refinement: count again
     chosen.sort(key=lambda h: -h.evidence)
-    info["hypotheses"] = [
-        (chain(translation(bba[2], bba[0]), h.T, translation(-bbb[2], -bbb[0])), h.agreement)
-        for h in chosen
-    ]
+    info["hypotheses"] = [(to_full(h.T), h.agreement) for h in chosen]
     best = chosen[0]
     assert best.agreement is not None
     # Consistency of the best pose with the maps' noise: walls within ``slack`` more cells of
@@ -926,13 +896,11 @@ def merge_semantic(
     rivals.sort(key=lambda h: not perfect(h))  # a perfect rival is the one to judge (stable)
     runner = rivals[0].score if rivals else None
     # every rival's pose (b's cells -> a's), for a caller that weighs them over time (the tracker)
-    info["rivals"] = [
-        chain(translation(bba[2], bba[0]), h.T, translation(-bbb[2], -bbb[0])) for h in rivals
-    ]
+    info["rivals"] = [to_full(h.T) for h in rivals]
     info["rival_agreements"] = [h.agreement for h in rivals]
     info["best_agreement"] = best.agreement
     info["runner_up_agreement"] = rivals[0].agreement if rivals else None
-    T_full = chain(translation(bba[2], bba[0]), best.T, translation(-bbb[2], -bbb[0]))
+    T_full = to_full(best.T)
     info["best_transform"] = T_full  # the pose judged below, also when it is refused
     overlap_cells = int(best.agreement.overlap * verify.cells_per_sample)
     common = dict(n_hypotheses=len(hyps), runner_up_score=runner, overlap_cells=overlap_cells)
@@ -1021,35 +989,28 @@ def merge_semantic(
         # Last, since it costs an autocorrelation of each map (~2 ms) and only a pose about to
         # be merged needs it: the poses that move the best by either map's repeats, judged as
         # rivals are (a copy the search never tried; it only refuses, never picks the best)
-        moved = _repeat_hypotheses(
-            best,
+        shifts = _repeat_moves(
+            best.T,
             repeat_shifts(ac, scale, o.repeat_rivals, 4.0 * scale),
             repeat_shifts(bc, scale, o.repeat_rivals, 4.0 * scale),
-            screen,
-            quick,
-            verify,
-            icp,
-            min_overlap,
-            min_overlap_cells,
         )
-        for h in moved:
+        for h in moved(best, shifts, "repeat") if len(shifts) else []:
             assert h.agreement is not None
+            away = _mean_shift(h.T, best.T, pts)
             if (
                 not in_prior(h)
-                or _mean_shift(h.T, best.T, pts) < far_cells
+                or away < far_cells
                 or not (
                     perfect(h)
                     or stands_as_rival(best.agreement, h.agreement, verify.cells_per_sample, o)
                 )
             ):
                 continue
-            info["rivals"].append(
-                chain(translation(bba[2], bba[0]), h.T, translation(-bbb[2], -bbb[0]))
-            )
+            info["rivals"].append(to_full(h.T))
             info["rival_agreements"].append(h.agreement)
             return refuse(
                 f"ambiguous: the maps repeat: best {best.score:.3f} vs {h.score:.3f} for a pose "
-                f"{_mean_shift(h.T, best.T, pts):.0f} cells away, moved by a repeat of a map "
+                f"{away:.0f} cells away, moved by a repeat of a map "
                 f"({h.agreement.agree} agreeing, {h.agreement.disagree} disagreeing wall "
                 f"samples against {best.agreement.agree} and {best.agreement.disagree})",
                 score=best.score,

@@ -8,6 +8,7 @@ Conventions (see :mod:`mrexplore.grid`): maps are int8 ``(H, W)`` with ``UNKNOWN
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -468,17 +469,53 @@ def rectangle_area(points: NDArray[np.integer]) -> float:
     >>> rectangle_area(np.array([[0, 0], [4, 0], [4, 3], [0, 3], [2, 1]]))
     12.0
     """
-    if points.shape[0] < 3:
+    extents = _edge_extents(points)
+    if extents is None:
         return 0.0
+    along, across, norm2 = extents
+    # each edge's rectangle: extents scaled by |edge|^2, one correctly rounded division each
+    return float((along * across / norm2).min())
+
+
+def rectangle_sides(points: NDArray[np.integer]) -> tuple[float, float]:
+    """(long, short) sides (cells) of the smallest rectangle of :func:`rectangle_area` around
+    integer ``points`` (N, 2); ``(0, 0)`` when fewer than three or all on one line.
+
+    The rectangle is chosen exactly as :func:`rectangle_area` chooses it; each side is an
+    integer extent over a correctly rounded square root, so equal on any CPU.
+
+    >>> rectangle_sides(np.array([[0, 0], [4, 0], [4, 3], [0, 3], [2, 1]]))
+    (4.0, 3.0)
+    """
+    extents = _edge_extents(points)
+    if extents is None:
+        return 0.0, 0.0
+    along, across, norm2 = extents
+    k = int(np.argmin(along * across / norm2))
+    norm = math.sqrt(float(norm2[k]))
+    sides = (float(along[k]) / norm, float(across[k]) / norm)
+    return max(sides), min(sides)
+
+
+def _edge_extents(
+    points: NDArray[np.integer],
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]] | None:
+    """For each edge of the convex hull of ``points``: the hull's extent along the edge and
+    across it, both scaled by the edge's length, and the edge's squared length (integers);
+    ``None`` when the hull has no area."""
+    if points.shape[0] < 3:
+        return None
     hull = cv2.convexHull(points.astype(np.int32)).reshape(-1, 2).astype(np.int64)
     if hull.shape[0] < 3:
-        return 0.0
+        return None
     edges = np.roll(hull, -1, axis=0) - hull  # (H, 2) integer edge vectors
     along = hull @ edges.T  # (H, H) integer projections of every hull point on every edge
     across = hull @ np.stack([-edges[:, 1], edges[:, 0]], axis=1).T
-    extent = (along.max(axis=0) - along.min(axis=0)) * (across.max(axis=0) - across.min(axis=0))
-    # each edge's rectangle: extents scaled by |edge|^2, one correctly rounded division each
-    return float((extent / (edges**2).sum(axis=1)).min())
+    return (
+        along.max(axis=0) - along.min(axis=0),
+        across.max(axis=0) - across.min(axis=0),
+        (edges**2).sum(axis=1),
+    )
 
 
 # --------------------------------------------------------------------------------------------

@@ -13,13 +13,20 @@ need not show.
   at every copy of it, and the other copies may lie where neither map has looked: two crops of
   a warehouse that share nothing were merged rack on rack with 1,333 agreeing wall cells and
   none against (``min_object_m2``).
+- :func:`outside_object`: when the agreement of a pose lies, in either map, on one structure
+  seen only from outside (a rack, a shelf, a cabinet: the map knows little free space inside
+  its convex hull) plus at most one small thing beside it. Racks are larger than the
+  ``min_object_m2`` floor, and a rack with a post beside it is the warehouse's unit of repeat:
+  three pairs of crops that share nothing were merged rack side on rack side
+  (``object_hull_free``).
 
-Measured in ``docs/merging.md`` item 21.
+Measured in ``docs/merging.md`` items 21 and 22.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -27,7 +34,20 @@ from numpy.typing import NDArray
 
 from mrexplore.grid import Int8Grid, Transform
 from mrexplore.merge.coarse import CoarseMatcher
-from mrexplore.merge.common import MapCodes, agreeing_cells, rectangle_area, rigid_inverse
+from mrexplore.merge.common import (
+    MapCodes,
+    agreeing_cells,
+    rectangle_area,
+    rectangle_sides,
+    rigid_inverse,
+)
+
+#: ``outside_object``'s sizes at the semantic merger's resolution: a thing whose longer side is
+#: under ``OBJECT_CLUTTER_M`` (m) is small (a post, a box: the nav2 warehouse's H-shaped posts
+#: are 0.95 m), and a structure is judged from its hull only when its smallest rectangle is at
+#: least ``OBJECT_WIDTH_M`` (m) across (a straight wall's hull holds no floor either way).
+OBJECT_CLUTTER_M = 1.5
+OBJECT_WIDTH_M = 1.0
 
 
 def repeat_shifts(
@@ -72,9 +92,64 @@ def wall_structures(codes: MapCodes) -> NDArray[np.int32]:
     """Labels (H, W) int32 of a map's connected wall structures: occupied cells, 8-connected
     after a 3 x 3 dilation, so that a wall broken by one missing cell stays one structure
     (0 = no structure)."""
+    return _structures(codes)[0]
+
+
+def _structures(codes: MapCodes) -> tuple[NDArray[np.int32], NDArray[np.int32]]:
+    """:func:`wall_structures`' labels and each label's box (rows of ``x, y, w, h, area``)."""
     grown = cv2.dilate(codes.occupied, np.ones((3, 3), np.uint8))
-    _, labels = cv2.connectedComponents(grown, connectivity=8, ltype=cv2.CV_32S)
-    return np.asarray(labels, dtype=np.int32)
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(grown, connectivity=8, ltype=cv2.CV_32S)
+    return np.asarray(labels, dtype=np.int32), np.asarray(stats, dtype=np.int32)
+
+
+class _Agreement(NamedTuple):
+    """One map's side of a pose's agreement, by wall structure."""
+
+    codes: MapCodes
+    labels: NDArray[np.int32]  # (H, W) the map's structures (0 = none)
+    boxes: NDArray[np.int32]  # (L, 5) each label's x, y, w, h, area
+    cells: tuple[NDArray[np.intp], NDArray[np.intp]]  # the map's wall cells (rows, cols)
+    cell_labels: NDArray[np.int32]  # (N,) the structure of each wall cell
+    on: NDArray[np.bool_]  # (N,) which wall cells agree with the other map
+
+    def counts(self) -> NDArray[np.intp]:
+        """Agreeing wall cells per structure label."""
+        return np.bincount(self.cell_labels[self.on])
+
+    def points(self, k: int) -> NDArray[np.intp]:
+        """(M, 2) (col, row) of every cell of structure ``k`` (dilated, as labelled)."""
+        x, y, w, h = (int(v) for v in self.boxes[k, :4])
+        rr, cc = np.nonzero(self.labels[y : y + h, x : x + w] == k)
+        return np.stack([cc + x, rr + y], axis=1)
+
+    def hull_free(self, k: int) -> float:
+        """Share of structure ``k``'s convex hull that the map knows as free."""
+        x, y, w, h = (int(v) for v in self.boxes[k, :4])
+        hull = cv2.convexHull((self.points(k) - (x, y)).astype(np.int32))
+        inside = np.zeros((h, w), np.uint8)
+        cv2.fillConvexPoly(inside, hull, 1)
+        free = self.codes.free[y : y + h, x : x + w]
+        return float(np.count_nonzero(free & inside.view(np.bool_))) / max(
+            int(np.count_nonzero(inside)), 1
+        )
+
+
+def _agreement_by_structure(
+    a: MapCodes, b: MapCodes, T: Transform, tolerance: int
+) -> list[_Agreement | None]:
+    """a's and b's agreement under ``T`` (b cells -> a cells; the verifier's agreement,
+    :func:`~mrexplore.merge.common.agreeing_cells`) by structure; ``None`` for a map none of
+    whose walls agree."""
+    out: list[_Agreement | None] = []
+    for mine, other, to_other in ((a, b, rigid_inverse(T)), (b, a, T)):
+        rows, cols = mine.wall_cells()
+        on, _, _ = agreeing_cells((rows, cols), to_other, other.codes(tolerance))
+        if not on.any():
+            out.append(None)
+            continue
+        labels, boxes = _structures(mine)
+        out.append(_Agreement(mine, labels, boxes, (rows, cols), labels[rows, cols], on))
+    return out
 
 
 def one_object_area(
@@ -97,17 +172,75 @@ def one_object_area(
     True
     """
     areas = []
-    for mine, other, to_other in ((a, b, rigid_inverse(T)), (b, a, T)):
-        rows, cols = mine.wall_cells()
-        on, _, _ = agreeing_cells((rows, cols), to_other, other.codes(tolerance))
-        n_on = int(np.count_nonzero(on))
-        if n_on == 0:
+    for agreement in _agreement_by_structure(a, b, T, tolerance):
+        if agreement is None:
             return None
-        labels = wall_structures(mine)[rows, cols]
-        counts = np.bincount(labels[on])
+        counts = agreement.counts()
         k = int(np.argmax(counts))
-        if counts[k] < share * n_on:
+        if counts[k] < share * np.count_nonzero(agreement.on):
             return None
-        sel = labels == k
+        rows, cols = agreement.cells
+        sel = agreement.cell_labels == k
         areas.append(rectangle_area(np.stack([cols[sel], rows[sel]], axis=1)))
     return max(areas)
+
+
+def outside_object(
+    a: MapCodes,
+    b: MapCodes,
+    T: Transform,
+    hull_free: float,
+    clutter_cells: float,
+    min_width_cells: float,
+    share: float = 0.95,
+    tolerance: int = 1,
+) -> bool:
+    """Whether, in either map, at least ``share`` of the agreeing wall cells under ``T`` (b
+    cells -> a cells) lie on one structure seen from outside plus at most one small structure.
+
+    Structures are :func:`wall_structures`. One is *seen from outside* when its smallest
+    rectangle (:func:`~mrexplore.merge.common.rectangle_sides`, all its occupied cells) is at
+    least ``min_width_cells`` across and the map's free cells fill less than ``hull_free`` of
+    its convex hull: a rack or a cabinet, whose inside no robot sees, where a room's walls
+    enclose the floor the robot drove on. *Small*: the longer side under ``clutter_cells`` (a
+    post, a box). Either map suffices, since being an object is a property of the place and the
+    map that sees more of it tells (the other may see only a rack's two long sides, which do
+    not close).
+
+    >>> import numpy as np
+    >>> g = np.zeros((80, 80), dtype=np.int8)
+    >>> g[20:40, 10:70] = 100  # a 20 x 60 rack on open floor, its inside unknown
+    >>> g[22:38, 12:68] = -1
+    >>> codes = MapCodes(g)
+    >>> outside_object(codes, codes, np.eye(3), 0.2, 30.0, 20.0)
+    True
+    >>> room = np.full((80, 80), -1, dtype=np.int8)  # the same outline seen from inside
+    >>> room[20:40, 10:70] = 100
+    >>> room[21:39, 11:69] = 0
+    >>> outside_object(MapCodes(room), MapCodes(room), np.eye(3), 0.2, 30.0, 20.0)
+    False
+    """
+    for agreement in _agreement_by_structure(a, b, T, tolerance):
+        if agreement is None:
+            return False
+        counts = agreement.counts()
+        main = small = 0  # 0: none yet (label 0 is no structure)
+        # largest first: the main structure is the one carrying most agreement that is not
+        # small, and the small thing beside it the small one carrying most
+        for k in np.argsort(-counts, kind="stable"):
+            k = int(k)
+            if k == 0 or counts[k] == 0:
+                continue
+            long_side, short_side = rectangle_sides(agreement.points(k))
+            if long_side < clutter_cells:
+                small = small or k
+            elif not main:
+                if short_side < min_width_cells or agreement.hull_free(k) >= hull_free:
+                    break  # a wall seen from inside, or a thin one: not this map
+                main = k
+            if main and small:
+                break
+        carried = int(counts[main]) + (int(counts[small]) if small else 0)
+        if main and carried >= share * np.count_nonzero(agreement.on):
+            return True
+    return False

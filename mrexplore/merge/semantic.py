@@ -26,9 +26,10 @@ Pipeline (all on the maps cropped to their known bounding boxes):
    by ``min_margin`` in index and ``min_evidence_cells`` disagreeing cells. Two look-alike rooms
    pass the first and fail the second: refused, to be merged later once more is known.
    Enough shared knowledge (``min_overlap``, ``min_overlap_cells``, ``min_common_m2``) is asked
-   for too, evidence that is more than one object (``min_wall_area_m2``, ``min_object_m2``),
-   and last the poses that move the best by either map's repeats must be beaten as rivals are
-   (``repeat_rivals``). Measurements behind each default: ``docs/merging.md``.
+   for too, evidence that is more than one object (``min_wall_area_m2``, ``min_object_m2``,
+   ``object_hull_free``), and last the poses that move the best by either map's repeats must
+   be beaten as rivals are (``repeat_rivals``). Measurements behind each default:
+   ``docs/merging.md``.
 
 The steps' machinery lives beside this module (:mod:`~mrexplore.merge.rotation`,
 :mod:`~mrexplore.merge.coarse`, :mod:`~mrexplore.merge.icp`, :mod:`~mrexplore.merge.repeats`,
@@ -75,7 +76,13 @@ from mrexplore.merge.common import (
     warp_into,
 )
 from mrexplore.merge.icp import WallICP
-from mrexplore.merge.repeats import one_object_area, repeat_shifts
+from mrexplore.merge.repeats import (
+    OBJECT_CLUTTER_M,
+    OBJECT_WIDTH_M,
+    one_object_area,
+    outside_object,
+    repeat_shifts,
+)
 from mrexplore.merge.rotation import direction_histogram, rotation_candidates, wall_normals
 from mrexplore.options import Options, boolean, integer, number, option
 
@@ -598,6 +605,7 @@ class SemanticOptions(Options):
     rival_perfect_cells: int = option(250, integer(0))
     min_wall_area_m2: float = option(4.0, number(0.0, math.inf))
     min_object_m2: float = option(20.0, number(0.0, math.inf))
+    object_hull_free: float = option(0.2, number(0.0, 1.0))
 
     def check_together(self) -> None:
         if self.detector is not None and not self.paper_candidates:
@@ -649,6 +657,11 @@ def merge_semantic(
       connected wall structure in each map, when the larger of the two fits in a smaller
       rectangle (:func:`~mrexplore.merge.repeats.one_object_area`, m^2): a rack seen whole
       matches every copy of it, and the copies may lie where neither map has looked;
+    - ``object_hull_free`` (0.2; 0 = off): refuse a pose whose agreeing walls lie (95 %), in
+      either map, on one structure seen from outside (at least 1 m across, the map's free
+      cells under this share of its convex hull) plus at most one thing under 1.5 m
+      (:func:`~mrexplore.merge.repeats.outside_object`): a rack with a post beside it, larger
+      than ``min_object_m2``, is what a warehouse repeats;
     - ``repeat_rivals`` (4; 0 = off): last, move the pose about to be merged by each map's 4
       strongest repeats (:func:`~mrexplore.merge.repeats.repeat_shifts`, at least 4 ``scale``
       cells long) and judge the moved poses as rivals: a copy the coarse search never tried;
@@ -985,6 +998,22 @@ def merge_semantic(
                     score=best.score,
                     **common,
                 )
+    if o.object_hull_free > 0 and outside_object(
+        codes_a,
+        codes_b,
+        best.T,
+        o.object_hull_free,
+        clutter_cells=OBJECT_CLUTTER_M / resolution_m,
+        min_width_cells=OBJECT_WIDTH_M / resolution_m,
+    ):
+        info["outside_object"] = True
+        return refuse(
+            "the walls that agree lie, in one map, on one object seen from outside (free "
+            f"space fills under {o.object_hull_free:g} of its hull) and at most one small "
+            "thing beside it: a rack and its post match every copy of them, seen or not",
+            score=best.score,
+            **common,
+        )
     if o.repeat_rivals > 0:
         # Last, since it costs an autocorrelation of each map (~2 ms) and only a pose about to
         # be merged needs it: the poses that move the best by either map's repeats, judged as

@@ -92,22 +92,53 @@ def wall_structures(codes: MapCodes) -> NDArray[np.int32]:
     """Labels (H, W) int32 of a map's connected wall structures: occupied cells, 8-connected
     after a 3 x 3 dilation, so that a wall broken by one missing cell stays one structure
     (0 = no structure)."""
-    return _structures(codes)[0]
+    return Structures(codes).labels
 
 
-def _structures(codes: MapCodes) -> tuple[NDArray[np.int32], NDArray[np.int32]]:
-    """:func:`wall_structures`' labels and each label's box (rows of ``x, y, w, h, area``)."""
-    grown = cv2.dilate(codes.occupied, np.ones((3, 3), np.uint8))
-    _, labels, stats, _ = cv2.connectedComponentsWithStats(grown, connectivity=8, ltype=cv2.CV_32S)
-    return np.asarray(labels, dtype=np.int32), np.asarray(stats, dtype=np.int32)
+class Structures:
+    """A map's :func:`wall_structures`, with each one's box, cells, size and inside."""
+
+    def __init__(self, codes: MapCodes) -> None:
+        self.codes = codes
+        grown = cv2.dilate(codes.occupied, np.ones((3, 3), np.uint8))
+        _, labels, boxes, _ = cv2.connectedComponentsWithStats(
+            grown, connectivity=8, ltype=cv2.CV_32S
+        )
+        self.labels: NDArray[np.int32] = np.asarray(labels, dtype=np.int32)
+        self._boxes = np.asarray(boxes, dtype=np.int64)  # (L, 5): x, y, w, h, area
+
+    def points(self, k: int) -> NDArray[np.intp]:
+        """(M, 2) (col, row) of every cell of structure ``k`` (dilated, as labelled)."""
+        x, y, w, h = (int(v) for v in self._boxes[k, :4])
+        rr, cc = np.nonzero(self.labels[y : y + h, x : x + w] == k)
+        return np.stack([cc + x, rr + y], axis=1)
+
+    def sides(self, k: int) -> tuple[float, float]:
+        """(long, short) sides (cells) of structure ``k``'s smallest rectangle."""
+        return rectangle_sides(self.points(k))
+
+    def is_small(self, k: int, small_cells: float) -> bool:
+        """Whether structure ``k``'s smallest rectangle is under ``small_cells`` long."""
+        # a rectangle's box spans at most sqrt(2) times its longer side (box sides count cells,
+        # rectangles run between cell centres): larger boxes are not small
+        if int(self._boxes[k, 2:4].max()) - 1 > small_cells * math.sqrt(2.0):
+            return False
+        return self.sides(k)[0] < small_cells
+
+    def hull_free(self, k: int) -> float:
+        """Share of structure ``k``'s convex hull that the map knows as free."""
+        x, y, w, h = (int(v) for v in self._boxes[k, :4])
+        hull = cv2.convexHull((self.points(k) - (x, y)).astype(np.int32))
+        inside = np.zeros((h, w), np.uint8)
+        cv2.fillConvexPoly(inside, hull, 1)
+        free = self.codes.free[y : y + h, x : x + w] & inside.view(np.bool_)
+        return float(np.count_nonzero(free)) / max(int(np.count_nonzero(inside)), 1)
 
 
 class _Agreement(NamedTuple):
     """One map's side of a pose's agreement, by wall structure."""
 
-    codes: MapCodes
-    labels: NDArray[np.int32]  # (H, W) the map's structures (0 = none)
-    boxes: NDArray[np.int32]  # (L, 5) each label's x, y, w, h, area
+    structures: Structures
     cells: tuple[NDArray[np.intp], NDArray[np.intp]]  # the map's wall cells (rows, cols)
     cell_labels: NDArray[np.int32]  # (N,) the structure of each wall cell
     on: NDArray[np.bool_]  # (N,) which wall cells agree with the other map
@@ -115,23 +146,6 @@ class _Agreement(NamedTuple):
     def counts(self) -> NDArray[np.intp]:
         """Agreeing wall cells per structure label."""
         return np.bincount(self.cell_labels[self.on])
-
-    def points(self, k: int) -> NDArray[np.intp]:
-        """(M, 2) (col, row) of every cell of structure ``k`` (dilated, as labelled)."""
-        x, y, w, h = (int(v) for v in self.boxes[k, :4])
-        rr, cc = np.nonzero(self.labels[y : y + h, x : x + w] == k)
-        return np.stack([cc + x, rr + y], axis=1)
-
-    def hull_free(self, k: int) -> float:
-        """Share of structure ``k``'s convex hull that the map knows as free."""
-        x, y, w, h = (int(v) for v in self.boxes[k, :4])
-        hull = cv2.convexHull((self.points(k) - (x, y)).astype(np.int32))
-        inside = np.zeros((h, w), np.uint8)
-        cv2.fillConvexPoly(inside, hull, 1)
-        free = self.codes.free[y : y + h, x : x + w]
-        return float(np.count_nonzero(free & inside.view(np.bool_))) / max(
-            int(np.count_nonzero(inside)), 1
-        )
 
 
 def _agreement_by_structure(
@@ -147,8 +161,8 @@ def _agreement_by_structure(
         if not on.any():
             out.append(None)
             continue
-        labels, boxes = _structures(mine)
-        out.append(_Agreement(mine, labels, boxes, (rows, cols), labels[rows, cols], on))
+        structures = Structures(mine)
+        out.append(_Agreement(structures, (rows, cols), structures.labels[rows, cols], on))
     return out
 
 
@@ -224,6 +238,7 @@ def outside_object(
         if agreement is None:
             return False
         counts = agreement.counts()
+        structures = agreement.structures
         main = small = 0  # 0: none yet (label 0 is no structure)
         # largest first: the main structure is the one carrying most agreement that is not
         # small, and the small thing beside it the small one carrying most
@@ -231,11 +246,10 @@ def outside_object(
             k = int(k)
             if k == 0 or counts[k] == 0:
                 continue
-            long_side, short_side = rectangle_sides(agreement.points(k))
-            if long_side < clutter_cells:
+            if structures.is_small(k, clutter_cells):
                 small = small or k
             elif not main:
-                if short_side < min_width_cells or agreement.hull_free(k) >= hull_free:
+                if structures.sides(k)[1] < min_width_cells or structures.hull_free(k) >= hull_free:
                     break  # a wall seen from inside, or a thin one: not this map
                 main = k
             if main and small:

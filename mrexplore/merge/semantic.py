@@ -79,6 +79,7 @@ from mrexplore.merge.icp import WallICP
 from mrexplore.merge.repeats import (
     OBJECT_CLUTTER_M,
     OBJECT_WIDTH_M,
+    Structures,
     one_object_area,
     outside_object,
     repeat_shifts,
@@ -381,13 +382,27 @@ def _support_tensor(
     cells_b: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None,
 ) -> NDArray[np.float64] | None:
     """``sum n n^T`` (2 x 2, (col, row) axes) of :func:`cross_support`, None without support."""
+    terms = _support_terms(wall_a, wall_b, T, precise, cells_b)
+    return None if terms is None else np.asarray(terms[0].T @ terms[0], dtype=np.float64)
+
+
+def _support_terms(
+    wall_a: NDArray[np.bool_],
+    wall_b: NDArray[np.bool_],
+    T: Transform,
+    precise: bool,
+    cells_b: tuple[NDArray[np.intp], NDArray[np.intp]] | None,
+) -> tuple[NDArray[np.float64], NDArray[np.intp]] | None:
+    """The unit normals ``n`` (N, 2) of :func:`cross_support`'s sum and the index (N,) of the
+    b wall cell each belongs to (in ``cells_b``' order); None without support."""
     rb, cb = np.nonzero(wall_b) if cells_b is None else cells_b
+    index = np.arange(rb.size)
     T = np.asarray(T, dtype=np.float64)
     c = np.rint(T[0, 0] * cb + T[0, 1] * rb + T[0, 2]).astype(np.int64)
     r = np.rint(T[1, 0] * cb + T[1, 1] * rb + T[1, 2]).astype(np.int64)
     h, w = wall_a.shape
     inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
-    c, r = c[inside], r[inside]
+    c, r, index = c[inside], r[inside], index[inside]
     if c.size == 0:
         return None
     # The filters below reach 21 cells (blur 4 + Sobel 1 + blur 16): a window that far around
@@ -398,7 +413,7 @@ def _support_tensor(
     r, c = r - r0, c - c0
     near = cv2.dilate(win.view(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     on = near[r, c]
-    c, r = c[on], r[on]
+    c, r, index = c[on], r[on], index[on]
     if c.size == 0:
         return None
     dtype, depth = (np.float64, cv2.CV_64F) if precise else (np.float32, cv2.CV_32F)
@@ -409,8 +424,45 @@ def _support_tensor(
     jyy = cv2.GaussianBlur(gy * gy, (0, 0), 4.0)
     jxy = cv2.GaussianBlur(gx * gy, (0, 0), 4.0)
     ang = 0.5 * np.arctan2(2.0 * jxy[r, c], jxx[r, c] - jyy[r, c]).astype(np.float64)
-    u = np.stack([np.cos(ang), np.sin(ang)], axis=1)
-    return np.asarray(u.T @ u, dtype=np.float64)
+    return np.stack([np.cos(ang), np.sin(ang)], axis=1), index
+
+
+def lone_pin_support(
+    wall_a: NDArray[np.bool_],
+    wall_b: NDArray[np.bool_],
+    T: Transform,
+    structures_b: Structures,
+    small_cells: float,
+    cells_b: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None,
+    top: int = 3,
+) -> tuple[float, int] | None:
+    """:func:`cross_support` (float64) with one small thing of b left out, the lowest over the
+    ``top`` small things (:meth:`Structures.is_small` under ``small_cells``) carrying most of
+    the support's cells, and that thing's cell count; None when no small thing agrees.
+
+    Parallel rack sides pin a pose across them only; a post beside them may be all that pins
+    it along, and a warehouse has a post by every aisle."""
+    terms = _support_terms(wall_a, wall_b, T, True, cells_b)
+    if terms is None:
+        return None
+    u, index = terms
+    rb, cb = np.nonzero(wall_b) if cells_b is None else cells_b
+    labels = structures_b.labels[rb[index], cb[index]]
+    counts = np.bincount(labels)
+    lowest: tuple[float, int] | None = None
+    tried = 0
+    for k in np.argsort(-counts, kind="stable"):
+        k = int(k)
+        if tried == top or counts[k] == 0:
+            break
+        if k == 0 or not structures_b.is_small(k, small_cells):
+            continue
+        tried += 1
+        rest = u[labels != k]
+        support = float(np.linalg.eigvalsh(rest.T @ rest)[0]) if rest.size else 0.0
+        if lowest is None or support < lowest[0]:
+            lowest = (support, int(counts[k]))
+    return lowest
 
 
 def cross_support(
@@ -606,6 +658,7 @@ class SemanticOptions(Options):
     min_wall_area_m2: float = option(4.0, number(0.0, math.inf))
     min_object_m2: float = option(20.0, number(0.0, math.inf))
     object_hull_free: float = option(0.2, number(0.0, 1.0))
+    lone_pin_test: bool = option(True, boolean)
 
     def check_together(self) -> None:
         if self.detector is not None and not self.paper_candidates:
@@ -657,6 +710,10 @@ def merge_semantic(
       connected wall structure in each map, when the larger of the two fits in a smaller
       rectangle (:func:`~mrexplore.merge.repeats.one_object_area`, m^2): a rack seen whole
       matches every copy of it, and the copies may lie where neither map has looked;
+    - ``lone_pin_test`` (True): a pose that ``min_cross_cells`` finds pinned must stay pinned
+      with any one of b's small things (under 1.5 m: a post, a box) left out
+      (:func:`lone_pin_support`): rack sides pinned along only by the post beside them match
+      every aisle's post;
     - ``object_hull_free`` (0.2; 0 = off): refuse a pose whose agreeing walls lie (95 %), in
       either map, on one structure seen from outside (at least 1 m across, the map's free
       cells under this share of its convex hull) plus at most one thing under 1.5 m
@@ -975,6 +1032,25 @@ def merge_semantic(
                 score=best.score,
                 **common,
             )
+        if o.lone_pin_test and cross >= o.min_cross_cells:  # pinned by the walls themselves
+            lone = lone_pin_support(
+                wall_a,
+                wall_b,
+                best.T,
+                Structures(codes_b),
+                OBJECT_CLUTTER_M / resolution_m,
+                cells_b=icp.cells_b,
+            )
+            if lone is not None and round(lone[0], 2) < o.min_cross_cells:
+                info["lone_pin_cells"] = round(lone[0], 2)
+                return refuse(
+                    f"the agreeing walls pin the pose along them only through one small thing "
+                    f"(cross support {lone[0]:.1f} wall cells without its {lone[1]}; need "
+                    f"{o.min_cross_cells:g}): a post or a box beside a wall matches every copy "
+                    "of it",
+                    score=best.score,
+                    **common,
+                )
     if o.min_wall_area_m2 > 0:
         area_m2 = agreeing_area(codes_a, codes_b, best.T) * resolution_m**2
         info["wall_area_m2"] = area_m2

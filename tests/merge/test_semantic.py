@@ -533,10 +533,17 @@ def test_min_wall_area_m2_refuses_a_match_on_one_object(seed: int, index: int) -
 
     case = aliased_cases(index + 1, seed)[index]
     loose = merge_maps(
-        case.a, case.b, resolution_m=case.resolution_m, min_wall_area_m2=0, min_object_m2=0
+        case.a,
+        case.b,
+        resolution_m=case.resolution_m,
+        min_wall_area_m2=0,
+        min_object_m2=0,
+        object_hull_free=0,
+        lone_pin_test=False,
     )
     assert classify(case, loose.matched, loose.transform)[0] == "wrong"
-    res = merge_maps(case.a, case.b, resolution_m=case.resolution_m)
+    # the lone-pin test, checked before it, refuses one of them first: off here
+    res = merge_maps(case.a, case.b, resolution_m=case.resolution_m, lone_pin_test=False)
     assert not res.matched and "walls that agree fit in" in res.reason
     assert res.info["wall_area_m2"] < 4.0
 
@@ -609,3 +616,24 @@ def test_a_pose_prior_picks_between_look_alike_places() -> None:
         PosePrior(np.eye(2))
     with pytest.raises(ConfigError, match="turn_deg"):
         PosePrior(np.eye(3), 10.0, float("nan"))
+
+
+def test_lone_pin_support_leaves_out_one_small_thing() -> None:
+    """Two long parallel walls (rack sides) pin a pose across them only; a post beside them pins
+    it along. Left out, the post takes the pin with it; with two posts, either one still pins."""
+    from mrexplore.merge.common import MapCodes
+    from mrexplore.merge.repeats import Structures
+    from mrexplore.merge.semantic import cross_support, lone_pin_support
+
+    g = np.full((120, 300), FREE, dtype=np.int8)
+    g[30:32, 10:290] = OCCUPIED
+    g[80:82, 10:290] = OCCUPIED
+    g[50:60, 100:110] = OCCUPIED  # a 0.5 m post (10 cells at 0.05 m)
+    wall = g >= OCCUPIED
+    assert cross_support(wall, wall, np.eye(3), precise=True) > 10.0
+    lone = lone_pin_support(wall, wall, np.eye(3), Structures(MapCodes(g)), 30.0)
+    assert lone is not None and lone[0] < 1.0
+    g[50:60, 200:210] = OCCUPIED  # a second post
+    wall = g >= OCCUPIED
+    two = lone_pin_support(wall, wall, np.eye(3), Structures(MapCodes(g)), 30.0)
+    assert two is not None and two[0] > 10.0

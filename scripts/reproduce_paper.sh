@@ -13,9 +13,11 @@
 #      test was judged on them, with and without it; merge_heldout4.{json,md}: ten more
 #      (53-62), unseen until the repeat rivals and the one-object rule (chosen on 0-9, 12 and
 #      33-52) were judged on them, with and without both; merge_heldout5.{json,md}: ten more
-#      (73-82), unseen until the outside-object rule (chosen on 0-9, 12 and the aliased pairs of
-#      13-72) was judged on them, with and without it; merge_aliased_heldout.{json,md}: 1,800
-#      disjoint aliased pairs of seeds 83-142, with and without it; merge_slide.{json,md}: the slide test
+#      (73-82), unseen until the outside-object rule (chosen on 0-9, 12 and the aliased pairs
+#      of 13-72) was judged on them, with and without it and the lone-pin test (chosen on
+#      73-82's wrong merges); merge_heldout6.{json,md}: ten more (83-92), unseen until the
+#      lone-pin test was judged on them; merge_aliased_heldout.{json,md}: 1,800 disjoint
+#      aliased pairs of seeds 83-142, with and without both; merge_slide.{json,md}: the slide test
 #      (off by default) on the cases of merge_seeds and seeds 0-9 and 12's aliased pairs;
 #      merge_seeded.{json,md}: the default beside the diagnostic `seeded` (the true pose handed
 #      in as one more hypothesis) on the 1,320 cases of merge_seeds: search misses vs refusals;
@@ -59,7 +61,7 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
   --semantic-variant min_cross_cells=0 --semantic-variant min_wall_area_m2=0 \
   --semantic-variant polish_margin=0 --semantic-variant min_object_m2=0 \
   --semantic-variant repeat_rivals=0 --semantic-variant object_hull_free=0 \
-  --out "$out/merge_ablation" --force
+  --semantic-variant lone_pin_test=false --out "$out/merge_ablation" --force
 mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
   --seeds 0-9,12 --out "$out/merge_seeds" --force
 mrexplore bench merge --methods semantic,orb --n 30 --families large --seeds 0-9 \
@@ -78,9 +80,15 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
   --seeds 53-62 --semantic-variant repeat_rivals=0,min_object_m2=0 \
   --out "$out/merge_heldout4" --force
 mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
-  --seeds 73-82 --semantic-variant object_hull_free=0 --out "$out/merge_heldout5" --force
+  --seeds 73-82 --semantic-variant object_hull_free=0 --semantic-variant lone_pin_test=false \
+  --semantic-variant object_hull_free=0,lone_pin_test=false --out "$out/merge_heldout5" --force
+mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
+  --seeds 83-92 --semantic-variant lone_pin_test=false \
+  --semantic-variant object_hull_free=0,lone_pin_test=false --out "$out/merge_heldout6" --force
 mrexplore bench merge --methods semantic --n 30 --families aliased --seeds 83-142 \
-  --semantic-variant object_hull_free=0 --out "$out/merge_aliased_heldout" --force
+  --semantic-variant object_hull_free=0 --semantic-variant lone_pin_test=false \
+  --semantic-variant object_hull_free=0,lone_pin_test=false \
+  --out "$out/merge_aliased_heldout" --force
 mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
   --seeds 0-9,12 --semantic-variant slide_test=true --out "$out/merge_slide" --force
 mrexplore bench merge --methods semantic,seeded --n 30 --families symmetric,real,noisy,lidar \

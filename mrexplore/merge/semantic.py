@@ -435,14 +435,16 @@ def lone_pin_support(
     small_cells: float,
     cells_b: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None,
     top: int = 3,
+    precise: bool = False,
 ) -> tuple[float, int] | None:
     """:func:`cross_support` (float64) with one small thing of b left out, the lowest over the
     ``top`` small things (:meth:`Structures.is_small` under ``small_cells``) carrying most of
     the support's cells, and that thing's cell count; None when no small thing agrees.
 
     Parallel rack sides pin a pose across them only; a post beside them may be all that pins
-    it along, and a warehouse has a post by every aisle."""
-    terms = _support_terms(wall_a, wall_b, T, True, cells_b)
+    it along, and a warehouse has a post by every aisle. ``precise``: as for
+    :func:`cross_support` (float32 filters unless set)."""
+    terms = _support_terms(wall_a, wall_b, T, precise, cells_b)
     if terms is None:
         return None
     u, index = terms
@@ -1033,14 +1035,18 @@ def merge_semantic(
                 **common,
             )
         if o.lone_pin_test and cross >= o.min_cross_cells:  # pinned by the walls themselves
-            lone = lone_pin_support(
+            lone_args = (
                 wall_a,
                 wall_b,
                 best.T,
                 Structures(codes_b),
                 OBJECT_CLUTTER_M / resolution_m,
-                cells_b=icp.cells_b,
+                icp.cells_b,
             )
+            lone = lone_pin_support(*lone_args)
+            if lone is not None and lone[0] < o.min_cross_cells + _CROSS_GUARD_CELLS:
+                # near the threshold or under it: the CPU-independent value decides
+                lone = lone_pin_support(*lone_args, precise=True)
             if lone is not None and round(lone[0], 2) < o.min_cross_cells:
                 info["lone_pin_cells"] = round(lone[0], 2)
                 return refuse(

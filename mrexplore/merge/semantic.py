@@ -26,10 +26,11 @@ Pipeline (all on the maps cropped to their known bounding boxes):
    by ``min_margin`` in index and ``min_evidence_cells`` disagreeing cells. Two look-alike rooms
    pass the first and fail the second: refused, to be merged later once more is known.
    Enough shared knowledge (``min_overlap``, ``min_overlap_cells``, ``min_common_m2``) is asked
-   for too, evidence that is more than one object (``min_wall_area_m2``, ``min_object_m2``,
-   ``object_hull_free``), and last the poses that move the best by either map's repeats must
-   be beaten as rivals are (``repeat_rivals``). Measurements behind each default:
-   ``docs/merging.md``.
+   for too, walls that pin the pose without a slide along them, nor through one small thing
+   (``min_cross_cells``, ``lone_pin_test``), evidence that is more than one object
+   (``min_wall_area_m2``, ``min_object_m2``, ``object_hull_free``), and last the poses that
+   move the best by either map's repeats must be beaten as rivals are (``repeat_rivals``).
+   Measurements behind each default: ``docs/merging.md``.
 
 The steps' machinery lives beside this module (:mod:`~mrexplore.merge.rotation`,
 :mod:`~mrexplore.merge.coarse`, :mod:`~mrexplore.merge.icp`, :mod:`~mrexplore.merge.repeats`,
@@ -437,7 +438,7 @@ def lone_pin_support(
     top: int = 3,
     precise: bool = False,
 ) -> tuple[float, int] | None:
-    """:func:`cross_support` (float64) with one small thing of b left out, the lowest over the
+    """:func:`cross_support` with one small thing of b left out, the lowest over the
     ``top`` small things (:meth:`Structures.is_small` under ``small_cells``) carrying most of
     the support's cells, and that thing's cell count; None when no small thing agrees.
 

@@ -148,26 +148,43 @@ class _Agreement(NamedTuple):
         return np.bincount(self.cell_labels[self.on])
 
 
-def _agreement_by_structure(
-    a: MapCodes, b: MapCodes, T: Transform, tolerance: int
-) -> list[_Agreement | None]:
+#: a's and b's sides of a pose's agreement (``None``: none of that map's walls agree).
+ByStructure = tuple["_Agreement | None", "_Agreement | None"]
+
+
+def agreement_by_structure(
+    a: MapCodes,
+    b: MapCodes,
+    T: Transform,
+    tolerance: int = 1,
+    structures_b: Structures | None = None,
+) -> ByStructure:
     """a's and b's agreement under ``T`` (b cells -> a cells; the verifier's agreement,
-    :func:`~mrexplore.merge.common.agreeing_cells`) by structure; ``None`` for a map none of
-    whose walls agree."""
+    :func:`~mrexplore.merge.common.agreeing_cells`) by structure, for
+    :func:`one_object_area` and :func:`outside_object` to share (one labelling of each map;
+    ``structures_b``: b's, when the caller has it)."""
     out: list[_Agreement | None] = []
-    for mine, other, to_other in ((a, b, rigid_inverse(T)), (b, a, T)):
+    for mine, other, to_other, known in (
+        (a, b, rigid_inverse(T), None),
+        (b, a, T, structures_b),
+    ):
         rows, cols = mine.wall_cells()
         on, _, _ = agreeing_cells((rows, cols), to_other, other.codes(tolerance))
         if not on.any():
             out.append(None)
             continue
-        structures = Structures(mine)
+        structures = known or Structures(mine)
         out.append(_Agreement(structures, (rows, cols), structures.labels[rows, cols], on))
-    return out
+    return out[0], out[1]
 
 
 def one_object_area(
-    a: MapCodes, b: MapCodes, T: Transform, share: float = 0.95, tolerance: int = 1
+    a: MapCodes,
+    b: MapCodes,
+    T: Transform,
+    share: float = 0.95,
+    tolerance: int = 1,
+    by_structure: ByStructure | None = None,
 ) -> float | None:
     """When at least ``share`` of each map's agreeing wall cells under ``T`` (b cells -> a
     cells; the verifier's agreement, :func:`~mrexplore.merge.common.agreeing_cells`) lie on
@@ -186,7 +203,7 @@ def one_object_area(
     True
     """
     areas = []
-    for agreement in _agreement_by_structure(a, b, T, tolerance):
+    for agreement in by_structure or agreement_by_structure(a, b, T, tolerance):
         if agreement is None:
             return None
         counts = agreement.counts()
@@ -208,6 +225,7 @@ def outside_object(
     min_width_cells: float,
     share: float = 0.95,
     tolerance: int = 1,
+    by_structure: ByStructure | None = None,
 ) -> bool:
     """Whether, in either map, at least ``share`` of the agreeing wall cells under ``T`` (b
     cells -> a cells) lie on one structure seen from outside plus at most one small structure.
@@ -234,7 +252,7 @@ def outside_object(
     >>> outside_object(MapCodes(room), MapCodes(room), np.eye(3), 0.2, 30.0, 20.0)
     False
     """
-    for agreement in _agreement_by_structure(a, b, T, tolerance):
+    for agreement in by_structure or agreement_by_structure(a, b, T, tolerance):
         if agreement is None:
             return False
         counts = agreement.counts()

@@ -81,6 +81,7 @@ from mrexplore.merge.repeats import (
     OBJECT_CLUTTER_M,
     OBJECT_WIDTH_M,
     Structures,
+    agreement_by_structure,
     one_object_area,
     outside_object,
     repeat_shifts,
@@ -1010,6 +1011,7 @@ def merge_semantic(
             score=best.score,
             **common,
         )
+    structures_b: Structures | None = None  # b's wall structures, labelled once when needed
     if o.min_cross_cells > 0:
         # a slide along one straight wall (or a corridor) explains the maps as well as the pose:
         # its walls must also pin the pose across that direction
@@ -1036,11 +1038,12 @@ def merge_semantic(
                 **common,
             )
         if o.lone_pin_test and cross >= o.min_cross_cells:  # pinned by the walls themselves
+            structures_b = Structures(codes_b)
             lone_args = (
                 wall_a,
                 wall_b,
                 best.T,
-                Structures(codes_b),
+                structures_b,
                 OBJECT_CLUTTER_M / resolution_m,
                 icp.cells_b,
             )
@@ -1068,8 +1071,12 @@ def merge_semantic(
                 score=best.score,
                 **common,
             )
+    # one labelling and agreement of each map, shared by the two object rules below
+    by_structure = None
+    if o.min_object_m2 > 0 or o.object_hull_free > 0:
+        by_structure = agreement_by_structure(codes_a, codes_b, best.T, structures_b=structures_b)
     if o.min_object_m2 > 0:
-        object_cells = one_object_area(codes_a, codes_b, best.T)
+        object_cells = one_object_area(codes_a, codes_b, best.T, by_structure=by_structure)
         if object_cells is not None:
             object_m2 = object_cells * resolution_m**2
             info["object_m2"] = object_m2
@@ -1088,6 +1095,7 @@ def merge_semantic(
         o.object_hull_free,
         clutter_cells=OBJECT_CLUTTER_M / resolution_m,
         min_width_cells=OBJECT_WIDTH_M / resolution_m,
+        by_structure=by_structure,
     ):
         info["outside_object"] = True
         return refuse(

@@ -85,6 +85,29 @@ def test_compiled_shares_equal_the_opencv_path(
             np.testing.assert_array_equal(occ, ref[1])
 
 
+def test_few_dots_mark_what_the_numpy_path_marks() -> None:
+    # up to _FEW_DOTS points (teammates) are marked in plain Python; the same points repeated
+    # past that count take the numpy path and must mark the same pixels
+    from mrexplore.environment.observations import _FEW_DOTS
+
+    rng = np.random.default_rng(5)
+    b = ObservationBuilder(0.05, 25.6, 6.4, 64)
+    for k in range(200):
+        n = int(rng.integers(1, _FEW_DOTS + 1))
+        cells = rng.uniform(100.0, 700.0, (n, 2))
+        if k % 3 == 0:
+            cells = np.round(cells * 8.0) / 8.0  # on pixel boundaries
+        centre = (float(rng.uniform(300, 500)), float(rng.uniform(300, 500)))
+        phi = 0.0 if k % 2 else float(rng.uniform(-np.pi, np.pi))
+        radius = int(k % 4 == 0) * 2
+        few = np.zeros((64, 64), np.uint8)
+        many = np.zeros((64, 64), np.uint8)
+        b._dots(few, [tuple(c) for c in cells], centre, 64 / 512, phi, radius)
+        b._dots(many, np.tile(cells, (_FEW_DOTS + 1, 1)), centre, 64 / 512, phi, radius)
+        np.testing.assert_array_equal(few, many)
+        assert few.any() or not ((np.abs(cells - centre) < 250).all())
+
+
 def test_compiled_trail_equals_the_numpy_drawing() -> None:
     from mrexplore.kernels import views
 

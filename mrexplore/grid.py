@@ -169,8 +169,16 @@ def chain(*transforms: Transform) -> Transform:
     [4.0, 6.0]
     """
     out = np.asarray(transforms[0], dtype=np.float64)
-    for T in transforms[1:]:
-        B = np.asarray(T, dtype=np.float64)
+    mats = [np.asarray(T, dtype=np.float64) for T in transforms[1:]]
+    if mats and out.shape == (3, 3) and all(B.shape == (3, 3) for B in mats):
+        # Python floats: the same IEEE operations in the same order as the numpy path below
+        # (CPython never fuses a multiply and an add), at a third of its cost on 3 x 3
+        a = out.tolist()
+        for B in mats:
+            b0, b1, b2 = B.tolist()
+            a = [[r[0] * b0[j] + r[1] * b1[j] + r[2] * b2[j] for j in range(3)] for r in a]
+        return np.array(a)
+    for B in mats:
         # (a0 b0 + a1 b1) + a2 b2 per entry: separate multiplies and adds, no fused rounding
         out = out[:, 0:1] * B[0:1, :] + out[:, 1:2] * B[1:2, :] + out[:, 2:3] * B[2:3, :]
     return out

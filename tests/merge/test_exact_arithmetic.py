@@ -32,6 +32,30 @@ def test_chain_equals_the_matrix_product() -> None:
         assert chain(A).tolist() == A.tolist()
 
 
+def test_chain_of_3x3_has_the_bits_of_the_elementwise_formula() -> None:
+    # chain's Python-float path for 3 x 3 against the numpy formula it replaced, on
+    # transforms of many magnitudes, with -0.0, inf and NaN entries
+    def reference(*Ts: np.ndarray) -> np.ndarray:
+        out = np.asarray(Ts[0], dtype=np.float64)
+        for B in Ts[1:]:
+            out = out[:, 0:1] * B[0:1, :] + out[:, 1:2] * B[1:2, :] + out[:, 2:3] * B[2:3, :]
+        return out
+
+    rng = np.random.default_rng(7)
+    specials = [-0.0, 0.0, np.inf, -np.inf, np.nan, 1e-300, 1e300]
+    for k in range(3000):
+        Ts = [
+            rng.normal(size=(3, 3)) * 10 ** rng.uniform(-4, 5, (3, 3))
+            for _ in range(int(rng.integers(2, 5)))
+        ]
+        if k % 5 == 0:
+            Ts[0][2] = [0.0, 0.0, 1.0]
+        if k % 11 == 0:
+            Ts[-1][int(rng.integers(3)), int(rng.integers(3))] = specials[k % len(specials)]
+        with np.errstate(all="ignore"):
+            assert chain(*Ts).tobytes() == reference(*Ts).tobytes()
+
+
 def test_rigid_inverse_inverts() -> None:
     for T in _random_transforms(20, seed=1):
         np.testing.assert_allclose(chain(T, rigid_inverse(T)), np.eye(3), rtol=0, atol=1e-12)

@@ -292,10 +292,11 @@ class ObservationBuilder:
         if len(cells) <= _FEW_DOTS:
             # a teammate or two: numpy's per-call overhead on (1, 2) arrays cost ~25 us a robot
             # per merged step; the same IEEE operations on Python floats give the same cells
+            c0, r0 = float(centre[0]), float(centre[1])
+            cs, sn = math.cos(phi), math.sin(phi)
             for x, y in cells:
-                dx, dy = float(x) - float(centre[0]), float(y) - float(centre[1])
+                dx, dy = float(x) - c0, float(y) - r0
                 if phi != 0.0:
-                    cs, sn = math.cos(phi), math.sin(phi)
                     dx, dy = dx * cs - dy * sn, dx * sn + dy * cs
                 px, py = math.floor(dx * scale + s / 2), math.floor(dy * scale + s / 2)
                 if 0 <= px < s and 0 <= py < s:

@@ -173,7 +173,7 @@ def agreement_by_structure(
         if not on.any():
             out.append(None)
             continue
-        structures = known or Structures(mine)
+        structures = known if known is not None else Structures(mine)
         out.append(_Agreement(structures, (rows, cols), structures.labels[rows, cols], on))
     return out[0], out[1]
 
@@ -203,7 +203,9 @@ def one_object_area(
     True
     """
     areas = []
-    for agreement in by_structure or agreement_by_structure(a, b, T, tolerance):
+    if by_structure is None:
+        by_structure = agreement_by_structure(a, b, T, tolerance)
+    for agreement in by_structure:
         if agreement is None:
             return None
         counts = agreement.counts()
@@ -252,7 +254,9 @@ def outside_object(
     >>> outside_object(MapCodes(room), MapCodes(room), np.eye(3), 0.2, 30.0, 20.0)
     False
     """
-    for agreement in by_structure or agreement_by_structure(a, b, T, tolerance):
+    if by_structure is None:
+        by_structure = agreement_by_structure(a, b, T, tolerance)
+    for agreement in by_structure:
         if agreement is None:
             return False
         counts = agreement.counts()

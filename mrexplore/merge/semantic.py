@@ -376,6 +376,10 @@ def _consistency_polish(
     return best_T, best_c
 
 
+#: :func:`_support_terms`: the unit normals (N, 2) and the index (N,) of their b wall cells.
+_Terms = tuple[NDArray[np.float64], NDArray[np.intp]]
+
+
 def _support_tensor(
     wall_a: NDArray[np.bool_],
     wall_b: NDArray[np.bool_],
@@ -447,6 +451,18 @@ def lone_pin_support(
     it along, and a warehouse has a post by every aisle. ``precise``: as for
     :func:`cross_support` (float32 filters unless set)."""
     terms = _support_terms(wall_a, wall_b, T, precise, cells_b)
+    return _lone_pin(terms, wall_b, structures_b, small_cells, cells_b, top)
+
+
+def _lone_pin(
+    terms: _Terms | None,
+    wall_b: NDArray[np.bool_],
+    structures_b: Structures,
+    small_cells: float,
+    cells_b: tuple[NDArray[np.intp], NDArray[np.intp]] | None,
+    top: int = 3,
+) -> tuple[float, int] | None:
+    """:func:`lone_pin_support` from the pose's :func:`_support_terms`."""
     if terms is None:
         return None
     u, index = terms
@@ -491,8 +507,35 @@ def cross_support(
     answer with a threshold recomputes it with ``precise=True`` (float64) when it lies near.
     ``cells_b``: ``np.nonzero(wall_b)``, when the caller has it.
     """
-    M = _support_tensor(wall_a, wall_b, T, precise, cells_b)
-    return 0.0 if M is None else float(np.linalg.eigvalsh(M)[0])
+    return _cross(_support_terms(wall_a, wall_b, T, precise, cells_b))
+
+
+def _cross(terms: _Terms | None) -> float:
+    """:func:`cross_support` from the pose's :func:`_support_terms`."""
+    if terms is None:
+        return 0.0
+    return float(np.linalg.eigvalsh(np.asarray(terms[0].T @ terms[0], dtype=np.float64))[0])
+
+
+class _PinTerms:
+    """The :func:`_support_terms` of one pose, in float32 and in float64, each computed at most
+    once: the cross-support and lone-pin tests read the same ones."""
+
+    def __init__(
+        self,
+        wall_a: NDArray[np.bool_],
+        wall_b: NDArray[np.bool_],
+        T: Transform,
+        cells_b: tuple[NDArray[np.intp], NDArray[np.intp]],
+    ) -> None:
+        self._args = (wall_a, wall_b, T)
+        self._cells_b = cells_b
+        self._done: dict[bool, _Terms | None] = {}
+
+    def __call__(self, precise: bool) -> _Terms | None:
+        if precise not in self._done:
+            self._done[precise] = _support_terms(*self._args, precise, self._cells_b)
+        return self._done[precise]
 
 
 def slide_direction(
@@ -1015,10 +1058,11 @@ def merge_semantic(
     if o.min_cross_cells > 0:
         # a slide along one straight wall (or a corridor) explains the maps as well as the pose:
         # its walls must also pin the pose across that direction
-        cross = cross_support(wall_a, wall_b, best.T, cells_b=icp.cells_b)
+        pin_terms = _PinTerms(wall_a, wall_b, best.T, icp.cells_b)
+        cross = _cross(pin_terms(False))
         if abs(cross - o.min_cross_cells) < _CROSS_GUARD_CELLS or cross < o.min_cross_cells:
             # near the threshold, or refused (its figure is printed): the CPU-independent value
-            cross = cross_support(wall_a, wall_b, best.T, precise=True, cells_b=icp.cells_b)
+            cross = _cross(pin_terms(True))
         cross = round(cross, 2)
         info["cross_cells"] = cross
         pinned, slid = cross >= o.min_cross_cells, None
@@ -1039,18 +1083,11 @@ def merge_semantic(
             )
         if o.lone_pin_test and cross >= o.min_cross_cells:  # pinned by the walls themselves
             structures_b = Structures(codes_b)
-            lone_args = (
-                wall_a,
-                wall_b,
-                best.T,
-                structures_b,
-                OBJECT_CLUTTER_M / resolution_m,
-                icp.cells_b,
-            )
-            lone = lone_pin_support(*lone_args)
+            lone_args = (wall_b, structures_b, OBJECT_CLUTTER_M / resolution_m, icp.cells_b)
+            lone = _lone_pin(pin_terms(False), *lone_args)
             if lone is not None and lone[0] < o.min_cross_cells + _CROSS_GUARD_CELLS:
                 # near the threshold or under it: the CPU-independent value decides
-                lone = lone_pin_support(*lone_args, precise=True)
+                lone = _lone_pin(pin_terms(True), *lone_args)
             if lone is not None and round(lone[0], 2) < o.min_cross_cells:
                 info["lone_pin_cells"] = round(lone[0], 2)
                 return refuse(

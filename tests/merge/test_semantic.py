@@ -637,3 +637,34 @@ def test_lone_pin_support_leaves_out_one_small_thing() -> None:
     wall = g >= OCCUPIED
     two = lone_pin_support(wall, wall, np.eye(3), Structures(MapCodes(g)), 30.0)
     assert two is not None and two[0] > 10.0
+
+
+def test_pin_terms_shared_by_both_pin_tests_give_the_public_answers() -> None:
+    """The merger computes a pose's support terms once for the cross-support and lone-pin
+    tests (float32, and float64 near a threshold): the same numbers as the public functions."""
+    from mrexplore.merge.common import MapCodes
+    from mrexplore.merge.repeats import Structures
+    from mrexplore.merge.semantic import (
+        _cross,
+        _lone_pin,
+        _PinTerms,
+        cross_support,
+        lone_pin_support,
+    )
+
+    g = np.full((120, 300), FREE, dtype=np.int8)
+    g[30:32, 10:290] = OCCUPIED
+    g[80:82, 10:290] = OCCUPIED
+    g[50:60, 100:110] = OCCUPIED
+    g[40:46, 220:260] = OCCUPIED
+    wall = g >= OCCUPIED
+    T = np.array([[1.0, 0.0, 1.0], [0.0, 1.0, -1.0], [0.0, 0.0, 1.0]])
+    cells = np.nonzero(wall)
+    structures = Structures(MapCodes(g))
+    terms = _PinTerms(wall, wall, T, cells)
+    for precise in (False, True):
+        assert _cross(terms(precise)) == cross_support(wall, wall, T, precise, cells)
+        shared = _lone_pin(terms(precise), wall, structures, 30.0, cells)
+        alone = lone_pin_support(wall, wall, T, structures, 30.0, cells, precise=precise)
+        assert shared == alone and shared is not None
+    assert terms(False) is terms(False)  # computed once

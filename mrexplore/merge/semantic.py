@@ -639,6 +639,10 @@ class _SharedSpace:
         self.known_b = (b != UNKNOWN).view(np.uint8)
         self.size = (a.shape[1], a.shape[0])
 
+    def known_cells(self, which: str) -> int:
+        """The known cells of map ``which`` ("a" or "b")."""
+        return int(cv2.countNonZero(self.known_a if which == "a" else self.known_b))
+
     def __call__(self, T_ab: NDArray[np.float64]) -> int:
         # only the window of a that b's canvas can cover under the pose is warped and counted
         T = np.asarray(T_ab, dtype=np.float64)
@@ -692,6 +696,8 @@ class SemanticOptions(Options):
     w_disagree: float = option(1.0, number(0.0, 100.0))
     ratio_power: float = option(2.0, number(0.0, 20.0))
     min_common_m2: float = option(10.0, number(0.0, math.inf))
+    room_match_m2: float = option(15.0, number(0.0, math.inf))
+    room_match_share: float = option(0.3, number(0.0, 1.0))
     shared_weight: float = option(0.04, number(0.0, 1.0))
     resolution_m: float = option(0.05, number(1e-6, math.inf))
     slack_cells: int = option(2, integer(0, 10))
@@ -731,6 +737,10 @@ def merge_semantic(
     - shared knowledge: ``min_overlap`` (0.15) of b's wall cells on a's known cells,
       ``min_overlap_cells`` (80), ``min_common_m2`` (10.0) m^2 known in both at
       ``resolution_m`` (0.05) m/cell (the every-step tracker asks for 20 m^2: a room);
+    - ``room_match_m2`` (15.0; 0 = off) and ``room_match_share`` (0.3): without a ``prior``,
+      refuse a pose whose shared known space is under 15 m^2 **and** under 0.3 of the smaller
+      map's known space: a room-sized match in maps of several rooms may be a look-alike room
+      (a twin-wings corridor was merged on its twin at 13.1 m^2, 0.24 of the smaller map);
     - search: ``max_rotation_peaks`` (3: a hexagonal map's spectrum folds into three equal
       peaks modulo 90 degrees) per rotation spectrum, ``rotation_step_deg`` (0 = no
       sweep), ``hough_max_cells`` (409,600: 640 x 640; 0 = never) beyond which the wall
@@ -1054,6 +1064,19 @@ def merge_semantic(
             score=best.score,
             **common,
         )
+    if prior is None and common_m2 < o.room_match_m2:
+        # a room's worth of shared space is little evidence when each map holds several rooms:
+        # one of the others may be its look-alike (a guess of the pose rules those out)
+        smaller_m2 = min(shared.known_cells("a"), shared.known_cells("b")) * resolution_m**2
+        if common_m2 < o.room_match_share * smaller_m2:
+            return refuse(
+                f"the maps share only {common_m2:.1f} m^2 of known space under the best pose, "
+                f"under {o.room_match_share:g} of the smaller map's {smaller_m2:.1f} m^2 (need "
+                f"{o.room_match_m2:g} m^2 or that share): a match the size of a room, in maps "
+                "of several rooms, may be one room's look-alike",
+                score=best.score,
+                **common,
+            )
     structures_b: Structures | None = None  # b's wall structures, labelled once when needed
     if o.min_cross_cells > 0:
         # a slide along one straight wall (or a corridor) explains the maps as well as the pose:

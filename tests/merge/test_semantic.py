@@ -331,7 +331,8 @@ def test_a_polished_pose_must_clear_the_bar_by_a_margin() -> None:
     res = merge_maps(a, b, resolution_m=0.05)
     assert not res.matched, merge_error(res.transform, T_ab, b)
     assert (res.info or {}).get("consistency_polished") is None
-    old = merge_maps(a, b, resolution_m=0.05, polish_margin=0.0)
+    # the room-match rule refuses it too (14.1 m^2 shared, 0.28 of the smaller map): off here
+    old = merge_maps(a, b, resolution_m=0.05, polish_margin=0.0, room_match_m2=0.0)
     assert old.matched and (old.info or {}).get("consistency_polished")
     assert merge_error(old.transform, T_ab, b)[0] > 100
     with pytest.raises(Exception, match="polish_margin"):
@@ -540,10 +541,14 @@ def test_min_wall_area_m2_refuses_a_match_on_one_object(seed: int, index: int) -
         min_object_m2=0,
         object_hull_free=0,
         lone_pin_test=False,
+        room_match_m2=0,
     )
     assert classify(case, loose.matched, loose.transform)[0] == "wrong"
-    # the lone-pin test, checked before it, refuses one of them first: off here
-    res = merge_maps(case.a, case.b, resolution_m=case.resolution_m, lone_pin_test=False)
+    # the lone-pin test and the room-match rule, checked before it, refuse one of them first:
+    # off here
+    res = merge_maps(
+        case.a, case.b, resolution_m=case.resolution_m, lone_pin_test=False, room_match_m2=0
+    )
     assert not res.matched and "walls that agree fit in" in res.reason
     assert res.info["wall_area_m2"] < 4.0
 
@@ -668,3 +673,33 @@ def test_pin_terms_shared_by_both_pin_tests_give_the_public_answers() -> None:
         alone = lone_pin_support(wall, wall, T, structures, 30.0, cells, precise=precise)
         assert shared == alone and shared is not None
     assert terms(False) is terms(False)  # computed once
+
+
+def test_a_room_sized_match_in_maps_of_several_rooms_is_refused() -> None:
+    """Two maps that share one 14 m^2 room, each holding ~34 m^2 more of its own: the shared
+    room may be a look-alike of a room elsewhere, so the pose is refused (``room_match_m2``),
+    and merged correctly with the rule off."""
+    from mrexplore.merge.semantic import merge_semantic
+
+    W = np.full((80, 410), FREE, dtype=np.int8)
+    W[0, :] = W[-1, :] = OCCUPIED
+    W[:, 0] = W[:, -1] = OCCUPIED
+    W[:, 170] = W[:, 240] = OCCUPIED  # the shared room: columns 170-240
+    W[30:45, 170] = FREE  # two doors of different widths
+    W[20:50, 240] = FREE
+    W[10:18, 185:200] = OCCUPIED  # furniture
+    W[60:64, 210:232] = OCCUPIED
+    W[0:40, 60] = W[40:80, 330] = OCCUPIED  # partitions in each map's own part
+    W[50:52, 90:140] = W[20:22, 280:300] = OCCUPIED
+    a = np.full_like(W, UNKNOWN)
+    a[:, :241] = W[:, :241]
+    b0 = np.full_like(W, UNKNOWN)
+    b0[:, 170:] = W[:, 170:]
+    b = np.ascontiguousarray(np.rot90(b0))  # b's own frame, turned by 90 degrees
+    res = merge_semantic(a, b)
+    assert not res.matched and "look-alike" in res.reason
+    assert res.info["common_known_m2"] < 15.0
+    off = merge_semantic(a, b, room_match_m2=0.0)
+    assert off.matched and off.transform is not None
+    truth = np.array([[0.0, -1.0, 409.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    assert np.abs(off.transform - truth).max() < 1.0

@@ -388,7 +388,11 @@ def _support_tensor(
     cells_b: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None,
 ) -> NDArray[np.float64] | None:
     """``sum n n^T`` (2 x 2, (col, row) axes) of :func:`cross_support`, None without support."""
-    terms = _support_terms(wall_a, wall_b, T, precise, cells_b)
+    return _tensor(_support_terms(wall_a, wall_b, T, precise, cells_b))
+
+
+def _tensor(terms: _Terms | None) -> NDArray[np.float64] | None:
+    """``sum n n^T`` (2 x 2) of the support terms, None without support."""
     return None if terms is None else np.asarray(terms[0].T @ terms[0], dtype=np.float64)
 
 
@@ -512,9 +516,8 @@ def cross_support(
 
 def _cross(terms: _Terms | None) -> float:
     """:func:`cross_support` from the pose's :func:`_support_terms`."""
-    if terms is None:
-        return 0.0
-    return float(np.linalg.eigvalsh(np.asarray(terms[0].T @ terms[0], dtype=np.float64))[0])
+    M = _tensor(terms)
+    return 0.0 if M is None else float(np.linalg.eigvalsh(M)[0])
 
 
 class _PinTerms:
@@ -639,9 +642,9 @@ class _SharedSpace:
         self.known_b = (b != UNKNOWN).view(np.uint8)
         self.size = (a.shape[1], a.shape[0])
 
-    def known_cells(self, which: str) -> int:
-        """The known cells of map ``which`` ("a" or "b")."""
-        return int(cv2.countNonZero(self.known_a if which == "a" else self.known_b))
+    def smaller_known_cells(self) -> int:
+        """The known cells of the map that knows fewer."""
+        return min(int(cv2.countNonZero(self.known_a)), int(cv2.countNonZero(self.known_b)))
 
     def __call__(self, T_ab: NDArray[np.float64]) -> int:
         # only the window of a that b's canvas can cover under the pose is warped and counted
@@ -1067,7 +1070,7 @@ def merge_semantic(
     if prior is None and common_m2 < o.room_match_m2:
         # a room's worth of shared space is little evidence when each map holds several rooms:
         # one of the others may be its look-alike (a guess of the pose rules those out)
-        smaller_m2 = min(shared.known_cells("a"), shared.known_cells("b")) * resolution_m**2
+        smaller_m2 = shared.smaller_known_cells() * resolution_m**2
         if common_m2 < o.room_match_share * smaller_m2:
             return refuse(
                 f"the maps share only {common_m2:.1f} m^2 of known space under the best pose, "

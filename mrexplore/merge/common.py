@@ -424,6 +424,52 @@ class Verifier:
         share = nb / self.points_b.shape[0] if self.points_b.shape[0] else 0.0
         return Agreement(ab + aa, min(db + da, runs), share)
 
+    @staticmethod
+    def _on_free(
+        pts: NDArray[np.float64], T: Transform, codes: NDArray[np.uint8]
+    ) -> NDArray[np.bool_]:
+        """(N,) bool: does each point, mapped by T, land on open free space (disagree)?"""
+        px, py = map_points(pts, T)
+        c = np.rint(px).astype(np.int64)
+        r = np.rint(py).astype(np.int64)
+        h, w = codes.shape
+        inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
+        out = np.zeros(pts.shape[0], dtype=np.bool_)
+        out[inside] = codes[r[inside], c[inside]] == CODE_FREE
+        return out
+
+    @staticmethod
+    def _largest_group(pts: NDArray[np.float64], shape: tuple[int, int]) -> int:
+        """Points (col, row) in their own map's cells: the most of them in one 8-connected
+        group, a one-cell gap bridged (a wall a grazing beam broke is still one wall)."""
+        if pts.shape[0] == 0:
+            return 0
+        img = np.zeros(shape, dtype=np.uint8)
+        c, r = pts[:, 0].astype(np.intp), pts[:, 1].astype(np.intp)
+        img[r, c] = 1
+        n, labels = cv2.connectedComponents(
+            cv2.dilate(img, np.ones((3, 3), np.uint8)), connectivity=8
+        )
+        return int(np.bincount(labels[r, c], minlength=n)[1:].max())
+
+    def refuting_structure(self, T_refuted: Transform, T_other: Transform) -> int:
+        """Wall cells in the largest connected group (in the map they belong to) that
+        ``T_refuted`` lays on the other map's open free space and ``T_other`` does not: one
+        object seen in one map that the other map's free space rules out under that pose."""
+        T1, T2 = np.asarray(T_refuted, dtype=np.float64), np.asarray(T_other, dtype=np.float64)
+        rb, ob = (
+            self._on_free(self.points_b, T1, self.codes_a),
+            self._on_free(self.points_b, T2, self.codes_a),
+        )
+        ra = self._on_free(self.points_a, rigid_inverse(T1), self.codes_b)
+        oa = self._on_free(self.points_a, rigid_inverse(T2), self.codes_b)
+        shape_b, shape_a = self.codes_b.shape, self.codes_a.shape
+        most = max(
+            self._largest_group(self.points_b[rb & ~ob], (shape_b[0], shape_b[1])),
+            self._largest_group(self.points_a[ra & ~oa], (shape_a[0], shape_a[1])),
+        )
+        return round(most * self.cells_per_sample)
+
     def __call__(self, T: Transform) -> Agreement:
         """Agreement counts of ``T`` (3x3, b cells -> a cells)."""
         T = np.ascontiguousarray(T, dtype=np.float64)

@@ -681,6 +681,7 @@ class SemanticOptions(Options):
     min_score: float = option(0.97, number(0.0, 1.0))
     min_margin: float = option(0.03, number(0.0, 1.0))
     min_evidence_cells: int = option(20, integer(0))
+    structure_test: bool = option(True, boolean)
     far_cells: float = option(5.0, number(0.0, math.inf))
     rival_support: float = option(0.5, number(0.0, 1.0))
     slide_step: float = option(8.0, number(0.0, math.inf))
@@ -721,6 +722,25 @@ class SemanticOptions(Options):
             raise ConfigError(f"{self.owner}: detector= is used only with paper_candidates=True")
 
 
+def _rival_structure(
+    verify: Verifier,
+    best: _Hypothesis,
+    rival: _Hypothesis,
+    margin: float,
+    min_run: int,
+    o: SemanticOptions,
+) -> int:
+    """Wall cells of the largest object that rules the rival out (0 when the test is off or
+    does not apply): a connected group of one map's wall cells that, under the rival and not
+    under the best, lies on the other map's open free space. It applies only when the best
+    is ahead in index and leaves no group of ``min_run`` contradicting cells of its own."""
+    if not o.structure_test or margin <= 0.0:
+        return 0
+    if verify.refuting_structure(best.T, rival.T) >= min_run:
+        return 0
+    return verify.refuting_structure(rival.T, best.T)
+
+
 def merge_semantic(
     a: Int8Grid,
     b: Int8Grid,
@@ -737,6 +757,11 @@ def merge_semantic(
       ``min_evidence_cells`` (20) against every rival, a pose ``far_cells`` (5.0) cells away
       on average with ``rival_support`` (0.5) of the best's agreeing wall cells, or with no
       disagreeing wall cell and at least ``rival_perfect_cells`` (250; 0 = off) agreeing ones;
+      ``structure_test`` (True): a rival beaten by less than that is still ruled out when one
+      object, a connected group of ``min_evidence_cells`` wall cells of one map, lies on the
+      other's open free space under it and not under the best, and the best, ahead in index,
+      leaves no group of ``min_run_cells`` contradicting cells (a notch tells two half-turns
+      of a symmetric arena apart; noise contradicts in scattered cells);
     - shared knowledge: ``min_overlap`` (0.15) of b's wall cells on a's known cells,
       ``min_overlap_cells`` (80), ``min_common_m2`` (10.0) m^2 known in both at
       ``resolution_m`` (0.05) m/cell (the every-step tracker asks for 20 m^2: a room);
@@ -1049,12 +1074,26 @@ def merge_semantic(
         evidence = int(
             (rivals[0].agreement.disagree - best.agreement.disagree) * verify.cells_per_sample
         )
+    # A rival beaten by less than the margin is still ruled out by one object the maps show
+    # (a notch, a post: ``min_evidence`` wall cells in one group), while noise contradicts
+    # in scattered cells (docs/merging.md, item 24).
+    structure = 0
     if runner is not None and (best.score - runner < min_margin or evidence < min_evidence):
+        structure = _rival_structure(verify, best, rivals[0], best.score - runner, min_run, o)
+        info["rival_structure_cells"] = structure
+    if (
+        runner is not None
+        and structure < min_evidence
+        and (best.score - runner < min_margin or evidence < min_evidence)
+    ):
         return refuse(
             f"ambiguous: best {best.score:.3f} vs {runner:.3f} for a pose "
             f"{_mean_shift(rivals[0].T, best.T, pts):.0f} cells away "
             f"(margin {best.score - (runner or 0):.3f}, "
-            f"{evidence} more disagreeing wall cells; need {min_margin} and {min_evidence})",
+            f"{evidence} more disagreeing wall cells"
+            + (f", the largest object ruling it out {structure}" if o.structure_test else "")
+            + f"; need {min_margin} and {min_evidence}"
+            + (f", or one object of {min_evidence})" if o.structure_test else ")"),
             score=best.score,
             **common,
         )

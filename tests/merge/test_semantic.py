@@ -703,3 +703,44 @@ def test_a_room_sized_match_in_maps_of_several_rooms_is_refused() -> None:
     assert off.matched and off.transform is not None
     truth = np.array([[0.0, -1.0, 409.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     assert np.abs(off.transform - truth).max() < 1.0
+
+
+def test_refuting_structure_is_the_largest_connected_group_one_pose_alone_contradicts() -> None:
+    """b holds one 12-cell wall and three 2-cell bits; laid on a's open floor (identity) they
+    contradict it, laid outside a (unknown) nothing does: the largest group the identity alone
+    lays on free space is the wall; without it, a bit; a pose against itself leaves nothing."""
+    from mrexplore.merge.common import Verifier
+
+    a = np.full((60, 60), FREE, dtype=np.int8)
+    a[0, :] = a[-1, :] = OCCUPIED
+    a[:, 0] = a[:, -1] = OCCUPIED
+    b = np.full((60, 60), UNKNOWN, dtype=np.int8)
+    b[20:40, 15:45] = FREE
+    b[30, 20:32] = OCCUPIED  # one straight wall of 12 cells
+    for r, c in ((22, 40), (36, 40), (24, 18)):
+        b[r, c : c + 2] = OCCUPIED
+    v = Verifier(a, b)
+    identity, outside = np.eye(3), translation(200.0, 0.0)
+    assert v.refuting_structure(identity, outside) == 12
+    assert v.refuting_structure(outside, identity) == 0
+    assert v.refuting_structure(identity, identity) == 0
+    b[30, 20:32] = FREE  # only the bits are left
+    assert Verifier(a, b).refuting_structure(identity, outside) == 2
+
+
+def test_a_rival_ruled_out_by_one_object_does_not_make_the_best_ambiguous() -> None:
+    """A crop pair of the turtlebot3 sandbox (the bench's real family, seed 7 #14): the arena is
+    the same turned by 180 degrees but for a notch, so the half-turned pose is a rival within
+    0.03 of the best in index. Under it the notch (32 wall cells in one group) lies on the
+    other map's open floor, while the best leaves no group of contradictions: merged
+    correctly. Without the structure test it is refused as ambiguous."""
+    from mrexplore.experiments.merge_bench import classify
+    from mrexplore.experiments.merge_cases import real_cases
+
+    case = real_cases(15, 7)[14]
+    assert case.name.startswith("nav2/tb3_sandbox")
+    off = merge_maps(case.a, case.b, resolution_m=case.resolution_m, structure_test=False)
+    assert not off.matched and off.reason.startswith("ambiguous")
+    res = merge_maps(case.a, case.b, resolution_m=case.resolution_m)
+    assert classify(case, res.matched, res.transform)[0] == "correct", res.reason
+    assert res.info["rival_structure_cells"] >= 20

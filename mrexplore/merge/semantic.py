@@ -722,23 +722,20 @@ class SemanticOptions(Options):
             raise ConfigError(f"{self.owner}: detector= is used only with paper_candidates=True")
 
 
-def _rival_structure(
-    verify: Verifier,
-    best: _Hypothesis,
-    rival: _Hypothesis,
-    margin: float,
-    min_run: int,
-    o: SemanticOptions,
+def rival_structure(
+    verify: Verifier, T_best: Transform, T_rival: Transform, margin: float, o: SemanticOptions
 ) -> int:
-    """Wall cells of the largest object that rules the rival out (0 when the test is off or
-    does not apply): a connected group of one map's wall cells that, under the rival and not
-    under the best, lies on the other map's open free space. It applies only when the best
-    is ahead in index and leaves no group of ``min_run`` contradicting cells of its own."""
+    """Wall cells of the largest object that rules the rival pose out, 0 when the test is off
+    (``o.structure_test``) or does not apply: a connected group of one map's wall cells that,
+    under ``T_rival`` and not under ``T_best`` (crop cells, b -> a), lies on the other map's
+    open free space. It applies only when the best is ahead in index (``margin`` > 0) and
+    leaves no group of ``o.min_run_cells`` contradicting cells of its own. A rival is ruled
+    out when this reaches ``o.min_evidence_cells``."""
     if not o.structure_test or margin <= 0.0:
         return 0
-    if verify.refuting_structure(best.T, rival.T) >= min_run:
+    if verify.refuting_structure(T_best, T_rival) >= o.min_run_cells:
         return 0
-    return verify.refuting_structure(rival.T, best.T)
+    return verify.refuting_structure(T_rival, T_best)
 
 
 def merge_semantic(
@@ -1079,7 +1076,7 @@ def merge_semantic(
     # in scattered cells (docs/merging.md, item 24).
     structure = 0
     if runner is not None and (best.score - runner < min_margin or evidence < min_evidence):
-        structure = _rival_structure(verify, best, rivals[0], best.score - runner, min_run, o)
+        structure = rival_structure(verify, best.T, rivals[0].T, best.score - runner, o)
         info["rival_structure_cells"] = structure
     if (
         runner is not None

@@ -61,7 +61,12 @@ from mrexplore.grid import (
 from mrexplore.merge.api import METHODS, merge_maps
 from mrexplore.merge.common import MapCodes, MergeResult, Verifier, translation
 from mrexplore.merge.compositor import MapCompositor
-from mrexplore.merge.semantic import PosePrior, SemanticOptions, stands_as_rival
+from mrexplore.merge.semantic import (
+    PosePrior,
+    SemanticOptions,
+    rival_structure,
+    stands_as_rival,
+)
 from mrexplore.options import (
     MERGE_EVERY_CHECK,
     MERGE_EVERY_DEFAULT,
@@ -85,7 +90,8 @@ GUIDED_MIN_COMMON_M2 = 5.0
 #: A remembered rival still stands against an accepted pose on the current maps as the
 #: semantic merger's defaults judge a rival: ``far_cells`` from it (here b's known box corners),
 #: explaining at least ``rival_support`` of its agreeing wall cells, and not beaten by
-#: ``min_margin`` in index and ``min_evidence_cells`` contradicting wall cells.
+#: ``min_margin`` in index and ``min_evidence_cells`` contradicting wall cells, nor ruled out
+#: by one object (``structure_test``).
 _RIVAL_RULE = SemanticOptions.from_kwargs()
 
 
@@ -587,21 +593,29 @@ class MapMergeTracker:
         box_j: Box,
     ) -> list[Transform]:
         """The remembered ``rivals`` (canvas cells) that still stand against the accepted ``T``
-        on the cropped maps ``a``, ``b``: far from it, explaining at least half as much, and not
-        beaten by the merger's margin (raw index, contradicting wall cells). Pure."""
+        on the cropped maps ``a``, ``b``: far from it, explaining at least half as much, not
+        beaten by the merger's margin (raw index, contradicting wall cells) and not ruled out by
+        one object (:func:`~mrexplore.merge.semantic.rival_structure`). Pure."""
         (ca, ra), (cb, rb) = offsets
         verify = Verifier(MapCodes(a), MapCodes(b))
 
         def crop(X: Transform) -> Transform:
             return chain(translation(-ca, -ra), X, translation(cb, rb))
 
-        best = verify(crop(T))
-        return [
-            R
-            for R in rivals
-            if not self._same(R, T, box_j, _RIVAL_RULE.far_cells)  # else the same place
-            and stands_as_rival(best, verify(crop(R)), verify.cells_per_sample, _RIVAL_RULE)
-        ]
+        T_crop = crop(T)
+        best = verify(T_crop)
+
+        def stands(R: Transform) -> bool:
+            if self._same(R, T, box_j, _RIVAL_RULE.far_cells):
+                return False  # the same place
+            other = verify(crop(R))
+            if not stands_as_rival(best, other, verify.cells_per_sample, _RIVAL_RULE):
+                return False
+            margin = best.score - other.score
+            ruled_out = rival_structure(verify, T_crop, crop(R), margin, _RIVAL_RULE)
+            return ruled_out < _RIVAL_RULE.min_evidence_cells
+
+        return [R for R in rivals if stands(R)]
 
     def _start(self, kind: str, i: int, j: int, step: int) -> None:
         """Start an attempt or re-check of (i, j) on the current maps; apply it now (latency 0)

@@ -709,3 +709,27 @@ def test_a_pose_resting_on_too_little_wall_is_not_accepted(cells: int, merged: b
     for k in range(4):
         tr.update(_growing_maps(k), step=k)
     assert seq.calls == (2 if merged else 4) and tr.merged(0) is merged
+
+
+def test_a_remembered_rival_ruled_out_by_one_object_does_not_stand() -> None:
+    """The sandbox crop pair the merger accepts through the structure test (tests/merge/
+    test_semantic.py): its half-turned rival, remembered by the tracker, must not break the
+    run of agreeing attempts either; judged by the margin alone it would."""
+    from unittest import mock
+
+    from mrexplore.experiments.merge_cases import real_cases
+    from mrexplore.grid import known_bbox
+    from mrexplore.merge import merge_maps, tracker
+    from mrexplore.merge.semantic import SemanticOptions
+
+    case = real_cases(15, 7)[14]
+    res = merge_maps(case.a, case.b, resolution_m=case.resolution_m)
+    assert res.matched and res.transform is not None
+    rival = res.info["rivals"][0]
+    box = known_bbox(case.b)
+    assert box is not None
+    tr = MapMergeTracker(2)
+    args = (case.a, case.b, ((0, 0), (0, 0)), res.transform, [rival], box)
+    assert tr._standing(*args) == []
+    with mock.patch.object(tracker, "_RIVAL_RULE", SemanticOptions(structure_test=False)):
+        assert len(tr._standing(*args)) == 1

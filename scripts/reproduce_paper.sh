@@ -18,7 +18,9 @@
 #      73-82's wrong merges); merge_heldout6.{json,md}: ten more (83-92), unseen until the
 #      lone-pin test was judged on them; merge_heldout7.{json,md}: ten more (113-122), unseen
 #      until the room-match rule (chosen on a wrong merge of seeds 103-112) was judged on
-#      them, with and without it; merge_aliased_heldout.{json,md}: 1,800 disjoint
+#      them, with and without it; merge_heldout8.{json,md}: ten more (123-132), unseen
+#      until the structure test was judged on them, with and without it;
+#      merge_aliased_heldout.{json,md}: 1,800 disjoint
 #      aliased pairs of seeds 83-142, with and without both; merge_slide.{json,md}: the slide test
 #      (off by default) on the cases of merge_seeds and seeds 0-9 and 12's aliased pairs;
 #      merge_seeded.{json,md}: the default beside the diagnostic `seeded` (the true pose handed
@@ -64,6 +66,7 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
   --semantic-variant polish_margin=0 --semantic-variant min_object_m2=0 \
   --semantic-variant repeat_rivals=0 --semantic-variant object_hull_free=0 \
   --semantic-variant lone_pin_test=false --semantic-variant room_match_m2=0 \
+  --semantic-variant structure_test=false \
   --out "$out/merge_ablation" --force
 mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
   --seeds 0-9,12 --out "$out/merge_seeds" --force
@@ -90,6 +93,8 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
   --semantic-variant object_hull_free=0,lone_pin_test=false --out "$out/merge_heldout6" --force
 mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
   --seeds 113-122 --semantic-variant room_match_m2=0 --out "$out/merge_heldout7" --force
+mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
+  --seeds 123-132 --semantic-variant structure_test=false --out "$out/merge_heldout8" --force
 mrexplore bench merge --methods semantic --n 30 --families aliased --seeds 83-142 \
   --semantic-variant object_hull_free=0 --semantic-variant lone_pin_test=false \
   --semantic-variant object_hull_free=0,lone_pin_test=false \

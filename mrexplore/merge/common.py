@@ -457,16 +457,18 @@ class Verifier:
         ``T_refuted`` lays on the other map's open free space and ``T_other`` does not: one
         object seen in one map that the other map's free space rules out under that pose."""
         T1, T2 = np.asarray(T_refuted, dtype=np.float64), np.asarray(T_other, dtype=np.float64)
-        rb, ob = (
-            self._on_free(self.points_b, T1, self.codes_a),
-            self._on_free(self.points_b, T2, self.codes_a),
+        # b's walls land in a (codes_a) through T, a's land in b through its inverse
+        only_b = self._on_free(self.points_b, T1, self.codes_a) & ~self._on_free(
+            self.points_b, T2, self.codes_a
         )
-        ra = self._on_free(self.points_a, rigid_inverse(T1), self.codes_b)
-        oa = self._on_free(self.points_a, rigid_inverse(T2), self.codes_b)
-        shape_b, shape_a = self.codes_b.shape, self.codes_a.shape
+        only_a = self._on_free(self.points_a, rigid_inverse(T1), self.codes_b) & ~self._on_free(
+            self.points_a, rigid_inverse(T2), self.codes_b
+        )
+        hb, wb = self.codes_b.shape
+        ha, wa = self.codes_a.shape
         most = max(
-            self._largest_group(self.points_b[rb & ~ob], (shape_b[0], shape_b[1])),
-            self._largest_group(self.points_a[ra & ~oa], (shape_a[0], shape_a[1])),
+            self._largest_group(self.points_b[only_b], (hb, wb)),
+            self._largest_group(self.points_a[only_a], (ha, wa)),
         )
         return round(most * self.cells_per_sample)
 

@@ -377,6 +377,20 @@ class Verifier:
         return ag.share >= min_share and ag.overlap * self.cells_per_sample >= min_cells
 
     @staticmethod
+    def _landing(
+        pts: NDArray[np.float64], T: Transform, codes: NDArray[np.uint8]
+    ) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
+        """Per point: the flat index (into ``codes``) of the cell it lands on under T (0 when
+        outside), and whether that cell is open free space (a disagreement; False outside)."""
+        px, py = map_points(pts, T)
+        c = np.rint(px).astype(np.int64)
+        r = np.rint(py).astype(np.int64)
+        h, w = codes.shape
+        inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
+        flat = np.where(inside, r * w + c, 0)
+        return flat, inside & (codes.ravel()[flat] == CODE_FREE)
+
+    @staticmethod
     def _contradictions(
         pts: NDArray[np.float64], T: Transform, codes: NDArray[np.uint8]
     ) -> NDArray[np.int64]:
@@ -384,13 +398,8 @@ class Verifier:
         free space (the disagreeing cells), each cell once."""
         if pts.shape[0] == 0:
             return np.zeros(0, dtype=np.int64)
-        px, py = map_points(pts, T)
-        c = np.rint(px).astype(np.int64)
-        r = np.rint(py).astype(np.int64)
-        h, w = codes.shape
-        inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
-        f = r[inside] * w + c[inside]
-        return np.unique(f[codes.ravel()[f] == CODE_FREE])
+        flat, on_free = Verifier._landing(pts, T, codes)
+        return np.unique(flat[on_free])
 
     @staticmethod
     def _in_runs(flat: NDArray[np.int64], shape: tuple[int, int], min_run: int) -> int:
@@ -425,20 +434,6 @@ class Verifier:
         return Agreement(ab + aa, min(db + da, runs), share)
 
     @staticmethod
-    def _on_free(
-        pts: NDArray[np.float64], T: Transform, codes: NDArray[np.uint8]
-    ) -> NDArray[np.bool_]:
-        """(N,) bool: does each point, mapped by T, land on open free space (disagree)?"""
-        px, py = map_points(pts, T)
-        c = np.rint(px).astype(np.int64)
-        r = np.rint(py).astype(np.int64)
-        h, w = codes.shape
-        inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
-        out = np.zeros(pts.shape[0], dtype=np.bool_)
-        out[inside] = codes[r[inside], c[inside]] == CODE_FREE
-        return out
-
-    @staticmethod
     def _largest_group(pts: NDArray[np.float64], shape: tuple[int, int]) -> int:
         """Points (col, row) in their own map's cells: the most of them in one 8-connected
         group, a one-cell gap bridged (a wall a grazing beam broke is still one wall)."""
@@ -452,25 +447,31 @@ class Verifier:
         )
         return int(np.bincount(labels[r, c], minlength=n)[1:].max())
 
-    def refuting_structure(self, T_refuted: Transform, T_other: Transform) -> int:
-        """Wall cells in the largest connected group (in the map they belong to) that
-        ``T_refuted`` lays on the other map's open free space and ``T_other`` does not: one
-        object seen in one map that the other map's free space rules out under that pose."""
-        T1, T2 = np.asarray(T_refuted, dtype=np.float64), np.asarray(T_other, dtype=np.float64)
-        # b's walls land in a (codes_a) through T, a's land in b through its inverse
-        only_b = self._on_free(self.points_b, T1, self.codes_a) & ~self._on_free(
-            self.points_b, T2, self.codes_a
-        )
-        only_a = self._on_free(self.points_a, rigid_inverse(T1), self.codes_b) & ~self._on_free(
-            self.points_a, rigid_inverse(T2), self.codes_b
-        )
+    def exclusive_groups(self, T1: Transform, T2: Transform) -> tuple[int, int]:
+        """Wall cells in the largest connected group (in the map they belong to) that ``T1``
+        lays on the other map's open free space and ``T2`` does not, and the same the other
+        way round: one object seen in one map that the other map's free space rules out under
+        one pose only."""
+        on = []  # per pose: (b's points, a's points) landing on open free space
+        for T in (np.asarray(T1, dtype=np.float64), np.asarray(T2, dtype=np.float64)):
+            on.append(
+                (
+                    self._landing(self.points_b, T, self.codes_a)[1],
+                    self._landing(self.points_a, rigid_inverse(T), self.codes_b)[1],
+                )
+            )
         hb, wb = self.codes_b.shape
         ha, wa = self.codes_a.shape
-        most = max(
-            self._largest_group(self.points_b[only_b], (hb, wb)),
-            self._largest_group(self.points_a[only_a], (ha, wa)),
-        )
-        return round(most * self.cells_per_sample)
+
+        def largest(only_b: NDArray[np.bool_], only_a: NDArray[np.bool_]) -> int:
+            most = max(
+                self._largest_group(self.points_b[only_b], (hb, wb)),
+                self._largest_group(self.points_a[only_a], (ha, wa)),
+            )
+            return round(most * self.cells_per_sample)
+
+        (b1, a1), (b2, a2) = on
+        return largest(b1 & ~b2, a1 & ~a2), largest(b2 & ~b1, a2 & ~a1)
 
     def __call__(self, T: Transform) -> Agreement:
         """Agreement counts of ``T`` (3x3, b cells -> a cells)."""

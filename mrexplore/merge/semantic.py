@@ -733,9 +733,8 @@ def rival_structure(
     out when this reaches ``o.min_evidence_cells``."""
     if not o.structure_test or margin <= 0.0:
         return 0
-    if verify.refuting_structure(T_best, T_rival) >= o.min_run_cells:
-        return 0
-    return verify.refuting_structure(T_rival, T_best)
+    against_best, against_rival = verify.exclusive_groups(T_best, T_rival)
+    return 0 if against_best >= o.min_run_cells else against_rival
 
 
 def merge_semantic(
@@ -1074,26 +1073,20 @@ def merge_semantic(
     # A rival beaten by less than the margin is still ruled out by one object the maps show
     # (a notch, a post: ``min_evidence`` wall cells in one group), while noise contradicts
     # in scattered cells (docs/merging.md, item 24).
-    structure = 0
     if runner is not None and (best.score - runner < min_margin or evidence < min_evidence):
         structure = rival_structure(verify, best.T, rivals[0].T, best.score - runner, o)
         info["rival_structure_cells"] = structure
-    if (
-        runner is not None
-        and structure < min_evidence
-        and (best.score - runner < min_margin or evidence < min_evidence)
-    ):
-        return refuse(
-            f"ambiguous: best {best.score:.3f} vs {runner:.3f} for a pose "
-            f"{_mean_shift(rivals[0].T, best.T, pts):.0f} cells away "
-            f"(margin {best.score - (runner or 0):.3f}, "
-            f"{evidence} more disagreeing wall cells"
-            + (f", the largest object ruling it out {structure}" if o.structure_test else "")
-            + f"; need {min_margin} and {min_evidence}"
-            + (f", or one object of {min_evidence})" if o.structure_test else ")"),
-            score=best.score,
-            **common,
-        )
+        if structure < min_evidence:
+            return refuse(
+                f"ambiguous: best {best.score:.3f} vs {runner:.3f} for a pose "
+                f"{_mean_shift(rivals[0].T, best.T, pts):.0f} cells away "
+                f"(margin {best.score - runner:.3f}, {evidence} more disagreeing wall cells"
+                + (f", the largest object ruling it out {structure}" if o.structure_test else "")
+                + f"; need {min_margin} and {min_evidence}"
+                + (f", or one object of {min_evidence})" if o.structure_test else ")"),
+                score=best.score,
+                **common,
+            )
     common_m2 = best.shared_cells * resolution_m**2
     info["common_known_m2"] = common_m2
     if common_m2 < min_common_m2:

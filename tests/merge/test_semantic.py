@@ -705,7 +705,7 @@ def test_a_room_sized_match_in_maps_of_several_rooms_is_refused() -> None:
     assert np.abs(off.transform - truth).max() < 1.0
 
 
-def test_refuting_structure_is_the_largest_connected_group_one_pose_alone_contradicts() -> None:
+def test_exclusive_groups_are_the_largest_connected_group_one_pose_alone_contradicts() -> None:
     """b holds one 12-cell wall and three 2-cell bits; laid on a's open floor (identity) they
     contradict it, laid outside a (unknown) nothing does: the largest group the identity alone
     lays on free space is the wall; without it, a bit; a pose against itself leaves nothing."""
@@ -721,11 +721,11 @@ def test_refuting_structure_is_the_largest_connected_group_one_pose_alone_contra
         b[r, c : c + 2] = OCCUPIED
     v = Verifier(a, b)
     identity, outside = np.eye(3), translation(200.0, 0.0)
-    assert v.refuting_structure(identity, outside) == 12
-    assert v.refuting_structure(outside, identity) == 0
-    assert v.refuting_structure(identity, identity) == 0
+    assert v.exclusive_groups(identity, outside) == (12, 0)
+    assert v.exclusive_groups(outside, identity) == (0, 12)
+    assert v.exclusive_groups(identity, identity) == (0, 0)
     b[30, 20:32] = FREE  # only the bits are left
-    assert Verifier(a, b).refuting_structure(identity, outside) == 2
+    assert Verifier(a, b).exclusive_groups(identity, outside) == (2, 0)
 
 
 def test_a_rival_ruled_out_by_one_object_does_not_make_the_best_ambiguous() -> None:

@@ -54,6 +54,10 @@ _END_NUDGE_CELLS: float = 1e-3
 #: compiled kernel bit for bit, which the tests use).
 NUMPY_TRAVERSE_DTYPE: type[np.floating] = np.float32
 
+#: Default log-odds increments of a free and an occupied observation (see :class:`OccupancyMap`).
+L_FREE_DEFAULT: float = -1.2
+L_OCC_DEFAULT: float = 1.4
+
 #: Headings whose beam directions each map keeps (see :meth:`OccupancyMap._directions`).
 _DIR_CACHE: int = 16
 
@@ -90,8 +94,8 @@ class OccupancyMap:
         shape: tuple[int, int],
         resolution_m: float,
         origin_cell: tuple[int, int],
-        l_free: float = -1.2,
-        l_occ: float = 1.4,
+        l_free: float = L_FREE_DEFAULT,
+        l_occ: float = L_OCC_DEFAULT,
         l_min: float = -5.0,
         l_max: float = 5.0,
     ) -> None:

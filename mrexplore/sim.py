@@ -23,6 +23,7 @@ All randomness comes from the Generator passed to :meth:`Simulation.reset` and
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,7 +31,7 @@ from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError
 from mrexplore.grid import Transform
-from mrexplore.mapping import OccupancyMap
+from mrexplore.mapping import L_FREE_DEFAULT, L_OCC_DEFAULT, OccupancyMap
 from mrexplore.robot import (
     Motion,
     RobotConfig,
@@ -50,6 +51,11 @@ CANVAS_MARGIN_CELLS: int = 16
 CANVAS_ALIGN_CELLS: int = 64
 
 
+def _is_real(v: object) -> bool:
+    """A finite real number, numpy's included (not a bool)."""
+    return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_)) and math.isfinite(v)
+
+
 @dataclass(frozen=True)
 class SimConfig:
     """Options of the simulation.
@@ -66,6 +72,8 @@ class SimConfig:
         odom_noise_rot_per_m: standard deviation of the heading error in radians per metre
             driven (>= 0): the small drift of a robot going straight.
         min_start_separation_m: robots start at least this far apart (>= 0).
+        map_l_free, map_l_occ: the own maps' log-odds increments of a free and an occupied
+            observation (:class:`~mrexplore.mapping.OccupancyMap`'s ``l_free``, ``l_occ``).
     """
 
     robot: RobotConfig = field(default_factory=RobotConfig)
@@ -75,6 +83,8 @@ class SimConfig:
     odom_noise_rot: float = 0.0
     odom_noise_rot_per_m: float = 0.0
     min_start_separation_m: float = 0.0
+    map_l_free: float = L_FREE_DEFAULT
+    map_l_occ: float = L_OCC_DEFAULT
 
     def __post_init__(self) -> None:
         if not isinstance(self.robot, RobotConfig):
@@ -94,6 +104,13 @@ class SimConfig:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0.0):
                 raise ConfigError(f"SimConfig.{name} must be a non-negative number, got {v!r}")
+        lf, lo = self.map_l_free, self.map_l_occ
+        if not (_is_real(lf) and _is_real(lo) and -5.0 <= lf < 0.0 < lo <= 5.0):
+            raise ConfigError(
+                "SimConfig.map_l_free and map_l_occ must be numbers with "
+                f"-5 <= map_l_free < 0 < map_l_occ <= 5 (the maps' log-odds clamp), got "
+                f"{lf!r} and {lo!r}"
+            )
 
     @property
     def odometry_noisy(self) -> bool:
@@ -239,7 +256,13 @@ class Simulation:
         # drift a placement erased from the estimate but not from the map (drift_allowance_at)
         self._placed_drift = np.zeros((self.n_robots, 2))
         self.maps = [
-            OccupancyMap(self.canvas_shape, self.resolution_m, self.canvas_origin)
+            OccupancyMap(
+                self.canvas_shape,
+                self.resolution_m,
+                self.canvas_origin,
+                l_free=self.config.map_l_free,
+                l_occ=self.config.map_l_occ,
+            )
             for _ in range(self.n_robots)
         ]
         seeds = self.motion.cell_index(poses[:, :2])

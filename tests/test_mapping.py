@@ -71,6 +71,18 @@ def test_logodds_are_clamped_and_int8_is_incremental() -> None:
     assert 25 < v < 65
 
 
+@pytest.mark.parametrize("l_occ, after", [(1.4, "undecided"), (2.6, "wall")])
+def test_a_wall_hit_once_then_passed_once(l_occ: float, after: str) -> None:
+    """A grazing beam passes through a wall cell another scan hit: the default increments leave
+    it undecided (+0.2), a hit worth more than two passes keeps it a wall (the env's
+    ``map_l_occ``)."""
+    m = OccupancyMap((11, 11), 0.1, (5, 5), l_occ=l_occ)
+    one_beam(m, 0.0, 0.15)  # the wall cell (5, 7)
+    one_beam(m, 0.0, 0.45, hit=False)  # a later beam passes through it
+    v = int(m.to_int8()[5, 7])
+    assert (v == OCCUPIED) if after == "wall" else (25 < v < 65)
+
+
 def test_pose_in_own_frame_and_cell_of() -> None:
     m = OccupancyMap((21, 21), 0.1, (10, 10))
     assert m.cell_of(0.2, -0.3) == pytest.approx((12.0, 7.0))

@@ -166,6 +166,9 @@ def test_starts_option_and_errors() -> None:
         Simulation(world, 1, small_config()).step(np.zeros(1, dtype=int), np.random.default_rng(0))
     with pytest.raises(ConfigError):
         SimConfig(odom_noise_trans=-0.1)
+    for bad in ({"map_l_free": 0.5}, {"map_l_occ": -1.0}, {"map_l_occ": 6.0}, {"map_l_free": True}):
+        with pytest.raises(ConfigError, match="map_l_free and map_l_occ"):
+            SimConfig(**bad)
     with pytest.raises(ConfigError):
         Simulation(world, 0)
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from mrexplore.errors import ConfigError
+from mrexplore.mapping import L_FREE_DEFAULT, L_OCC_DEFAULT
 from mrexplore.options import (
     MERGE_EVERY_CHECK,
     MERGE_EVERY_DEFAULT,
@@ -89,6 +90,10 @@ class EnvConfig(Options):
             deviations: translation as a fraction of the distance moved (at most 0.5); heading
             in radians per radian turned and per metre driven (each at most 1.0).
         min_start_separation_m: minimum distance between start positions.
+        map_l_free, map_l_occ: the robots' own maps: log-odds added to a cell when a beam
+            passes through it (free) and when a beam ends in it (occupied); one free
+            observation must reach the free threshold (25 %, -1.10), one occupied the occupied
+            threshold (65 %, +0.62). See :class:`~mrexplore.mapping.OccupancyMap`.
     Merging:
         merger: merge method name for :func:`mrexplore.merge.merge_maps` (``"semantic"``,
             ``"paper"``, ``"orb"``), an object with ``merge(a, b)``, or ``None`` (never merge).
@@ -175,6 +180,8 @@ class EnvConfig(Options):
     odom_noise_rot: float = option(0.0, ODOM_ROT_CHECK)
     odom_noise_rot_per_m: float = option(0.0, ODOM_ROT_PER_M_CHECK)
     min_start_separation_m: float = option(0.0, non_negative)
+    map_l_free: float = option(L_FREE_DEFAULT, number(-5.0, -1.1, hint=" (log-odds per free look)"))
+    map_l_occ: float = option(L_OCC_DEFAULT, number(0.62, 5.0, hint=" (log-odds per hit)"))
     merger: str | Merger | None = option("semantic", anything)  # checked by the tracker
     merge_every: int = option(MERGE_EVERY_DEFAULT, MERGE_EVERY_CHECK)
     recheck_every: int = option(RECHECK_EVERY_DEFAULT, RECHECK_EVERY_CHECK)

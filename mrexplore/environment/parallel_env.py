@@ -199,6 +199,8 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
             odom_noise_rot=cfg.odom_noise_rot,
             odom_noise_rot_per_m=cfg.odom_noise_rot_per_m,
             min_start_separation_m=cfg.min_start_separation_m,
+            map_l_free=cfg.map_l_free,
+            map_l_occ=cfg.map_l_occ,
         )
         self.window = HumanWindow(self.metadata["render_fps"]) if render_mode == "human" else None
         self._rng: np.random.Generator | None = None

@@ -64,6 +64,24 @@ VARIANTS: tuple[str, ...] = ("semantic", "oracle", "none", "single")
 ALL_VARIANTS: tuple[str, ...] = (*VARIANTS, "seeded", "sighting")
 #: ``sighting_range_m`` of the ``sighting`` variant: the lidar's default range (metres).
 SIGHTING_RANGE_M = 4.0
+#: Env options the study sets itself (its flags and its protocol): not for ``--env-options``.
+STUDY_SET_KEYS: tuple[str, ...] = (
+    "world",
+    "n_robots",
+    "merger",
+    "max_time_s",
+    "task",
+    "nav_goal",
+    "nav_warmup_s",
+    "sighting_range_m",
+    "merge_options",
+    "aligned_headings",
+    "range_noise_m",
+    "odom_noise_trans",
+    "odom_noise_rot",
+    "odom_noise_rot_per_m",
+    "target_coverage",
+)
 #: The variants that merge with the env's named semantic merger (``--merge-options`` apply).
 MERGER_VARIANTS: tuple[str, ...] = ("semantic", "sighting")
 POLICY = "coordinated-frontier"
@@ -210,12 +228,15 @@ def episode_options(
     task: str = "explore",
     nav_goal: str = "far",
     merge_options: Mapping[str, Any] | None = None,
+    env_options: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Env options of one episode of ``variant`` (the oracle's merger object not included);
     ``merge_options`` go to the variants that merge with the named semantic merger (its options
-    and the tracker's, as the env's ``merge_options``)."""
+    and the tracker's, as the env's ``merge_options``); ``env_options`` (:data:`STUDY_SET_KEYS`
+    excluded) go to every variant."""
     opts: dict[str, Any] = {
         **study_env_options(noise, task, nav_goal),
+        **(env_options or {}),
         "world": world,
         "max_time_s": float(max_time_s),
     }
@@ -237,12 +258,15 @@ def run_loop_episode(
     task: str = "explore",
     nav_goal: str = "far",
     merge_options: Mapping[str, Any] | None = None,
+    env_options: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """One episode of the study; a JSON-friendly record (simulated seconds, NaN -> None)."""
     from mrexplore.experiments.episode import run_episode
     from mrexplore.experiments.task_time import make_team
 
-    opts = episode_options(world, variant, max_time_s, noise, task, nav_goal, merge_options)
+    opts = episode_options(
+        world, variant, max_time_s, noise, task, nav_goal, merge_options, env_options
+    )
     oracle = None
     if variant in ("oracle", "seeded"):
         oracle = OracleMerger() if variant == "oracle" else SeededMerger()
@@ -268,7 +292,7 @@ def run_loop_episode(
 
 
 def _run_task(
-    task: tuple[str, str, int, float, bool, str, str, dict[str, Any] | None],
+    task: tuple[str, str, int, float, bool, str, str, dict[str, Any] | None, dict[str, Any] | None],
 ) -> dict[str, Any]:
     import cv2
 
@@ -286,6 +310,7 @@ def validate(
     task: str = "explore",
     nav_goal: str = "far",
     merge_options: Mapping[str, Any] | None = None,
+    env_options: Mapping[str, Any] | None = None,
 ) -> None:
     """Check every option before any work; a bad one is a :class:`ConfigError` naming it."""
     from mrexplore.world import load_world
@@ -327,6 +352,19 @@ def validate(
             FusionStage(["a", "b"], "semantic", merge_options=merge_options, resolution_m=0.05)
         except ConfigError as exc:
             raise ConfigError(f"loop study: --merge-options: {exc}") from exc
+    if env_options:
+        from mrexplore.environment.config import EnvConfig
+
+        taken = sorted(set(env_options) & set(STUDY_SET_KEYS))
+        if taken:
+            raise ConfigError(
+                f"loop study: --env-options: {taken} are set by the study itself "
+                f"(its own flags or its protocol: {list(STUDY_SET_KEYS)})"
+            )
+        try:  # every name and value, as the env would check them
+            EnvConfig.from_kwargs(**{**study_env_options(True, task, nav_goal), **env_options})
+        except ConfigError as exc:
+            raise ConfigError(f"loop study: --env-options: {exc}") from exc
     if task == "navigate" and max_time_s <= NAV_WARMUP_S:
         raise ConfigError(
             f"loop study: --max-time-s ({max_time_s}) must exceed the navigation warm-up "
@@ -346,20 +384,35 @@ def run_study(
     task: str = "explore",
     nav_goal: str = "far",
     merge_options: Mapping[str, Any] | None = None,
+    env_options: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Run every (world, variant, seed) episode of ``task``; returns the JSON document.
 
     ``merge_options``: options of the semantic merger and its tracker for the variants that
     use them (:data:`MERGER_VARIANTS`), e.g. ``{"min_common_m2": 10.0}``: a rule's ablation.
+    ``env_options``: env options for every variant beyond the study's own (not those of
+    :data:`STUDY_SET_KEYS`), e.g. ``{"map_l_occ": 2.6}``: the mapper's.
 
     With ``jobs > 1`` the episodes run in that many processes (spawned, so no state is shared);
     the records come back in the serial order, identical to a serial run.
     """
-    validate(worlds, seeds, first_seed, variants, max_time_s, jobs, task, nav_goal, merge_options)
+    validate(
+        worlds,
+        seeds,
+        first_seed,
+        variants,
+        max_time_s,
+        jobs,
+        task,
+        nav_goal,
+        merge_options,
+        env_options,
+    )
     mo = dict(merge_options) if merge_options else None
+    eo = dict(env_options) if env_options else None
     seed_list = list(range(first_seed, first_seed + seeds))
     tasks = [
-        (w, v, s, float(max_time_s), bool(noise), task, nav_goal, mo)
+        (w, v, s, float(max_time_s), bool(noise), task, nav_goal, mo, eo)
         for w in worlds
         for v in variants
         for s in seed_list
@@ -385,8 +438,10 @@ def run_study(
         "policy": POLICY,
         "env_options": {
             **study_env_options(noise, task, nav_goal),
+            **(eo or {}),
             "max_time_s": float(max_time_s),
         },
+        "extra_env_options": eo or {},
         "merge_options": mo or {},
         "worlds": list(worlds),
         "variants": list(variants),
@@ -544,6 +599,9 @@ def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
         f"headings, range noise {o['range_noise_m']} m, odometry noise {o['odom_noise_trans']} "
         f"/ {o['odom_noise_rot']} rad/rad / {o['odom_noise_rot_per_m']} rad/m; {what}"
     )
+    if doc.get("extra_env_options"):
+        opts = ",".join(f"{k}={v}" for k, v in doc["extra_env_options"].items())
+        head += f"; env options {opts} (every variant)"
     if doc.get("merge_options"):
         opts = ",".join(f"{k}={v}" for k, v in doc["merge_options"].items())
         head += f"; merger options {opts} (variants {', '.join(MERGER_VARIANTS)})"
@@ -658,6 +716,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"{list(MERGER_VARIANTS)}, e.g. min_common_m2=10,confirmations=3 (a rule's ablation)",
     )
     p.add_argument(
+        "--env-options",
+        default="",
+        metavar="K=V,K=V",
+        help="env options for every variant beyond the study's own, e.g. map_l_occ=2.6 "
+        "(the mapper's)",
+    )
+    p.add_argument(
         "--noise",
         choices=("on", "off"),
         default="on",
@@ -669,6 +734,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     outputs = [Path(f"{stem}.json"), Path(f"{stem}.md")]
     try:
         merge_options = parse_options(args.merge_options, flag="--merge-options")
+        env_options = parse_options(args.env_options, flag="--env-options")
         validate(
             args.worlds,
             args.seeds,
@@ -679,6 +745,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             args.task,
             args.nav_goal,
             merge_options,
+            env_options,
         )
         existing = [str(f) for f in outputs if f.exists()]
         if existing and not args.force:
@@ -694,6 +761,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             task=args.task,
             nav_goal=args.nav_goal,
             merge_options=merge_options,
+            env_options=env_options,
         )
     except ConfigError as exc:
         print(f"mrexplore bench loop: error: {exc}")

@@ -244,6 +244,8 @@ def test_navigation_warmup_hides_the_goal_then_restarts_robot0() -> None:
         ({"odom_noise_rot": 5.0}, r"odom_noise_rot must be in \[0, 1\].*got 5.0"),
         ({"odom_noise_rot_per_m": 2.0}, r"odom_noise_rot_per_m must be in \[0, 1\].*got 2.0"),
         ({"range_noise_m": 10.0}, "range_noise_m=10.0 must be below max_range_m"),
+        ({"map_l_free": -0.5}, r"map_l_free must be in \[-5, -1.1\].*got -0.5"),
+        ({"map_l_occ": 0.5}, r"map_l_occ must be in \[0.62, 5\].*got 0.5"),
     ],
 )
 def test_bad_option_values_name_the_option(options: dict, words: str) -> None:
@@ -259,6 +261,7 @@ def test_numpy_scalars_are_accepted_as_numbers_and_bools() -> None:
             "obs_size_px": np.int32(40),
             "max_range_m": np.float32(3.0),
             "aligned_headings": np.bool_(False),
+            "map_l_occ": np.float32(2.5),
         }
     )
     assert type(penv.config.n_robots) is int and penv.config.aligned_headings is False

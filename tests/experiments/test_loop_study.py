@@ -114,6 +114,9 @@ def test_seeded_merger_judges_the_truth_by_the_semantic_rules() -> None:
         ["--merge-options", "min_comon_m2=10"],
         ["--merge-options", "min_common_m2=-1"],
         ["--merge-options", "confirmations"],
+        ["--env-options", "map_l_oc=2.6"],
+        ["--env-options", "map_l_occ=9"],
+        ["--env-options", "range_noise_m=0"],
     ],
 )
 def test_bad_options_fail_before_any_work(
@@ -123,6 +126,27 @@ def test_bad_options_fail_before_any_work(
     assert main([*argv, "--out", str(out)]) == 2
     assert "error" in capsys.readouterr().out
     assert not list(tmp_path.iterdir())
+
+
+def test_env_options_reach_every_variant(tmp_path: Path) -> None:
+    """``--env-options`` go to every variant's env (here the mapper's hit weight, which the
+    episode's maps then carry); recorded in the JSON and printed."""
+    from mrexplore.experiments.loop_study import episode_options
+
+    for v in ("semantic", "oracle", "none", "single"):
+        assert episode_options("depot", v, 60.0, env_options={"map_l_occ": 2.6})["map_l_occ"] == 2.6
+    env = mrexplore.parallel_env(
+        **episode_options("depot", "none", 60.0, env_options={"map_l_occ": 2.6})
+    )
+    env.reset(seed=0)
+    assert env.sim is not None and env.sim.maps[0].l_occ == 2.6
+    out = tmp_path / "study"
+    argv = ["--worlds", "small_office", "--seeds", "1", "--variants", "none"]
+    argv += ["--max-time-s", "2", "--env-options", "map_l_occ=2.6", "--out", str(out)]
+    assert main(argv) == 0
+    doc = json.loads(Path(f"{out}.json").read_text())
+    assert doc["extra_env_options"] == {"map_l_occ": 2.6} and doc["env_options"]["map_l_occ"] == 2.6
+    assert "env options map_l_occ=2.6" in Path(f"{out}.md").read_text()
 
 
 def test_merge_options_reach_the_semantic_variants_only(tmp_path: Path) -> None:

@@ -582,6 +582,83 @@ def _against_semantic_text(variant: str, d: Mapping[str, Any], where: str = "") 
     )
 
 
+def load_against(path: str | Path) -> dict[str, Any]:
+    """A loop study's JSON to compare a run with (``--against``); a :class:`ConfigError` naming
+    the problem when it cannot be read or is not one."""
+    f = Path(path)
+    try:
+        doc = json.loads(f.read_text())
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"loop study: --against {str(f)!r} cannot be read: {exc}") from exc
+    if not (isinstance(doc, dict) and isinstance(doc.get("episodes"), list)):
+        raise ConfigError(f"loop study: --against {str(f)!r} is not a loop study's JSON")
+    return doc
+
+
+def against(doc: Mapping[str, Any], other: Mapping[str, Any], label: str) -> dict[str, Any]:
+    """This run against another study's episodes of the same (world, variant, seed): per world
+    and variant, and per variant over all worlds, the paired task-time difference (this minus
+    that: mean, 95 % CI, s), in how many episodes the first merge came earlier / later (never
+    merging counts as latest) and how many reached the target in each. ``label`` names the
+    other run (its file)."""
+    from mrexplore.experiments.evaluate import paired
+
+    theirs = {(e["world"], e["variant"], e["seed"]): e for e in other["episodes"]}
+
+    def first(e: Mapping[str, Any]) -> float:
+        return float(e["first_merge_time_s"]) if e["merged"] else math.inf
+
+    def compare(pairs: Sequence[tuple[Mapping[str, Any], Mapping[str, Any]]]) -> dict[str, Any]:
+        return {
+            "episodes": len(pairs),
+            "task_time_s": paired(
+                [float(a["task_time_s"]) for a, _ in pairs],
+                [float(b["task_time_s"]) for _, b in pairs],
+            ),
+            "first_merge_earlier": sum(first(a) < first(b) for a, b in pairs),
+            "first_merge_later": sum(first(a) > first(b) for a, b in pairs),
+            "reached": [
+                sum(bool(a["reached"]) for a, _ in pairs),
+                sum(bool(b["reached"]) for _, b in pairs),
+            ],
+        }
+
+    per: dict[str, dict[str, Any]] = {}
+    pooled: dict[str, Any] = {}
+    for v in doc["variants"]:
+        all_pairs = []
+        for w in doc["worlds"]:
+            pairs = [
+                (e, theirs[(w, v, e["seed"])])
+                for e in doc["episodes"]
+                if e["world"] == w and e["variant"] == v and (w, v, e["seed"]) in theirs
+            ]
+            if pairs:
+                per.setdefault(w, {})[v] = compare(pairs)
+                all_pairs += pairs
+        if all_pairs:
+            pooled[v] = compare(all_pairs)
+    return {
+        "file": label,
+        "env_options": dict(other.get("env_options", {})),
+        "per_world": per,
+        "all_worlds": pooled,
+    }
+
+
+def _against_text(a: Mapping[str, Any]) -> list[str]:
+    lines = [f"Against {a['file']} (the same seeds; this run minus that one, paired):"]
+    rows = [(w, v, d) for w, by in a["per_world"].items() for v, d in by.items()]
+    rows += [("all worlds", v, d) for v, d in a["all_worlds"].items()]
+    for w, v, d in rows:
+        lines.append(
+            f"  {w}, {v}: task time {_paired_text(d['task_time_s'])} over {d['episodes']} "
+            f"episodes; first merge earlier in {d['first_merge_earlier']}, later in "
+            f"{d['first_merge_later']}; reached {d['reached'][0]} vs {d['reached'][1]}"
+        )
+    return lines
+
+
 def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
     """One table per world (text as printed, or markdown)."""
     n = len(doc["seeds"])
@@ -658,6 +735,10 @@ def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
             if d is not None:
                 lines += ["", _against_semantic_text(v, d)]
         lines.append("")
+    if doc.get("against"):
+        text = _against_text(doc["against"])
+        lines += [text[0], "", *(f"- {x.strip()}" for x in text[1:])] if markdown else text
+        lines.append("")
     ran = doc.get("variants", ())
     for v in SEMANTIC_OPTION_VARIANTS:
         if v in ran and "semantic" in ran:
@@ -723,6 +804,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         "(the mapper's)",
     )
     p.add_argument(
+        "--against",
+        default=None,
+        metavar="JSON",
+        help="another study's JSON (e.g. docs/results/loop_study.json): also print this run "
+        "minus that one on the same seeds, per world and variant (paired task time, first "
+        "merges), and record it",
+    )
+    p.add_argument(
         "--noise",
         choices=("on", "off"),
         default="on",
@@ -735,6 +824,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         merge_options = parse_options(args.merge_options, flag="--merge-options")
         env_options = parse_options(args.env_options, flag="--env-options")
+        other = None if args.against is None else load_against(args.against)
         validate(
             args.worlds,
             args.seeds,
@@ -763,6 +853,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             merge_options=merge_options,
             env_options=env_options,
         )
+        if other is not None:
+            doc["against"] = against(doc, other, str(args.against))
     except ConfigError as exc:
         print(f"mrexplore bench loop: error: {exc}")
         return 2

@@ -328,3 +328,25 @@ def test_two_look_alike_aisles_are_not_merged(seed: int) -> None:
     search stopped finding the rival, at 37 s). Neither may merge wrongly now."""
     rec = run_loop_episode("depot", "semantic", seed, 45.0, noise=False)
     assert not rec["wrong_merge"] and rec["merged_wrongly_s"] == 0.0
+
+
+def test_against_prints_and_records_the_paired_difference(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--against`` compares a run with another study's episodes of the same seeds: the same
+    options give a difference of 0 in every episode; a file that is not a study is refused
+    before any work, and nothing is written."""
+    argv = ["--worlds", "small_office", "--seeds", "2", "--variants", "none", "--max-time-s", "3"]
+    first, second = tmp_path / "first", tmp_path / "second"
+    assert main([*argv, "--out", str(first)]) == 0
+    assert main([*argv, "--out", str(second), "--against", f"{first}.json"]) == 0
+    doc = json.loads(Path(f"{second}.json").read_text())
+    d = doc["against"]["all_worlds"]["none"]
+    assert d["episodes"] == 2 and d["task_time_s"]["mean"] == 0.0 and d["reached"] == [0, 0]
+    assert "small_office, none: task time +0.0 s" in Path(f"{second}.md").read_text()
+    (tmp_path / "junk.json").write_text('{"rows": []}')
+    capsys.readouterr()
+    third = tmp_path / "third"
+    assert main([*argv, "--out", str(third), "--against", str(tmp_path / "junk.json")]) == 2
+    assert "is not a loop study's JSON" in capsys.readouterr().out
+    assert not Path(f"{third}.json").exists()

@@ -25,7 +25,7 @@ import argparse
 import json
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -34,6 +34,7 @@ import numpy as np
 
 from mrexplore.errors import ConfigError, MrexploreError
 from mrexplore.experiments.merge_cases import (
+    LIDAR_NOISE,
     MergeCase,
     aliased_cases,
     large_cases,
@@ -190,8 +191,12 @@ def evaluate(
 FAMILIES: tuple[str, ...] = ("symmetric", "real", "noisy", "lidar", "large", "aliased")
 
 
-def make_cases(family: str, n: int, seed: int) -> list[MergeCase]:
-    """``n`` cases of ``family`` (one of :data:`FAMILIES`), seeded."""
+def make_cases(
+    family: str, n: int, seed: int, lidar_options: Mapping[str, Any] | None = None
+) -> list[MergeCase]:
+    """``n`` cases of ``family`` (one of :data:`FAMILIES`), seeded; ``lidar_options``: env
+    options of the ``lidar`` family's episodes beyond its noise (e.g. the mapper's
+    ``map_l_occ``)."""
     if family == "symmetric":
         return symmetric_cases(n, seed)
     if family == "real":
@@ -199,7 +204,7 @@ def make_cases(family: str, n: int, seed: int) -> list[MergeCase]:
     if family == "noisy":
         return noisy_real_cases(n, seed)
     if family == "lidar":
-        return lidar_cases(n, seed)
+        return lidar_cases(n, seed, noise={**LIDAR_NOISE, **(lidar_options or {})})
     if family == "large":
         return large_cases(n, seed)
     if family == "aliased":
@@ -215,6 +220,7 @@ def run_bench(
     families: Sequence[str] = ("symmetric", "real"),
     configs: Sequence[tuple[str, str | None, dict[str, Any]]] | None = None,
     seeds: Sequence[int] | None = None,
+    lidar_options: Mapping[str, Any] | None = None,
 ) -> list[dict[str, Any]]:
     """Rows ``{family, method, detector, n, correct, wrong, imprecise, refused,
     correct_overlap30, median_ms, cases}`` for every configuration and family.
@@ -222,7 +228,8 @@ def run_bench(
     ``methods``/``detectors`` filter :data:`DEFAULT_CONFIGS` (None = all), and a method of
     :data:`DIAGNOSTIC_CONFIGS` named in ``methods`` is added; ``configs`` replaces them all.
     ``n_cases`` cases per family, seeded by ``seed``; or, with ``seeds``, ``n_cases`` per family
-    and seed, pooled (case names then end in `` (seed S)``).
+    and seed, pooled (case names then end in `` (seed S)``). ``lidar_options``: see
+    :func:`make_cases`; recorded in the lidar rows (``lidar_options``).
     """
     if n_cases < 1:
         raise ConfigError(f"run_bench: n_cases must be >= 1, got {n_cases}")
@@ -255,16 +262,18 @@ def run_bench(
     rows: list[dict[str, Any]] = []
     for fam in families:
         if seeds is None:
-            cases = make_cases(fam, n_cases, seed)
+            cases = make_cases(fam, n_cases, seed, lidar_options)
         else:
             cases = [
                 replace(c, name=f"{c.name} (seed {s})")
                 for s in seeds
-                for c in make_cases(fam, n_cases, s)
+                for c in make_cases(fam, n_cases, s, lidar_options)
             ]
         for m, d, o in cfgs:
             row = evaluate(cases, m, d, **o)
             row["family"] = fam
+            if fam == "lidar" and lidar_options:
+                row["lidar_options"] = dict(lidar_options)
             rows.append(row)
     return rows
 
@@ -339,7 +348,9 @@ def to_markdown(rows: Sequence[dict[str, Any]]) -> str:
     for fam in dict.fromkeys(r["family"] for r in rows):
         sel = [r for r in rows if r["family"] == fam]
         n = sel[0]["n"] if sel else 0
-        out.append(f"### {fam} ({n} cases)\n")
+        lo = sel[0].get("lidar_options") if sel else None
+        with_ = "; maps made with " + ",".join(f"{k}={v}" for k, v in lo.items()) if lo else ""
+        out.append(f"### {fam} ({n} cases{with_})\n")
         out.append("| " + " | ".join(HEADERS) + " |")
         out.append("|" + "---|" * len(HEADERS))
         for r in sel:
@@ -520,6 +531,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         metavar="K=V,K=V",
         help="also run the semantic merger with these options (repeatable; an ablation row)",
     )
+    p.add_argument(
+        "--lidar-options",
+        default="",
+        metavar="K=V,K=V",
+        help="env options of the lidar family's episodes beyond its noise, e.g. map_l_occ=2.6 "
+        "(the mapper's): its maps, as the merger then sees them",
+    )
     args = p.parse_args(list(argv) if argv is not None else None)
     import cv2
 
@@ -554,6 +572,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.n == 0 and not (args.sizes or args.tracker):
             raise ConfigError("--n 0 runs only --sizes or --tracker: give one of them")
         seeds = None if args.seeds is None else parse_seeds(args.seeds)
+        lidar_options = parse_options(args.lidar_options, flag="--lidar-options")
+        if lidar_options:
+            from mrexplore.environment.config import EnvConfig
+
+            if "lidar" not in args.families.split(","):
+                raise ConfigError("--lidar-options: the lidar family is not among --families")
+            try:  # every name and value, as the episodes' env would check them
+                EnvConfig.from_kwargs(**{**LIDAR_NOISE, **lidar_options})
+            except ConfigError as exc:
+                raise ConfigError(f"--lidar-options: {exc}") from exc
         rows = (
             run_bench(
                 args.n,
@@ -563,6 +591,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 families=args.families.split(","),
                 configs=configs,
                 seeds=seeds,
+                lidar_options=lidar_options,
             )
             if args.n != 0
             else []

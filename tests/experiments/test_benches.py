@@ -20,6 +20,11 @@ from mrexplore.cli import main
         (["merge", "--n", "0"], "--n 0 runs only --sizes or --tracker"),
         (["merge", "--seeds", "0-x"], "--seeds: '0-x' is not a seed or a range"),
         (["merge", "--seeds", "5-2"], "--seeds: '5-2' must be seeds >= 0"),
+        (
+            ["merge", "--families", "lidar", "--lidar-options", "map_l_occ=9"],
+            "--lidar-options: option map_l_occ must be in [0.62, 5]",
+        ),
+        (["merge", "--lidar-options", "map_l_occ=2.6"], "the lidar family is not among"),
         (["env", "--steps", "0"], "--steps must be at least 1"),
         (["env", "--seed", "-1"], "--seed must be an integer >= 0"),
         (["env", "--merge-latency-steps", "x"], "--merge-latency-steps must be integers >= 0"),
@@ -45,6 +50,19 @@ def test_bench_outputs_are_not_overwritten(tmp_path: Path, capsys) -> None:  # t
     assert main(["bench", "env", "--steps", "1", "--json", str(tmp_path / "e.json")]) == 2
     assert "already exists" in capsys.readouterr().err
     assert (tmp_path / "r.md").read_text() == (tmp_path / "e.json").read_text() == "earlier"
+
+
+def test_lidar_options_make_the_lidar_maps_and_are_recorded() -> None:
+    """``--lidar-options`` reach the env of the lidar family's episodes (here the mapper's hit
+    weight changes the maps) and are recorded in the row and its table's heading."""
+    from mrexplore.experiments.merge_bench import make_cases, run_bench, to_markdown
+
+    base = make_cases("lidar", 1, 0)[0]
+    strong = make_cases("lidar", 1, 0, {"map_l_occ": 3.6})[0]
+    assert base.name == strong.name and not np.array_equal(base.a, strong.a)
+    rows = run_bench(1, methods=["semantic"], families=["lidar"], lidar_options={"map_l_occ": 3.6})
+    assert rows[0]["lidar_options"] == {"map_l_occ": 3.6}
+    assert "### lidar (1 cases; maps made with map_l_occ=3.6)" in to_markdown(rows)
 
 
 def test_merge_sizes_prints_time_and_outcomes_per_size(capsys) -> None:  # type: ignore[no-untyped-def]

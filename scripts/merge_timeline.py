@@ -51,10 +51,16 @@ def corner_error(T1: Transform, T2: Transform, box: tuple[int, int, int, int]) -
 
 
 def run_one(
-    world: str, seed: int, max_time_s: float, merge_options: dict[str, Any]
+    world: str,
+    seed: int,
+    max_time_s: float,
+    merge_options: dict[str, Any],
+    env_options: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """One episode; its attempts with the truth beside them (simulated seconds)."""
-    opts = episode_options(world, "semantic", max_time_s, merge_options=merge_options)
+    opts = episode_options(
+        world, "semantic", max_time_s, merge_options=merge_options, env_options=env_options
+    )
     opts["merge_latency_steps"] = 0
     attempts: list[dict[str, Any]] = []
     holder: dict[str, Any] = {}
@@ -151,12 +157,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--first-seed", type=int, default=3000)
     ap.add_argument("--max-time-s", type=float, default=600.0)
     ap.add_argument("--merge-options", default="", metavar="K=V,K=V")
+    ap.add_argument(
+        "--env-options", default="", metavar="K=V,K=V", help="as mrexplore bench loop's"
+    )
     ap.add_argument("--truth-cells", type=float, default=15.0, help="best pose = truth within")
     ap.add_argument("--json", default=None, help="write every attempt here")
     ap.add_argument("--force", action="store_true", help="overwrite an existing --json")
     args = ap.parse_args(argv)
     try:
         mo = parse_options(args.merge_options, flag="--merge-options")
+        eo = parse_options(args.env_options, flag="--env-options")
         validate(
             args.worlds,
             args.seeds,
@@ -165,6 +175,7 @@ def main(argv: list[str] | None = None) -> int:
             args.max_time_s,
             1,
             merge_options=mo,
+            env_options=eo,
         )
         if not args.truth_cells > 0:
             raise ConfigError(f"--truth-cells must be positive, got {args.truth_cells}")
@@ -176,7 +187,7 @@ def main(argv: list[str] | None = None) -> int:
     episodes = []
     for world in args.worlds:
         for seed in range(args.first_seed, args.first_seed + args.seeds):
-            ep = run_one(world, seed, args.max_time_s, mo)
+            ep = run_one(world, seed, args.max_time_s, mo, eo)
             print(
                 f"{world} {seed}: first merge {ep['first_merge_time_s']}, "
                 f"{len(ep['attempts'])} attempts",
@@ -185,7 +196,9 @@ def main(argv: list[str] | None = None) -> int:
             episodes.append(ep)
     print("\n".join(summarize(episodes, args.max_time_s, args.truth_cells)))
     if args.json:
-        Path(args.json).write_text(json.dumps({"merge_options": mo, "episodes": episodes}))
+        Path(args.json).write_text(
+            json.dumps({"merge_options": mo, "env_options": eo, "episodes": episodes})
+        )
         print(f"wrote {args.json}")
     return 0
 

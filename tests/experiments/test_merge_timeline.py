@@ -22,6 +22,7 @@ def _script() -> ModuleType:
         ["--worlds", "no_such_world"],
         ["--seeds", "0"],
         ["--merge-options", "min_comon_m2=10"],
+        ["--env-options", "map_l_occ=0"],
         ["--truth-cells", "0"],
     ],
 )

@@ -26,7 +26,9 @@
 #      merge_seeded.{json,md}: the default beside the diagnostic `seeded` (the true pose handed
 #      in as one more hypothesis) on the 1,320 cases of merge_seeds: search misses vs refusals;
 #      merge_guided.{json,md}: the default beside `guided` (a rough guess of the pose, a
-#      PosePrior, as a user who knows roughly where the maps overlap would give it)
+#      PosePrior, as a user who knows roughly where the maps overlap would give it);
+#      merge_lidar_mapper.{json,md}: the lidar family's pairs made with walls that grazing beams
+#      do not erase (map_l_occ=3.6, docs/mapper.md)
 #   2. loop_study.{json,md}: merging in the exploration loop against an oracle merger;
 #      loop_exact.{json,md}: the same with exact odometry (a merge error is then a wrong place);
 #      loop_nav.{json,md}: the navigation task (exact odometry) against the oracle;
@@ -38,7 +40,8 @@
 #      loop_rules_on.{json,md}: the study's seeds with those two rules on (--merge-options);
 #      loop_sighting{,_heldout}.{json,md}: the semantic merger with sightings on (robots that
 #      see each other measure their relative pose: a rendezvous) beside it and the oracle, on
-#      seeds 1000-1019 and 2000-2019
+#      seeds 1000-1019 and 2000-2019; loop_mapper{,_heldout}.{json,md}: the study (and its
+#      held-out seeds) with map_l_occ=3.6, paired against loop_study and loop_heldout
 #   3. task_time.{json,csv,png}: single- vs multi-robot task time (the paper's 105 s -> 65 s and
 #      125 s -> 85 s); nav_teammate/: navigation to a place near robot_1's start (the paper's
 #      protocol: a robot goes where its teammate mapped)
@@ -105,6 +108,8 @@ mrexplore bench merge --methods semantic,seeded --n 30 --families symmetric,real
   --seeds 0-9,12 --out "$out/merge_seeded" --force
 mrexplore bench merge --methods semantic,guided --n 30 \
   --families symmetric,real,noisy,lidar,aliased --seeds 0-9,12 --out "$out/merge_guided" --force
+mrexplore bench merge --methods semantic --n 30 --families lidar --seeds 0-9,12 \
+  --lidar-options map_l_occ=3.6 --out "$out/merge_lidar_mapper" --force
 mrexplore bench loop --seeds 20 --jobs 2 --out "$out/loop_study" --force
 mrexplore bench loop --noise off --variants semantic oracle --seeds 20 --jobs 2 \
   --out "$out/loop_exact" --force
@@ -122,6 +127,10 @@ mrexplore bench loop --variants semantic sighting oracle --seeds 20 --jobs 2 \
   --out "$out/loop_sighting" --force
 mrexplore bench loop --variants semantic sighting oracle --seeds 20 --first-seed 2000 --jobs 2 \
   --out "$out/loop_sighting_heldout" --force
+mrexplore bench loop --seeds 20 --jobs 2 --env-options map_l_occ=3.6 \
+  --against "$out/loop_study.json" --out "$out/loop_mapper" --force
+mrexplore bench loop --variants semantic oracle --seeds 20 --first-seed 2000 --jobs 2 \
+  --env-options map_l_occ=3.6 --against "$out/loop_heldout.json" --out "$out/loop_mapper_heldout" --force
 mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --out "$out" --force
 mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --tasks navigate \
   --nav-goal teammate --out "$out/nav_teammate" --force

@@ -28,7 +28,9 @@
 #      merge_guided.{json,md}: the default beside `guided` (a rough guess of the pose, a
 #      PosePrior, as a user who knows roughly where the maps overlap would give it);
 #      merge_lidar_mapper.{json,md}: the lidar family's pairs made with walls that grazing beams
-#      do not erase (map_l_occ=3.6, docs/mapper.md)
+#      do not erase (map_l_occ=3.6, docs/mapper.md); merge_heldout9.{json,md} and
+#      merge_lidar_mapper_heldout.{json,md}: seeds 133-142, unseen until the candidate guard for
+#      those maps (room_match_m2 20, chosen on seeds 0-9 and 12) was judged on them
 #   2. loop_study.{json,md}: merging in the exploration loop against an oracle merger;
 #      loop_exact.{json,md}: the same with exact odometry (a merge error is then a wrong place);
 #      loop_nav.{json,md}: the navigation task (exact odometry) against the oracle;
@@ -110,6 +112,11 @@ mrexplore bench merge --methods semantic,guided --n 30 \
   --families symmetric,real,noisy,lidar,aliased --seeds 0-9,12 --out "$out/merge_guided" --force
 mrexplore bench merge --methods semantic --n 30 --families lidar --seeds 0-9,12 \
   --lidar-options map_l_occ=3.6 --out "$out/merge_lidar_mapper" --force
+mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
+  --seeds 133-142 --semantic-variant room_match_m2=20 --out "$out/merge_heldout9" --force
+mrexplore bench merge --methods semantic --n 30 --families lidar --seeds 133-142 \
+  --lidar-options map_l_occ=3.6 --semantic-variant room_match_m2=20 \
+  --out "$out/merge_lidar_mapper_heldout" --force
 mrexplore bench loop --seeds 20 --jobs 2 --out "$out/loop_study" --force
 mrexplore bench loop --noise off --variants semantic oracle --seeds 20 --jobs 2 \
   --out "$out/loop_exact" --force

@@ -837,6 +837,19 @@ def main(argv: Sequence[str] | None = None) -> int:
             merge_options,
             env_options,
         )
+        if other is not None:
+            planned = {
+                (w, v, s)
+                for w in args.worlds
+                for v in args.variants
+                for s in range(args.first_seed, args.first_seed + args.seeds)
+            }
+            theirs = {(e.get("world"), e.get("variant"), e.get("seed")) for e in other["episodes"]}
+            if not planned & theirs:
+                raise ConfigError(
+                    f"loop study: --against {args.against!r} holds no episode of this run's "
+                    "worlds, variants and seeds: nothing to pair"
+                )
         existing = [str(f) for f in outputs if f.exists()]
         if existing and not args.force:
             raise ConfigError(f"loop study: {existing} exist; pass --force to overwrite")

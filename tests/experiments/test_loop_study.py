@@ -334,8 +334,8 @@ def test_against_prints_and_records_the_paired_difference(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """``--against`` compares a run with another study's episodes of the same seeds: the same
-    options give a difference of 0 in every episode; a file that is not a study is refused
-    before any work, and nothing is written."""
+    options give a difference of 0 in every episode; a file that is not a study, or one with
+    none of the run's episodes, is refused before any work, and nothing is written."""
     argv = ["--worlds", "small_office", "--seeds", "2", "--variants", "none", "--max-time-s", "3"]
     first, second = tmp_path / "first", tmp_path / "second"
     assert main([*argv, "--out", str(first)]) == 0
@@ -349,4 +349,8 @@ def test_against_prints_and_records_the_paired_difference(
     third = tmp_path / "third"
     assert main([*argv, "--out", str(third), "--against", str(tmp_path / "junk.json")]) == 2
     assert "is not a loop study's JSON" in capsys.readouterr().out
+    assert not Path(f"{third}.json").exists()
+    other_seeds = [*argv, "--first-seed", "7"]  # seeds the first run does not hold
+    assert main([*other_seeds, "--out", str(third), "--against", f"{first}.json"]) == 2
+    assert "holds no episode of this run's" in capsys.readouterr().out
     assert not Path(f"{third}.json").exists()

@@ -44,7 +44,8 @@ Check = Callable[[Any], Any]
 _O = TypeVar("_O", bound="Options")
 
 
-def _is_number(v: Any) -> bool:
+def is_number(v: Any) -> bool:
+    """A finite int or float (not a bool)."""
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
@@ -54,13 +55,13 @@ def _is_int(v: Any) -> bool:
 
 def positive(v: Any) -> None:
     """A finite number > 0."""
-    if not (_is_number(v) and v > 0):
+    if not (is_number(v) and v > 0):
         raise ValueError("a positive number")
 
 
 def non_negative(v: Any) -> None:
     """A finite number >= 0."""
-    if not (_is_number(v) and v >= 0):
+    if not (is_number(v) and v >= 0):
         raise ValueError("a non-negative number")
 
 
@@ -79,7 +80,7 @@ def number(lo: float, hi: float, low_open: bool = False, hint: str = "") -> Chec
     number means, its unit) is added to the message."""
 
     def check(v: Any) -> None:
-        ok = _is_number(v) and (v > lo if low_open else v >= lo) and v <= hi
+        ok = is_number(v) and (v > lo if low_open else v >= lo) and v <= hi
         if not ok:
             raise ValueError(f"in {'(' if low_open else '['}{lo:g}, {hi:g}]{hint}")
 

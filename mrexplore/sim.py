@@ -23,7 +23,6 @@ All randomness comes from the Generator passed to :meth:`Simulation.reset` and
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -32,6 +31,7 @@ from numpy.typing import NDArray
 from mrexplore.errors import ConfigError
 from mrexplore.grid import Transform
 from mrexplore.mapping import L_FREE_DEFAULT, L_OCC_DEFAULT, OccupancyMap
+from mrexplore.options import is_number
 from mrexplore.robot import (
     Motion,
     RobotConfig,
@@ -49,11 +49,6 @@ from mrexplore.world.world import World
 CANVAS_MARGIN_CELLS: int = 16
 #: The start cell (and half the canvas side) is rounded up to a multiple of this.
 CANVAS_ALIGN_CELLS: int = 64
-
-
-def _is_real(v: object) -> bool:
-    """A finite real number, numpy's included (not a bool)."""
-    return isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_)) and math.isfinite(v)
 
 
 @dataclass(frozen=True)
@@ -105,7 +100,7 @@ class SimConfig:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0.0):
                 raise ConfigError(f"SimConfig.{name} must be a non-negative number, got {v!r}")
         lf, lo = self.map_l_free, self.map_l_occ
-        if not (_is_real(lf) and _is_real(lo) and -5.0 <= lf < 0.0 < lo <= 5.0):
+        if not (is_number(lf) and is_number(lo) and -5.0 <= lf < 0.0 < lo <= 5.0):
             raise ConfigError(
                 "SimConfig.map_l_free and map_l_occ must be numbers with "
                 f"-5 <= map_l_free < 0 < map_l_occ <= 5 (the maps' log-odds clamp), got "

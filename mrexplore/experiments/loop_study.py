@@ -536,15 +536,13 @@ def summarize(
 SEMANTIC_OPTION_VARIANTS: tuple[str, ...] = ("seeded", "sighting")
 
 
-def _against_semantic(episodes: Sequence[Mapping[str, Any]], variant: str) -> dict[str, Any]:
-    """``variant`` against ``semantic`` on the (world, seed) episodes both ran: the paired
-    task-time difference (mean, 95 % CI, s) and in how many episodes the first merge came
-    earlier / later (never merging counts as latest)."""
+def _compare_pairs(
+    pairs: Sequence[tuple[Mapping[str, Any], Mapping[str, Any]]],
+) -> dict[str, Any]:
+    """Episodes ``(a, b)`` of the same world and seed: the paired task-time difference a - b
+    (mean, 95 % CI, s), in how many pairs a's first merge came earlier / later than b's (never
+    merging counts as latest), and how many of each reached the target."""
     from mrexplore.experiments.evaluate import paired
-
-    runs = {(e["world"], e["variant"], e["seed"]): e for e in episodes}
-    keys = sorted((w, s) for (w, v, s) in runs if v == variant and (w, "semantic", s) in runs)
-    pairs = [(runs[(w, variant, s)], runs[(w, "semantic", s)]) for w, s in keys]
 
     def first(e: Mapping[str, Any]) -> float:
         return float(e["first_merge_time_s"]) if e["merged"] else math.inf
@@ -556,7 +554,19 @@ def _against_semantic(episodes: Sequence[Mapping[str, Any]], variant: str) -> di
         "first_merge_earlier": sum(first(a) < first(b) for a, b in pairs),
         "first_merge_later": sum(first(a) > first(b) for a, b in pairs),
         "episodes": len(pairs),
+        "reached": [
+            sum(bool(a["reached"]) for a, _ in pairs),
+            sum(bool(b["reached"]) for _, b in pairs),
+        ],
     }
+
+
+def _against_semantic(episodes: Sequence[Mapping[str, Any]], variant: str) -> dict[str, Any]:
+    """``variant`` against ``semantic`` on the (world, seed) episodes both ran
+    (:func:`_compare_pairs`)."""
+    runs = {(e["world"], e["variant"], e["seed"]): e for e in episodes}
+    keys = sorted((w, s) for (w, v, s) in runs if v == variant and (w, "semantic", s) in runs)
+    return _compare_pairs([(runs[(w, variant, s)], runs[(w, "semantic", s)]) for w, s in keys])
 
 
 def _paired_text(p: Mapping[str, Any] | None) -> str:
@@ -598,31 +608,8 @@ def load_against(path: str | Path) -> dict[str, Any]:
 def against(doc: Mapping[str, Any], other: Mapping[str, Any], label: str) -> dict[str, Any]:
     """This run against another study's episodes of the same (world, variant, seed): per world
     and variant, and per variant over all worlds, the paired task-time difference (this minus
-    that: mean, 95 % CI, s), in how many episodes the first merge came earlier / later (never
-    merging counts as latest) and how many reached the target in each. ``label`` names the
-    other run (its file)."""
-    from mrexplore.experiments.evaluate import paired
-
+    that: :func:`_compare_pairs`). ``label`` names the other run (its file)."""
     theirs = {(e["world"], e["variant"], e["seed"]): e for e in other["episodes"]}
-
-    def first(e: Mapping[str, Any]) -> float:
-        return float(e["first_merge_time_s"]) if e["merged"] else math.inf
-
-    def compare(pairs: Sequence[tuple[Mapping[str, Any], Mapping[str, Any]]]) -> dict[str, Any]:
-        return {
-            "episodes": len(pairs),
-            "task_time_s": paired(
-                [float(a["task_time_s"]) for a, _ in pairs],
-                [float(b["task_time_s"]) for _, b in pairs],
-            ),
-            "first_merge_earlier": sum(first(a) < first(b) for a, b in pairs),
-            "first_merge_later": sum(first(a) > first(b) for a, b in pairs),
-            "reached": [
-                sum(bool(a["reached"]) for a, _ in pairs),
-                sum(bool(b["reached"]) for _, b in pairs),
-            ],
-        }
-
     per: dict[str, dict[str, Any]] = {}
     pooled: dict[str, Any] = {}
     for v in doc["variants"]:
@@ -634,10 +621,10 @@ def against(doc: Mapping[str, Any], other: Mapping[str, Any], label: str) -> dic
                 if e["world"] == w and e["variant"] == v and (w, v, e["seed"]) in theirs
             ]
             if pairs:
-                per.setdefault(w, {})[v] = compare(pairs)
+                per.setdefault(w, {})[v] = _compare_pairs(pairs)
                 all_pairs += pairs
         if all_pairs:
-            pooled[v] = compare(all_pairs)
+            pooled[v] = _compare_pairs(all_pairs)
     return {
         "file": label,
         "env_options": dict(other.get("env_options", {})),

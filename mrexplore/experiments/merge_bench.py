@@ -204,7 +204,7 @@ def make_cases(
     if family == "noisy":
         return noisy_real_cases(n, seed)
     if family == "lidar":
-        return lidar_cases(n, seed, noise={**LIDAR_NOISE, **(lidar_options or {})})
+        return lidar_cases(n, seed, env_options={**LIDAR_NOISE, **(lidar_options or {})})
     if family == "large":
         return large_cases(n, seed)
     if family == "aliased":

@@ -603,15 +603,15 @@ def lidar_cases(
     seed: int,
     worlds: Sequence[str] = ("symmetric_office", "twin_wings", "tb3_office", "depot"),
     times_s: Sequence[float] = (60.0, 100.0, 140.0, 180.0, 220.0, 260.0),
-    noise: Mapping[str, float] | None = None,
+    env_options: Mapping[str, Any] | None = None,
 ) -> list[MergeCase]:
     """``n`` pairs of the two robots' own maps, as the merger sees them in the loop.
 
     Two robots with random start headings explore a world (coordinated frontiers, no merging,
-    ``noise`` on: :data:`LIDAR_NOISE` by default); at each of ``times_s`` (simulated s) the two
-    maps, cropped to their known boxes, become a case with the true transform from the
-    simulator. Worlds are cycled, one episode each, seeded from ``seed``; snapshots whose maps
-    share no known cell under the truth are skipped.
+    env options ``env_options``: :data:`LIDAR_NOISE` by default); at each of ``times_s``
+    (simulated s) the two maps, cropped to their known boxes, become a case with the true
+    transform from the simulator. Worlds are cycled, one episode each, seeded from ``seed``;
+    snapshots whose maps share no known cell under the truth are skipped.
 
     With odometry noise each map is bent by its robot's drift, so even a perfect merge sits off
     the start-frame truth: ``meta["drift_cells"]`` holds how far drift alone can move it (both
@@ -624,7 +624,7 @@ def lidar_cases(
 
     if n < 0:
         raise ConfigError(f"lidar_cases: n must be >= 0, got {n}")
-    kw: dict[str, Any] = dict(LIDAR_NOISE if noise is None else noise)
+    kw: dict[str, Any] = dict(LIDAR_NOISE if env_options is None else env_options)
     out: list[MergeCase] = []
     episode = 0
     while len(out) < n:

@@ -385,6 +385,7 @@ def run_study(
     nav_goal: str = "far",
     merge_options: Mapping[str, Any] | None = None,
     env_options: Mapping[str, Any] | None = None,
+    reuse: Mapping[str, Mapping[str, Any]] | None = None,
 ) -> dict[str, Any]:
     """Run every (world, variant, seed) episode of ``task``; returns the JSON document.
 
@@ -392,6 +393,12 @@ def run_study(
     use them (:data:`MERGER_VARIANTS`), e.g. ``{"min_common_m2": 10.0}``: a rule's ablation.
     ``env_options``: env options for every variant beyond the study's own (not those of
     :data:`STUDY_SET_KEYS`), e.g. ``{"map_l_occ": 2.6}``: the mapper's.
+
+    ``reuse``: other studies' documents by file name; an episode one of them holds is taken
+    from it instead of run again (an episode depends only on its world, variant, seed and the
+    study's settings, which must be the same: :func:`reusable`). The code must be the same too,
+    which the documents cannot show: reuse a study made by the same version, as
+    ``scripts/reproduce_paper.sh`` does. The document records how many came from each file.
 
     With ``jobs > 1`` the episodes run in that many processes (spawned, so no state is shared);
     the records come back in the serial order, identical to a serial run.
@@ -410,6 +417,7 @@ def run_study(
     )
     mo = dict(merge_options) if merge_options else None
     eo = dict(env_options) if env_options else None
+    settings = study_settings(noise, task, nav_goal, max_time_s, mo, eo)
     seed_list = list(range(first_seed, first_seed + seeds))
     tasks = [
         (w, v, s, float(max_time_s), bool(noise), task, nav_goal, mo, eo)
@@ -418,31 +426,39 @@ def run_study(
         for s in seed_list
     ]
     records: list[dict[str, Any] | None] = [None] * len(tasks)
+    taken = reusable(settings, reuse or {})
+    reused = {name: 0 for name in reuse or {}}
+    for k, t in enumerate(tasks):
+        if t[:3] in taken:
+            name, records[k] = taken[t[:3]]
+            reused[name] += 1
+    idle = [name for name, n in reused.items() if n == 0]
+    if idle:  # a file given to be reused that cannot be is a mistake
+        raise ConfigError(
+            f"loop study: --reuse {idle[0]!r} holds no episode of this run's worlds, variants "
+            "and seeds (or an earlier --reuse file holds them all)"
+        )
+    todo = [k for k, r in enumerate(records) if r is None]
     from tqdm import tqdm
 
-    bar = tqdm(total=len(tasks), desc="loop episodes", disable=not progress, unit="ep")
+    bar = tqdm(total=len(todo), desc="loop episodes", disable=not progress, unit="ep")
     if jobs == 1:
-        for k, t in enumerate(tasks):
-            records[k] = run_loop_episode(*t)
+        for k in todo:
+            records[k] = run_loop_episode(*tasks[k])
             bar.update(1)
     else:
         ctx = multiprocessing.get_context("spawn")
         with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
-            futures = {pool.submit(_run_task, t): k for k, t in enumerate(tasks)}
+            futures = {pool.submit(_run_task, tasks[k]): k for k in todo}
             for fut in as_completed(futures):
                 records[futures[fut]] = fut.result()
                 bar.update(1)
     bar.close()
     episodes = [r for r in records if r is not None]
     return {
-        "policy": POLICY,
-        "env_options": {
-            **study_env_options(noise, task, nav_goal),
-            **(eo or {}),
-            "max_time_s": float(max_time_s),
-        },
+        **settings,
         "extra_env_options": eo or {},
-        "merge_options": mo or {},
+        **({"reused": reused} if reused else {}),
         "worlds": list(worlds),
         "variants": list(variants),
         "seeds": seed_list,
@@ -450,6 +466,54 @@ def run_study(
         "episodes": episodes,
         "summary": summarize(episodes, worlds, variants),
     }
+
+
+def study_settings(
+    noise: bool,
+    task: str,
+    nav_goal: str,
+    max_time_s: float,
+    merge_options: Mapping[str, Any] | None,
+    env_options: Mapping[str, Any] | None,
+) -> dict[str, Any]:
+    """What, beside world, variant and seed, decides an episode: the policy, every env option
+    and the merger's options, as the study's document records them."""
+    return {
+        "policy": POLICY,
+        "env_options": {
+            **study_env_options(noise, task, nav_goal),
+            **(env_options or {}),
+            "max_time_s": float(max_time_s),
+        },
+        "merge_options": dict(merge_options or {}),
+    }
+
+
+def reusable(
+    settings: Mapping[str, Any], docs: Mapping[str, Mapping[str, Any]]
+) -> dict[tuple[str, str, int], tuple[str, dict[str, Any]]]:
+    """The episodes of ``docs`` (studies by file name) that a run with ``settings`` may take:
+    (world, variant, seed) -> (file name, record); the first file that holds one wins.
+
+    A study made with other settings is a :class:`ConfigError` naming the difference.
+    """
+    taken: dict[tuple[str, str, int], tuple[str, dict[str, Any]]] = {}
+    for name, doc in docs.items():
+        differ = [
+            f"{part} {k}: {doc.get(part, {}).get(k)!r} there, {settings[part].get(k)!r} here"
+            for part in ("env_options", "merge_options")
+            for k in sorted(set(settings[part]) | set(doc.get(part, {})))
+            if doc.get(part, {}).get(k) != settings[part].get(k)
+        ]
+        if doc.get("policy") != settings["policy"]:
+            differ.insert(0, f"policy {doc.get('policy')!r} there, {settings['policy']!r} here")
+        if differ:
+            raise ConfigError(
+                f"loop study: --reuse {name!r} was made with other settings: {'; '.join(differ)}"
+            )
+        for e in doc["episodes"]:
+            taken.setdefault((e["world"], e["variant"], e["seed"]), (name, e))
+    return taken
 
 
 def _median(xs: Sequence[float]) -> float | None:
@@ -592,16 +656,16 @@ def _against_semantic_text(variant: str, d: Mapping[str, Any], where: str = "") 
     )
 
 
-def load_against(path: str | Path) -> dict[str, Any]:
-    """A loop study's JSON to compare a run with (``--against``); a :class:`ConfigError` naming
-    the problem when it cannot be read or is not one."""
+def load_study(path: str | Path, flag: str = "--against") -> dict[str, Any]:
+    """A loop study's JSON given with ``flag`` (``--against``, ``--reuse``); a
+    :class:`ConfigError` naming the problem when it cannot be read or is not one."""
     f = Path(path)
     try:
         doc = json.loads(f.read_text())
     except (OSError, ValueError) as exc:
-        raise ConfigError(f"loop study: --against {str(f)!r} cannot be read: {exc}") from exc
+        raise ConfigError(f"loop study: {flag} {str(f)!r} cannot be read: {exc}") from exc
     if not (isinstance(doc, dict) and isinstance(doc.get("episodes"), list)):
-        raise ConfigError(f"loop study: --against {str(f)!r} is not a loop study's JSON")
+        raise ConfigError(f"loop study: {flag} {str(f)!r} is not a loop study's JSON")
     return doc
 
 
@@ -669,6 +733,9 @@ def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
     if doc.get("merge_options"):
         opts = ",".join(f"{k}={v}" for k, v in doc["merge_options"].items())
         head += f"; merger options {opts} (variants {', '.join(MERGER_VARIANTS)})"
+    if any(doc.get("reused", {}).values()):
+        took = ", ".join(f"{n} from {f}" for f, n in doc["reused"].items() if n)
+        head += f"; episodes taken from studies of the same settings: {took}"
     cols = (
         "variant",
         "merged",
@@ -799,6 +866,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         "merges), and record it",
     )
     p.add_argument(
+        "--reuse",
+        nargs="+",
+        default=[],
+        metavar="JSON",
+        help="studies made with the same settings and code (e.g. the same run's "
+        "docs/results/loop_study.json): their episodes of this run's worlds, variants and seeds "
+        "are taken instead of run again (a study with other settings is refused)",
+    )
+    p.add_argument(
         "--noise",
         choices=("on", "off"),
         default="on",
@@ -811,7 +887,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         merge_options = parse_options(args.merge_options, flag="--merge-options")
         env_options = parse_options(args.env_options, flag="--env-options")
-        other = None if args.against is None else load_against(args.against)
+        other = None if args.against is None else load_study(args.against)
+        reuse = {f: load_study(f, "--reuse") for f in args.reuse}
         validate(
             args.worlds,
             args.seeds,
@@ -852,6 +929,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             nav_goal=args.nav_goal,
             merge_options=merge_options,
             env_options=env_options,
+            reuse=reuse,
         )
         if other is not None:
             doc["against"] = against(doc, other, str(args.against))

@@ -354,3 +354,33 @@ def test_against_prints_and_records_the_paired_difference(
     assert main([*other_seeds, "--out", str(third), "--against", f"{first}.json"]) == 2
     assert "holds no episode of this run's" in capsys.readouterr().out
     assert not Path(f"{third}.json").exists()
+
+
+def test_reuse_takes_the_episodes_a_study_of_the_same_settings_holds(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--reuse`` takes a study's episodes instead of running them again: the document equals
+    a fresh run's but for the count it records; a study made with other settings, or one that
+    holds none of the run's episodes, is refused before any work, naming why."""
+    base = ["--worlds", "small_office", "--seeds", "2", "--max-time-s", "3"]
+    first, fresh, second = tmp_path / "first", tmp_path / "fresh", tmp_path / "second"
+    assert main([*base, "--variants", "none", "--out", str(first)]) == 0
+    both = [*base, "--variants", "none", "single"]
+    assert main([*both, "--out", str(fresh)]) == 0
+    assert main([*both, "--out", str(second), "--reuse", f"{first}.json"]) == 0
+    doc = json.loads(Path(f"{second}.json").read_text())
+    assert doc.pop("reused") == {f"{first}.json": 2}
+    assert doc == json.loads(Path(f"{fresh}.json").read_text())
+    assert f"episodes taken from studies of the same settings: 2 from {first}.json" in (
+        Path(f"{second}.md").read_text()
+    )
+    capsys.readouterr()
+    third = tmp_path / "third"
+    argv = [*both, "--out", str(third), "--env-options", "map_l_occ=2.6"]
+    assert main([*argv, "--reuse", f"{first}.json"]) == 2
+    assert "was made with other settings: env_options map_l_occ: None there, 2.6 here" in (
+        capsys.readouterr().out
+    )
+    assert main([*both, "--first-seed", "7", "--out", str(third), "--reuse", f"{first}.json"]) == 2
+    assert "holds no episode of this run's" in capsys.readouterr().out
+    assert not Path(f"{third}.json").exists()

@@ -15,9 +15,9 @@ worlds.
 Why a separate script: choosing the best of several checkpoints on the seeds that are then
 reported flatters the winner. ``mrexplore evaluate`` reports on seeds from
 ``EVAL_SEED_BASE`` (1,000,000) up, so the screening seeds must lie at ``EVAL_SEED_BASE + 100``
-or above (refused otherwise). Used for issue 16's continued training (README, "Longer training
-from the shipped policy"): there the screening's best checkpoint lost its lead on the 50
-reported seeds, which is what this separation is for.
+or above (refused otherwise). Used for issue 16's continued training (docs/goal_policy.md,
+"Longer training from the shipped policy"): there the screening's best checkpoint lost its lead
+on the 50 reported seeds, which is what this separation is for.
 """
 
 from __future__ import annotations

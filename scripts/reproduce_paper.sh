@@ -61,8 +61,13 @@ if [[ "${1:-}" != "--force" ]]; then
   exit 2
 fi
 out=docs/results
-mrexplore bench merge --n 30 --families symmetric,real,noisy,lidar --out "$out/merge_table" --force
-mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
+# The merge steps share their cases (seeds 0-9 and 12 appear in five files; making the lidar and
+# symmetric cases is most of their time): saved once per run, removed at the end.
+cache="$(mktemp -d)"
+trap 'rm -rf "$cache"' EXIT
+bench_merge() { mrexplore bench merge --case-cache "$cache" "$@"; }
+bench_merge --n 30 --families symmetric,real,noisy,lidar --out "$out/merge_table" --force
+bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
   --semantic-variant slack_cells=0,min_run_cells=1 \
   --semantic-variant max_rotation_peaks=3,peaks_per_rotation=6,n_polish=12,n_refine=5 \
   --semantic-variant paper_candidates=true \
@@ -73,48 +78,48 @@ mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,
   --semantic-variant lone_pin_test=false --semantic-variant room_match_m2=0 \
   --semantic-variant structure_test=false \
   --out "$out/merge_ablation" --force
-mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
+bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
   --seeds 0-9,12 --out "$out/merge_seeds" --force
-mrexplore bench merge --methods semantic,orb --n 30 --families large --seeds 0-9 \
+bench_merge --methods semantic,orb --n 30 --families large --seeds 0-9 \
   --semantic-variant hough_max_cells=0 --out "$out/merge_large" --force
-mrexplore bench merge --methods semantic,orb --n 30 --families aliased --seeds 0-9 \
+bench_merge --methods semantic,orb --n 30 --families aliased --seeds 0-9 \
   --semantic-variant min_wall_area_m2=0 --semantic-variant min_wall_area_m2=10 \
   --out "$out/merge_aliased" --force
-mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
+bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
   --seeds 13-22 --semantic-variant min_wall_area_m2=0 --semantic-variant polish_margin=0 \
   --out "$out/merge_heldout" --force
-mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
+bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
   --seeds 23-32 --semantic-variant polish_margin=0 --out "$out/merge_heldout2" --force
-mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
+bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
   --seeds 33-42 --semantic-variant slide_test=true --out "$out/merge_heldout3" --force
-mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
+bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
   --seeds 53-62 --semantic-variant repeat_rivals=0,min_object_m2=0 \
   --out "$out/merge_heldout4" --force
-mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
+bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
   --seeds 73-82 --semantic-variant object_hull_free=0 --semantic-variant lone_pin_test=false \
   --semantic-variant object_hull_free=0,lone_pin_test=false --out "$out/merge_heldout5" --force
-mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
+bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
   --seeds 83-92 --semantic-variant lone_pin_test=false \
   --semantic-variant object_hull_free=0,lone_pin_test=false --out "$out/merge_heldout6" --force
-mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
+bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
   --seeds 113-122 --semantic-variant room_match_m2=0 --out "$out/merge_heldout7" --force
-mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
+bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
   --seeds 123-132 --semantic-variant structure_test=false --out "$out/merge_heldout8" --force
-mrexplore bench merge --methods semantic --n 30 --families aliased --seeds 83-142 \
+bench_merge --methods semantic --n 30 --families aliased --seeds 83-142 \
   --semantic-variant object_hull_free=0 --semantic-variant lone_pin_test=false \
   --semantic-variant object_hull_free=0,lone_pin_test=false \
   --out "$out/merge_aliased_heldout" --force
-mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
+bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
   --seeds 0-9,12 --semantic-variant slide_test=true --out "$out/merge_slide" --force
-mrexplore bench merge --methods semantic,seeded --n 30 --families symmetric,real,noisy,lidar \
+bench_merge --methods semantic,seeded --n 30 --families symmetric,real,noisy,lidar \
   --seeds 0-9,12 --out "$out/merge_seeded" --force
-mrexplore bench merge --methods semantic,guided --n 30 \
+bench_merge --methods semantic,guided --n 30 \
   --families symmetric,real,noisy,lidar,aliased --seeds 0-9,12 --out "$out/merge_guided" --force
-mrexplore bench merge --methods semantic --n 30 --families lidar --seeds 0-9,12 \
+bench_merge --methods semantic --n 30 --families lidar --seeds 0-9,12 \
   --lidar-options map_l_occ=3.6 --out "$out/merge_lidar_mapper" --force
-mrexplore bench merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
+bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
   --seeds 133-142 --semantic-variant room_match_m2=20 --out "$out/merge_heldout9" --force
-mrexplore bench merge --methods semantic --n 30 --families lidar --seeds 133-142 \
+bench_merge --methods semantic --n 30 --families lidar --seeds 133-142 \
   --lidar-options map_l_occ=3.6 --semantic-variant room_match_m2=20 \
   --out "$out/merge_lidar_mapper_heldout" --force
 mrexplore bench loop --seeds 20 --jobs 2 --out "$out/loop_study" --force

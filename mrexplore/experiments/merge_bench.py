@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from mrexplore.errors import ConfigError, MrexploreError
+from mrexplore.experiments.case_cache import cached_cases, check_cache_dir
 from mrexplore.experiments.merge_cases import (
     LIDAR_NOISE,
     MergeCase,
@@ -192,11 +193,23 @@ FAMILIES: tuple[str, ...] = ("symmetric", "real", "noisy", "lidar", "large", "al
 
 
 def make_cases(
-    family: str, n: int, seed: int, lidar_options: Mapping[str, Any] | None = None
+    family: str,
+    n: int,
+    seed: int,
+    lidar_options: Mapping[str, Any] | None = None,
+    cache_dir: Path | None = None,
 ) -> list[MergeCase]:
     """``n`` cases of ``family`` (one of :data:`FAMILIES`), seeded; ``lidar_options``: env
     options of the ``lidar`` family's episodes beyond its noise (e.g. the mapper's
-    ``map_l_occ``)."""
+    ``map_l_occ``). With ``cache_dir``, read from or saved to that cache
+    (:mod:`mrexplore.experiments.case_cache`: the same cases, made once per code)."""
+    if family not in FAMILIES:
+        raise ConfigError(f"unknown case family {family!r}; choose from {FAMILIES}")
+    if cache_dir is not None:
+        options = lidar_options if family == "lidar" else None
+        return cached_cases(
+            cache_dir, family, n, seed, options, lambda: make_cases(family, n, seed, options)
+        )
     if family == "symmetric":
         return symmetric_cases(n, seed)
     if family == "real":
@@ -207,9 +220,7 @@ def make_cases(
         return lidar_cases(n, seed, env_options={**LIDAR_NOISE, **(lidar_options or {})})
     if family == "large":
         return large_cases(n, seed)
-    if family == "aliased":
-        return aliased_cases(n, seed)
-    raise ConfigError(f"unknown case family {family!r}; choose from {FAMILIES}")
+    return aliased_cases(n, seed)
 
 
 def run_bench(
@@ -221,6 +232,7 @@ def run_bench(
     configs: Sequence[tuple[str, str | None, dict[str, Any]]] | None = None,
     seeds: Sequence[int] | None = None,
     lidar_options: Mapping[str, Any] | None = None,
+    case_cache: Path | None = None,
 ) -> list[dict[str, Any]]:
     """Rows ``{family, method, detector, n, correct, wrong, imprecise, refused,
     correct_overlap30, median_ms, cases}`` for every configuration and family.
@@ -229,7 +241,9 @@ def run_bench(
     :data:`DIAGNOSTIC_CONFIGS` named in ``methods`` is added; ``configs`` replaces them all.
     ``n_cases`` cases per family, seeded by ``seed``; or, with ``seeds``, ``n_cases`` per family
     and seed, pooled (case names then end in `` (seed S)``). ``lidar_options``: see
-    :func:`make_cases`; recorded in the lidar rows (``lidar_options``).
+    :func:`make_cases`; recorded in the lidar rows (``lidar_options``). ``case_cache``: a
+    directory where the cases are saved and read back (:func:`make_cases`); the rows are the
+    same with it or without.
     """
     if n_cases < 1:
         raise ConfigError(f"run_bench: n_cases must be >= 1, got {n_cases}")
@@ -262,12 +276,12 @@ def run_bench(
     rows: list[dict[str, Any]] = []
     for fam in families:
         if seeds is None:
-            cases = make_cases(fam, n_cases, seed, lidar_options)
+            cases = make_cases(fam, n_cases, seed, lidar_options, case_cache)
         else:
             cases = [
                 replace(c, name=f"{c.name} (seed {s})")
                 for s in seeds
-                for c in make_cases(fam, n_cases, s, lidar_options)
+                for c in make_cases(fam, n_cases, s, lidar_options, case_cache)
             ]
         for m, d, o in cfgs:
             row = evaluate(cases, m, d, **o)
@@ -538,6 +552,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="env options of the lidar family's episodes beyond its noise, e.g. map_l_occ=2.6 "
         "(the mapper's): its maps, as the merger then sees them",
     )
+    p.add_argument(
+        "--case-cache",
+        default=None,
+        metavar="DIR",
+        help="save the cases here and read them back in later runs of the same code (making "
+        "the lidar and symmetric cases is most of a run's time); made if missing",
+    )
     args = p.parse_args(list(argv) if argv is not None else None)
     import cv2
 
@@ -572,6 +593,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.n == 0 and not (args.sizes or args.tracker):
             raise ConfigError("--n 0 runs only --sizes or --tracker: give one of them")
         seeds = None if args.seeds is None else parse_seeds(args.seeds)
+        case_cache = None if args.case_cache is None else check_cache_dir(args.case_cache)
         lidar_options = parse_options(args.lidar_options, flag="--lidar-options")
         if lidar_options:
             from mrexplore.environment.config import EnvConfig
@@ -592,6 +614,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 configs=configs,
                 seeds=seeds,
                 lidar_options=lidar_options,
+                case_cache=case_cache,
             )
             if args.n != 0
             else []

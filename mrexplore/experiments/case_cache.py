@@ -6,10 +6,11 @@ against ~2.5 s to merge either (2026-11-27, one core). ``scripts/reproduce_paper
 the cases of seeds 0-9 and 12 in five files; with ``mrexplore bench merge --case-cache DIR`` the
 first run saves them and the others read them back.
 
-A case depends only on its family, count, seed and options, and on the code that made it: the
-key holds all of them, the code as a digest of every source file of the package and the
-versions of the libraries that shape a map (numpy, OpenCV, numba). Change a line anywhere in
-``mrexplore`` and the cache misses. Entries are written whole or not at all (a temporary file
+A case depends only on its family, count, seed and options, and on what made it: the key holds
+all of them, the rest as a digest of every source file of the package, of the shipped worlds
+(``envs/``) and the real maps the crops come from, and of the versions of the libraries that
+shape a map (numpy, OpenCV, numba). Change a line of ``mrexplore`` or a pixel of a map and the
+cache misses. Entries are written whole or not at all (a temporary file
 renamed into place), so a run stopped midway leaves no half-written case behind.
 """
 
@@ -34,14 +35,26 @@ KEYED_DISTRIBUTIONS: tuple[str, ...] = ("numpy", "opencv-python-headless", "numb
 _PACKAGE = Path(__file__).resolve().parents[1]
 
 
+def _inputs() -> list[tuple[str, Path]]:
+    """(label, root) of every tree of files a case is made from: the package's sources, the
+    shipped worlds (``envs/``) and the real maps the crops come from."""
+    from mrexplore.experiments.merge_cases import SHARED_MAPS
+    from mrexplore.world.registry import _envs_dir
+
+    return [("code", _PACKAGE), ("envs", _envs_dir()), ("maps", SHARED_MAPS)]
+
+
 @lru_cache(maxsize=1)
 def code_digest() -> str:
-    """SHA-256 (hex) of every ``.py`` file of the package, by relative path, and of the versions
-    of :data:`KEYED_DISTRIBUTIONS`: what must be equal for a saved case to be reused."""
+    """SHA-256 (hex) of every ``.py`` file of the package, every file of the shipped worlds and
+    of the real maps (by relative path), and of the versions of :data:`KEYED_DISTRIBUTIONS`:
+    what must be equal for a saved case to be reused."""
     h = hashlib.sha256()
-    for f in sorted(_PACKAGE.rglob("*.py")):
-        h.update(str(f.relative_to(_PACKAGE)).encode())
-        h.update(f.read_bytes())
+    for label, root in _inputs():
+        files = root.rglob("*.py") if label == "code" else root.rglob("*")
+        for f in sorted(f for f in files if f.is_file() and "__pycache__" not in f.parts):
+            h.update(f"{label}/{f.relative_to(root)}".encode())
+            h.update(f.read_bytes())
     for dist in KEYED_DISTRIBUTIONS:
         try:
             version = metadata.version(dist)

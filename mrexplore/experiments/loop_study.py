@@ -395,10 +395,10 @@ def run_study(
     :data:`STUDY_SET_KEYS`), e.g. ``{"map_l_occ": 2.6}``: the mapper's.
 
     ``reuse``: other studies' documents by file name; an episode one of them holds is taken
-    from it instead of run again (an episode depends only on its world, variant, seed and the
-    study's settings, which must be the same: :func:`reusable`). The code must be the same too,
-    which the documents cannot show: reuse a study made by the same version, as
-    ``scripts/reproduce_paper.sh`` does. The document records how many came from each file.
+    from it instead of run again. An episode depends only on its world, variant, seed, the
+    study's settings and the code, worlds and maps, which must all be the same (each document
+    records a digest of the last: :func:`reusable`). The document records how many episodes
+    came from each file.
 
     With ``jobs > 1`` the episodes run in that many processes (spawned, so no state is shared);
     the records come back in the serial order, identical to a serial run.
@@ -476,9 +476,13 @@ def study_settings(
     merge_options: Mapping[str, Any] | None,
     env_options: Mapping[str, Any] | None,
 ) -> dict[str, Any]:
-    """What, beside world, variant and seed, decides an episode: the policy, every env option
-    and the merger's options, as the study's document records them."""
+    """What, beside world, variant and seed, decides an episode: the code, worlds and maps
+    (:func:`~mrexplore.experiments.provenance.source_digest`), the policy, every env option and
+    the merger's options, as the study's document records them."""
+    from mrexplore.experiments.provenance import source_digest
+
     return {
+        "source_digest": source_digest(),
         "policy": POLICY,
         "env_options": {
             **study_env_options(noise, task, nav_goal),
@@ -489,21 +493,37 @@ def study_settings(
     }
 
 
+def _differences(part: str, there: Any, here: Mapping[str, Any]) -> list[str]:
+    """``part``'s options that differ between a saved study (``there``) and this run, compared
+    as JSON (so ``true`` is not ``1``)."""
+    if not isinstance(there, Mapping):
+        return [f"{part} is not a mapping there"]
+    return [
+        f"{part} {k}: {there.get(k)!r} there, {here.get(k)!r} here"
+        for k in sorted(set(here) | set(there))
+        if json.dumps(there.get(k)) != json.dumps(here.get(k))
+    ]
+
+
 def reusable(
     settings: Mapping[str, Any], docs: Mapping[str, Mapping[str, Any]]
 ) -> dict[tuple[str, str, int], tuple[str, dict[str, Any]]]:
     """The episodes of ``docs`` (studies by file name) that a run with ``settings`` may take:
     (world, variant, seed) -> (file name, record); the first file that holds one wins.
 
-    A study made with other settings is a :class:`ConfigError` naming the difference.
+    A study made by other code, worlds or maps (its ``source_digest``) or with other settings is
+    a :class:`ConfigError` naming the difference, and so is a malformed episode.
     """
     taken: dict[tuple[str, str, int], tuple[str, dict[str, Any]]] = {}
     for name, doc in docs.items():
+        if doc.get("source_digest") != settings["source_digest"]:
+            raise ConfigError(
+                f"loop study: --reuse {name!r} was made by other code, worlds or maps (or "
+                "before studies recorded theirs): its episodes may differ from a run now"
+            )
         differ = [
-            f"{part} {k}: {doc.get(part, {}).get(k)!r} there, {settings[part].get(k)!r} here"
-            for part in ("env_options", "merge_options")
-            for k in sorted(set(settings[part]) | set(doc.get(part, {})))
-            if doc.get(part, {}).get(k) != settings[part].get(k)
+            *_differences("env_options", doc.get("env_options", {}), settings["env_options"]),
+            *_differences("merge_options", doc.get("merge_options", {}), settings["merge_options"]),
         ]
         if doc.get("policy") != settings["policy"]:
             differ.insert(0, f"policy {doc.get('policy')!r} there, {settings['policy']!r} here")
@@ -512,7 +532,13 @@ def reusable(
                 f"loop study: --reuse {name!r} was made with other settings: {'; '.join(differ)}"
             )
         for e in doc["episodes"]:
-            taken.setdefault((e["world"], e["variant"], e["seed"]), (name, e))
+            try:
+                key = (e["world"], e["variant"], e["seed"])
+            except (KeyError, TypeError) as exc:
+                raise ConfigError(
+                    f"loop study: --reuse {name!r} holds an episode without world, variant and seed"
+                ) from exc
+            taken.setdefault(key, (name, e))
     return taken
 
 
@@ -870,9 +896,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         nargs="+",
         default=[],
         metavar="JSON",
-        help="studies made with the same settings and code (e.g. the same run's "
-        "docs/results/loop_study.json): their episodes of this run's worlds, variants and seeds "
-        "are taken instead of run again (a study with other settings is refused)",
+        help="studies made with the same settings by the same code, worlds and maps (each "
+        "records a digest of them): their episodes of this run's worlds, variants and seeds "
+        "are taken instead of run again (a study made otherwise is refused)",
     )
     p.add_argument(
         "--noise",
@@ -888,6 +914,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         merge_options = parse_options(args.merge_options, flag="--merge-options")
         env_options = parse_options(args.env_options, flag="--env-options")
         other = None if args.against is None else load_study(args.against)
+        if len({Path(f).resolve() for f in args.reuse}) < len(args.reuse):
+            raise ConfigError("loop study: a --reuse file is given twice")
         reuse = {f: load_study(f, "--reuse") for f in args.reuse}
         validate(
             args.worlds,

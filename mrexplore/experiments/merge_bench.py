@@ -556,8 +556,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--case-cache",
         default=None,
         metavar="DIR",
-        help="save the cases here and read them back in later runs of the same code (making "
-        "the lidar and symmetric cases is most of a run's time); made if missing",
+        help="save the cases here and read them back in later runs of the same code, worlds "
+        "and maps (making the lidar and symmetric cases is most of a run's time); a directory "
+        "of your own, made if missing (it holds pickles)",
     )
     args = p.parse_args(list(argv) if argv is not None else None)
     import cv2

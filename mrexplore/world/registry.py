@@ -25,7 +25,7 @@ __all__ = ["list_worlds", "load_world"]
 _RANDOM_PREFIX = "random:"
 
 
-def _envs_dir() -> Path:
+def envs_dir() -> Path:
     """The folder of shipped worlds (checkout ``envs/`` or installed ``mrexplore.envs``)."""
     try:
         root = importlib.resources.files("mrexplore.envs")
@@ -37,7 +37,7 @@ def _envs_dir() -> Path:
 
 def list_worlds() -> list[str]:
     """Names of the shipped worlds, sorted (each is ``envs/<name>.yaml``)."""
-    return sorted(p.stem for p in _envs_dir().glob("*.yaml"))
+    return sorted(p.stem for p in envs_dir().glob("*.yaml"))
 
 
 def _parse_value(text: str) -> Any:
@@ -95,7 +95,7 @@ def load_world(spec: World | str | Path, rng: np.random.Generator | None = None)
         return _random_world(spec, rng)
     if spec.lower().endswith((".yaml", ".yml")) or "/" in spec or "\\" in spec:
         return world_from_file(spec)
-    shipped = _envs_dir() / f"{spec}.yaml"
+    shipped = envs_dir() / f"{spec}.yaml"
     if shipped.is_file():
         return world_from_file(shipped, name=spec)
     raise WorldError(

@@ -46,7 +46,7 @@ def test_a_hit_gives_the_cases_made_and_a_changed_key_misses(
 
     cached_cases(tmp_path, "real", 2, 4, None, counted)  # another seed
     cached_cases(tmp_path, "real", 2, 3, {"map_l_occ": 1.4}, counted)  # other options
-    monkeypatch.setattr(case_cache, "code_digest", lambda: "other code")
+    monkeypatch.setattr(case_cache, "source_digest", lambda: "other code")
     cached_cases(tmp_path, "real", 2, 3, None, counted)  # the same key under other code
     assert len(calls) == 3 and not list(tmp_path.glob("*.tmp"))
 
@@ -78,4 +78,27 @@ def test_a_bad_cache_directory_is_refused(
         check_cache_dir(f)
     assert main(["bench", "merge", "--n", "1", "--families", "real", "--case-cache", str(f)]) == 2
     assert "--case-cache" in capsys.readouterr().err and f.read_text() == "mine"
-    assert check_cache_dir(tmp_path / "new" / "dir").is_dir()
+    made = check_cache_dir(tmp_path / "new" / "dir")
+    assert made.is_dir() and made.stat().st_mode & 0o777 == 0o700
+    shared = tmp_path / "shared"
+    shared.mkdir(mode=0o777)
+    shared.chmod(0o777)
+    with pytest.raises(ConfigError, match="no one else may write"):
+        check_cache_dir(shared)
+
+
+def test_a_damaged_entry_is_a_miss_and_is_written_again(tmp_path: Path) -> None:
+    made = make_cases("real", 1, 0)
+    cached_cases(tmp_path, "real", 1, 0, None, lambda: made)
+    (entry,) = tmp_path.glob("*.pkl")
+    entry.write_bytes(entry.read_bytes()[:20])  # cut short
+    assert cached_cases(tmp_path, "real", 1, 0, None, lambda: made) is made
+    assert _same(cached_cases(tmp_path, "real", 1, 0, None, _never), made)
+
+
+def test_lidar_options_key_only_the_lidar_family(tmp_path: Path) -> None:
+    """``--lidar-options`` change the lidar family's maps only: the other families' cases are
+    the same entry with them or without."""
+    plain = make_cases("real", 1, 0, None, tmp_path)
+    with_options = make_cases("real", 1, 0, {"map_l_occ": 1.4}, tmp_path)
+    assert _same(plain, with_options) and len(list(tmp_path.glob("*.pkl"))) == 1

@@ -357,16 +357,26 @@ def test_against_prints_and_records_the_paired_difference(
 
 
 def test_reuse_takes_the_episodes_a_study_of_the_same_settings_holds(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """``--reuse`` takes a study's episodes instead of running them again: the document equals
-    a fresh run's but for the count it records; a study made with other settings, or one that
-    holds none of the run's episodes, is refused before any work, naming why."""
+    """``--reuse`` takes a study's episodes instead of running them (none of them is run again)
+    and the document equals a fresh run's but for the count it records; a study made with other
+    settings or by other code, one that holds none of the run's episodes, and a file given twice
+    are refused before any work, naming why."""
+    from mrexplore.experiments import loop_study
+
     base = ["--worlds", "small_office", "--seeds", "2", "--max-time-s", "3"]
     first, fresh, second = tmp_path / "first", tmp_path / "fresh", tmp_path / "second"
     assert main([*base, "--variants", "none", "--out", str(first)]) == 0
     both = [*base, "--variants", "none", "single"]
     assert main([*both, "--out", str(fresh)]) == 0
+    run = loop_study.run_loop_episode
+
+    def only_new(world: str, variant: str, *args: Any, **kw: Any) -> dict[str, Any]:
+        assert variant != "none", "a reused episode was run again"
+        return run(world, variant, *args, **kw)
+
+    monkeypatch.setattr(loop_study, "run_loop_episode", only_new)
     assert main([*both, "--out", str(second), "--reuse", f"{first}.json"]) == 0
     doc = json.loads(Path(f"{second}.json").read_text())
     assert doc.pop("reused") == {f"{first}.json": 2}
@@ -376,11 +386,19 @@ def test_reuse_takes_the_episodes_a_study_of_the_same_settings_holds(
     )
     capsys.readouterr()
     third = tmp_path / "third"
-    argv = [*both, "--out", str(third), "--env-options", "map_l_occ=2.6"]
-    assert main([*argv, "--reuse", f"{first}.json"]) == 2
-    assert "was made with other settings: env_options map_l_occ: None there, 2.6 here" in (
-        capsys.readouterr().out
-    )
-    assert main([*both, "--first-seed", "7", "--out", str(third), "--reuse", f"{first}.json"]) == 2
-    assert "holds no episode of this run's" in capsys.readouterr().out
+    refusals = [
+        (["--env-options", "map_l_occ=2.6"], "env_options map_l_occ: None there, 2.6 here"),
+        (["--merge-options", "confirmations=3"], "merge_options confirmations: None there, 3 here"),
+        (["--first-seed", "7"], "holds no episode of this run's"),
+    ]
+    for extra, words in refusals:
+        assert main([*both, *extra, "--out", str(third), "--reuse", f"{first}.json"]) == 2
+        assert words in capsys.readouterr().out
+    assert main([*both, "--out", str(third), "--reuse", f"{first}.json", f"{first}.json"]) == 2
+    assert "given twice" in capsys.readouterr().out
+    old = json.loads(Path(f"{first}.json").read_text())
+    del old["source_digest"]  # a study made before studies recorded their code
+    (tmp_path / "old.json").write_text(json.dumps(old))
+    assert main([*both, "--out", str(third), "--reuse", str(tmp_path / "old.json")]) == 2
+    assert "made by other code, worlds or maps" in capsys.readouterr().out
     assert not Path(f"{third}.json").exists()

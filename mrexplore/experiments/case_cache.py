@@ -9,8 +9,9 @@ first run saves them and the others read them back.
 A case depends only on its family, count, seed and options, and on what made it: the key holds
 all of them and :func:`~mrexplore.experiments.provenance.source_digest` (the package's sources,
 the shipped worlds, the real maps, the libraries' versions). Change a line of ``mrexplore`` or a
-pixel of a map and the cache misses. Entries are written whole (synced, then renamed into
-place); one that cannot be read back counts as a miss and is written again. The cache loads
+pixel of a map and the cache misses. Entries are written whole (:func:`mrexplore.io_safety.
+write_bytes`: a temporary file renamed into place); one that cannot be read back (cut short by
+a crash) counts as a miss and is written again. The cache loads
 pickles, so it must be the user's own directory: one that others may write to is refused.
 """
 
@@ -20,7 +21,6 @@ import hashlib
 import json
 import os
 import pickle
-import tempfile
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -28,6 +28,7 @@ from typing import Any
 from mrexplore.errors import ConfigError
 from mrexplore.experiments.merge_cases import MergeCase
 from mrexplore.experiments.provenance import source_digest
+from mrexplore.io_safety import write_bytes
 
 
 def case_key(family: str, n: int, seed: int, options: Mapping[str, Any] | None) -> str:
@@ -77,14 +78,5 @@ def cached_cases(
         except (OSError, EOFError, pickle.UnpicklingError, AttributeError, ImportError):
             pass  # damaged or from an incompatible version: a miss, rewritten below
     cases = make()
-    fd, tmp = tempfile.mkstemp(dir=cache_dir, suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            pickle.dump(cases, fh, protocol=pickle.HIGHEST_PROTOCOL)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, f)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_bytes(f, pickle.dumps(cases, protocol=pickle.HIGHEST_PROTOCOL))
     return cases

@@ -48,7 +48,8 @@ def test_a_hit_gives_the_cases_made_and_a_changed_key_misses(
     cached_cases(tmp_path, "real", 2, 3, {"map_l_occ": 1.4}, counted)  # other options
     monkeypatch.setattr(case_cache, "source_digest", lambda: "other code")
     cached_cases(tmp_path, "real", 2, 3, None, counted)  # the same key under other code
-    assert len(calls) == 3 and not list(tmp_path.glob("*.tmp"))
+    assert len(calls) == 3  # and no temporary file is left behind
+    assert all(f.suffix == ".pkl" and not f.name.startswith(".") for f in tmp_path.iterdir())
 
 
 def test_rows_are_the_same_with_the_cache_and_read_back(

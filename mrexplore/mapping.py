@@ -56,7 +56,7 @@ NUMPY_TRAVERSE_DTYPE: type[np.floating] = np.float32
 
 #: Default log-odds increments of a free and an occupied observation (see :class:`OccupancyMap`).
 L_FREE_DEFAULT: float = -1.2
-L_OCC_DEFAULT: float = 1.4
+L_OCC_DEFAULT: float = 3.6
 
 #: Headings whose beam directions each map keeps (see :meth:`OccupancyMap._directions`).
 _DIR_CACHE: int = 16
@@ -77,10 +77,12 @@ class OccupancyMap:
         resolution_m: metres per cell (> 0).
         origin_cell: (c0, r0) integer cell of the robot's start position (the frame origin).
         l_free, l_occ: log-odds increments of a free and an occupied observation. The defaults
-            (-1.2, +1.4) make one observation enough to cross the int8 readers' thresholds
+            (-1.2, +3.6) make one observation enough to cross the int8 readers' thresholds
             (free at most 25 %, occupied at least 65 %): exploration maps each cell once or a
-            few times, and a map that needs three looks per cell would lag the robot.
-            A free-then-occupied cell lands at +0.2 (55 %): uncertain, neither free nor wall.
+            few times, and a map that needs three looks per cell would lag the robot. A hit
+            outweighs three passes: a beam grazing a wall at a shallow angle passes through
+            wall cells before it ends, and with a hit worth one pass (+1.4, the former default)
+            such walls were erased (``docs/mapper.md``).
         l_min, l_max: clamp of the log-odds (keeps the map able to change its mind).
 
     >>> m = OccupancyMap((21, 21), 0.05, (10, 10))

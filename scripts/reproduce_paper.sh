@@ -27,10 +27,12 @@
 #      in as one more hypothesis) on the 1,320 cases of merge_seeds: search misses vs refusals;
 #      merge_guided.{json,md}: the default beside `guided` (a rough guess of the pose, a
 #      PosePrior, as a user who knows roughly where the maps overlap would give it);
-#      merge_lidar_mapper.{json,md}: the lidar family's pairs made with walls that grazing beams
-#      do not erase (map_l_occ=3.6, docs/mapper.md); merge_heldout9.{json,md} and
-#      merge_lidar_mapper_heldout.{json,md}: seeds 133-142, unseen until the candidate guard for
-#      those maps (room_match_m2 20, chosen on seeds 0-9 and 12) was judged on them
+#      merge_lidar_mapper.{json,md}: the lidar family's pairs made with the former default maps,
+#      whose walls grazing beams erase (map_l_occ=1.4, with the former room_match_m2 15;
+#      docs/mapper.md); merge_heldout9.{json,md} and merge_lidar_mapper_heldout.{json,md}: seeds
+#      133-142, unseen until the guard for today's maps (room_match_m2 20, chosen on seeds 0-9
+#      and 12) was judged on them, with the former value 15, and the lidar family with the
+#      former maps
 #   2. loop_study.{json,md}: merging in the exploration loop against an oracle merger;
 #      loop_exact.{json,md}: the same with exact odometry (a merge error is then a wrong place);
 #      loop_nav.{json,md}: the navigation task (exact odometry) against the oracle;
@@ -43,7 +45,8 @@
 #      loop_sighting{,_heldout}.{json,md}: the semantic merger with sightings on (robots that
 #      see each other measure their relative pose: a rendezvous) beside it and the oracle, on
 #      seeds 1000-1019 and 2000-2019; loop_mapper{,_heldout}.{json,md}: the study (and its
-#      held-out seeds) with map_l_occ=3.6, paired against loop_study and loop_heldout
+#      held-out seeds) with the former default maps (map_l_occ=1.4), paired against loop_study
+#      and loop_heldout
 #   3. task_time.{json,csv,png}: single- vs multi-robot task time (the paper's 105 s -> 65 s and
 #      125 s -> 85 s); nav_teammate/: navigation to a place near robot_1's start (the paper's
 #      protocol: a robot goes where its teammate mapped)
@@ -116,11 +119,12 @@ bench_merge --methods semantic,seeded --n 30 --families symmetric,real,noisy,lid
 bench_merge --methods semantic,guided --n 30 \
   --families symmetric,real,noisy,lidar,aliased --seeds 0-9,12 --out "$out/merge_guided" --force
 bench_merge --methods semantic --n 30 --families lidar --seeds 0-9,12 \
-  --lidar-options map_l_occ=3.6 --out "$out/merge_lidar_mapper" --force
+  --lidar-options map_l_occ=1.4 --semantic-variant room_match_m2=15 \
+  --out "$out/merge_lidar_mapper" --force
 bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
-  --seeds 133-142 --semantic-variant room_match_m2=20 --out "$out/merge_heldout9" --force
+  --seeds 133-142 --semantic-variant room_match_m2=15 --out "$out/merge_heldout9" --force
 bench_merge --methods semantic --n 30 --families lidar --seeds 133-142 \
-  --lidar-options map_l_occ=3.6 --semantic-variant room_match_m2=20 \
+  --lidar-options map_l_occ=1.4 --semantic-variant room_match_m2=15 \
   --out "$out/merge_lidar_mapper_heldout" --force
 mrexplore bench loop --seeds 20 --jobs 2 --out "$out/loop_study" --force
 mrexplore bench loop --noise off --variants semantic oracle --seeds 20 --jobs 2 \
@@ -136,13 +140,13 @@ mrexplore bench loop --variants semantic oracle --seeds 20 --first-seed 4000 --j
 mrexplore bench loop --variants semantic --seeds 20 --jobs 2 \
   --merge-options slide_test=true,keep_run_on_refusal=true --out "$out/loop_rules_on" --force
 mrexplore bench loop --variants semantic sighting oracle --seeds 20 --jobs 2 \
-  --out "$out/loop_sighting" --force
+  --reuse "$out/loop_study.json" --out "$out/loop_sighting" --force
 mrexplore bench loop --variants semantic sighting oracle --seeds 20 --first-seed 2000 --jobs 2 \
-  --out "$out/loop_sighting_heldout" --force
-mrexplore bench loop --seeds 20 --jobs 2 --env-options map_l_occ=3.6 \
+  --reuse "$out/loop_heldout.json" --out "$out/loop_sighting_heldout" --force
+mrexplore bench loop --seeds 20 --jobs 2 --env-options map_l_occ=1.4 \
   --against "$out/loop_study.json" --out "$out/loop_mapper" --force
 mrexplore bench loop --variants semantic oracle --seeds 20 --first-seed 2000 --jobs 2 \
-  --env-options map_l_occ=3.6 --against "$out/loop_heldout.json" --out "$out/loop_mapper_heldout" --force
+  --env-options map_l_occ=1.4 --against "$out/loop_heldout.json" --out "$out/loop_mapper_heldout" --force
 mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --out "$out" --force
 mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --tasks navigate \
   --nav-goal teammate --out "$out/nav_teammate" --force

@@ -93,8 +93,9 @@ class EnvConfig(Options):
         map_l_free, map_l_occ: the robots' own maps: log-odds added to a cell when a beam
             passes through it (free) and when a beam ends in it (occupied); one free
             observation must reach the free threshold (25 %, -1.10), one occupied the occupied
-            threshold (65 %, +0.62). Defaults -1.2 and 1.4; ``map_l_occ=3.6`` (a hit worth
-            three passes) keeps the walls that grazing beams erase (``docs/mapper.md``).
+            threshold (65 %, +0.62). Defaults -1.2 and 3.6: a hit worth three passes keeps the
+            walls that grazing beams erase with ``map_l_occ=1.4``, the former default
+            (``docs/mapper.md``).
     Merging:
         merger: merge method name for :func:`mrexplore.merge.merge_maps` (``"semantic"``,
             ``"paper"``, ``"orb"``), an object with ``merge(a, b)``, or ``None`` (never merge).

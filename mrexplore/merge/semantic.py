@@ -700,7 +700,7 @@ class SemanticOptions(Options):
     w_disagree: float = option(1.0, number(0.0, 100.0))
     ratio_power: float = option(2.0, number(0.0, 20.0))
     min_common_m2: float = option(10.0, number(0.0, math.inf))
-    room_match_m2: float = option(15.0, number(0.0, math.inf))
+    room_match_m2: float = option(20.0, number(0.0, math.inf))
     room_match_share: float = option(0.3, number(0.0, 1.0))
     shared_weight: float = option(0.04, number(0.0, 1.0))
     resolution_m: float = option(0.05, number(1e-6, math.inf))
@@ -761,8 +761,8 @@ def merge_semantic(
     - shared knowledge: ``min_overlap`` (0.15) of b's wall cells on a's known cells,
       ``min_overlap_cells`` (80), ``min_common_m2`` (10.0) m^2 known in both at
       ``resolution_m`` (0.05) m/cell (the every-step tracker asks for 20 m^2: a room);
-    - ``room_match_m2`` (15.0; 0 = off) and ``room_match_share`` (0.3): without a ``prior``,
-      refuse a pose whose shared known space is under 15 m^2 **and** under 0.3 of the smaller
+    - ``room_match_m2`` (20.0; 0 = off) and ``room_match_share`` (0.3): without a ``prior``,
+      refuse a pose whose shared known space is under 20 m^2 **and** under 0.3 of the smaller
       map's known space: a room-sized match in maps of several rooms may be a look-alike room
       (a twin-wings corridor was merged on its twin at 13.1 m^2, 0.24 of the smaller map);
     - search: ``max_rotation_peaks`` (3: a hexagonal map's spectrum folds into three equal

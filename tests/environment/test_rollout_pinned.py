@@ -131,10 +131,10 @@ CASES: dict[str, tuple[int, int, str | None, dict[str, Any]]] = {
         },
     ),
     # three robots, a radio range, navigation with a goal channel, random headings, merged from
-    # step ~120 on, egocentric views
+    # step ~100 on, egocentric views
     "navigate_three": (
         150,
-        2,
+        4,
         "coordinated-frontier",
         {
             "world": "small_office",
@@ -173,11 +173,15 @@ CASES: dict[str, tuple[int, int, str | None, dict[str, Any]]] = {
 #: never) with the same scores and actions; the tracker's transforms, teammates and merge
 #: errors moved by <= 2.3e-13, and navigate_three's robot_1 own-trail channel by one or two
 #: pixels at steps 108 and 112 (a floor() on a cell boundary in the turned view).
+#: All four re-recorded when the own maps' hit weight became 3.6 (2026-11-27, docs/mapper.md):
+#: every map changes. default_merging merges at the same step, 137; navigate_three's seed 2 no
+#: longer merged robot_0 within its 150 steps (at step 197), so the case now runs seed 4,
+#: merged at step 97.
 PINNED: dict[str, str] = {
-    "coarse_held": "e129f616ae84e3aca58b726531136ba160e6eadbfd780c739a59a0eaa2694850",
-    "default_merging": "93d1288965207909057afed27837d4d28bf046810635e0131babc4252f8a6d34",
-    "heading_up_noisy": "f3fcfeefec852c58e0e24a27c6a179e423d2edc39961e49f918fae5946d990a7",
-    "navigate_three": "ea26101c31c6e3f5043630f46c0723cfcc5f4f211328270a3b9022b2f9560099",
+    "coarse_held": "019b7fb858510fbaa597c6f56f3b3ca86fb1dbd9250c43214275aaa446fa8462",
+    "default_merging": "5c870da037d5f1f23d3e984f948a42c59af1dabb9247cd82f86b2b48288a9d56",
+    "heading_up_noisy": "a43209e97ec6d09939a40edc2359ad80c21fb968da441b6f143da1a1d67e18d8",
+    "navigate_three": "6874589810e2998ca04bb5120108802f42731d4e4330c20c9178326435c6e5e6",
 }
 
 

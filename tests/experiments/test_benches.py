@@ -58,11 +58,11 @@ def test_lidar_options_make_the_lidar_maps_and_are_recorded() -> None:
     from mrexplore.experiments.merge_bench import make_cases, run_bench, to_markdown
 
     base = make_cases("lidar", 1, 0)[0]
-    strong = make_cases("lidar", 1, 0, {"map_l_occ": 3.6})[0]
-    assert base.name == strong.name and not np.array_equal(base.a, strong.a)
-    rows = run_bench(1, methods=["semantic"], families=["lidar"], lidar_options={"map_l_occ": 3.6})
-    assert rows[0]["lidar_options"] == {"map_l_occ": 3.6}
-    assert "### lidar (1 cases; maps made with map_l_occ=3.6)" in to_markdown(rows)
+    former = make_cases("lidar", 1, 0, {"map_l_occ": 1.4})[0]
+    assert base.name == former.name and not np.array_equal(base.a, former.a)
+    rows = run_bench(1, methods=["semantic"], families=["lidar"], lidar_options={"map_l_occ": 1.4})
+    assert rows[0]["lidar_options"] == {"map_l_occ": 1.4}
+    assert "### lidar (1 cases; maps made with map_l_occ=1.4)" in to_markdown(rows)
 
 
 def test_merge_sizes_prints_time_and_outcomes_per_size(capsys) -> None:  # type: ignore[no-untyped-def]

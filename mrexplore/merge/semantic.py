@@ -764,7 +764,8 @@ def merge_semantic(
     - ``room_match_m2`` (20.0; 0 = off) and ``room_match_share`` (0.3): without a ``prior``,
       refuse a pose whose shared known space is under 20 m^2 **and** under 0.3 of the smaller
       map's known space: a room-sized match in maps of several rooms may be a look-alike room
-      (a twin-wings corridor was merged on its twin at 13.1 m^2, 0.24 of the smaller map);
+      (a twin-wings corridor was merged on its twin at 13.1 m^2, 0.24 of the smaller map; with
+      the own maps' hit weight 3.6, a twin-wings room on its twin at 16.2 m^2);
     - search: ``max_rotation_peaks`` (3: a hexagonal map's spectrum folds into three equal
       peaks modulo 90 degrees) per rotation spectrum, ``rotation_step_deg`` (0 = no
       sweep), ``hough_max_cells`` (409,600: 640 x 640; 0 = never) beyond which the wall

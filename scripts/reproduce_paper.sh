@@ -44,17 +44,19 @@
 #      loop_rules_on.{json,md}: the study's seeds with those two rules on (--merge-options);
 #      loop_sighting{,_heldout}.{json,md}: the semantic merger with sightings on (robots that
 #      see each other measure their relative pose: a rendezvous) beside it and the oracle, on
-#      seeds 1000-1019 and 2000-2019; loop_mapper{,_heldout}.{json,md}: the study (and its
-#      held-out seeds) with the former default maps (map_l_occ=1.4), paired against loop_study
-#      and loop_heldout
+#      seeds 1000-1019 and 2000-2019 (their semantic and oracle episodes taken from loop_study
+#      and loop_heldout: --reuse)
 #   3. task_time.{json,csv,png}: single- vs multi-robot task time (the paper's 105 s -> 65 s and
 #      125 s -> 85 s); nav_teammate/: navigation to a place near robot_1's start (the paper's
 #      protocol: a robot goes where its teammate mapped)
 #   4. goal_policy_eval/{office,twin,tb3}/eval.{json,png}: the shipped learned goal chooser
 #      (policies/goal_ppo_2r) against the frontier planners on 50 held-out worlds of each family,
 #      on this version's merger
-# It replaces the committed files, so it asks for --force. About two hours on 2 cores (measured
-# 2026-11-26: the merge steps ~50 min, the loop, task-time and evaluation steps ~70 min).
+# It replaces the committed files, so it asks for --force. Measured 2026-11-27 on 2 cores shared
+# with other work, its merge steps and its loop steps run side by side in two processes: 4 h 20 min
+# of wall time (merge steps ~4.2 h, loop, task-time and evaluation steps ~3.6 h, each process
+# getting about one core). Run as written, one step after another, it takes longer (estimated
+# 5-6 hours, not measured).
 # Every figure but the timings (ms, steps/s) comes out the same on any machine with the pinned
 # versions (requirements/constraints.txt); timings depend on the machine and its load.
 set -euo pipefail
@@ -143,10 +145,6 @@ mrexplore bench loop --variants semantic sighting oracle --seeds 20 --jobs 2 \
   --reuse "$out/loop_study.json" --out "$out/loop_sighting" --force
 mrexplore bench loop --variants semantic sighting oracle --seeds 20 --first-seed 2000 --jobs 2 \
   --reuse "$out/loop_heldout.json" --out "$out/loop_sighting_heldout" --force
-mrexplore bench loop --seeds 20 --jobs 2 --env-options map_l_occ=1.4 \
-  --against "$out/loop_study.json" --out "$out/loop_mapper" --force
-mrexplore bench loop --variants semantic oracle --seeds 20 --first-seed 2000 --jobs 2 \
-  --env-options map_l_occ=1.4 --against "$out/loop_heldout.json" --out "$out/loop_mapper_heldout" --force
 mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --out "$out" --force
 mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --tasks navigate \
   --nav-goal teammate --out "$out/nav_teammate" --force

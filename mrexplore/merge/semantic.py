@@ -34,9 +34,11 @@ Pipeline (all on the maps cropped to their known bounding boxes):
 
 The steps' machinery lives beside this module (:mod:`~mrexplore.merge.rotation`,
 :mod:`~mrexplore.merge.coarse`, :mod:`~mrexplore.merge.icp`, :mod:`~mrexplore.merge.repeats`,
-the verifier in :mod:`~mrexplore.merge.common`); what stays here is the options and the
-pipeline that threads the cropped maps and verifiers through the five steps, read top to bottom
-(its size: the options and that one pipeline).
+:mod:`~mrexplore.merge.pinning`, the verifier in :mod:`~mrexplore.merge.common`). Here:
+the options, and :func:`merge_semantic` as four stages read top to bottom: :class:`_Pair`
+(the crops and the verifiers they share), :func:`_search` (steps 1-4), :func:`_judge` (the
+best pose and its rivals) and the decision rules :data:`_RULES`, each a small function that
+returns the reason to refuse or None.
 """
 
 from __future__ import annotations
@@ -65,18 +67,21 @@ from mrexplore.merge.common import (
     MapCodes,
     MergeResult,
     Verifier,
-    agreeing_cells,
     chain,
     compose,
     detector_check,
     known_bbox,
     map_points,
-    rectangle_area,
-    rigid_inverse,
     translation,
     warp_into,
 )
 from mrexplore.merge.icp import WallICP
+from mrexplore.merge.pinning import (
+    CROSS_GUARD_CELLS,
+    PinTerms,
+    agreeing_area,
+    slide_direction,
+)
 from mrexplore.merge.repeats import (
     OBJECT_CLUTTER_M,
     OBJECT_WIDTH_M,
@@ -88,6 +93,7 @@ from mrexplore.merge.repeats import (
 )
 from mrexplore.merge.rotation import direction_histogram, rotation_candidates, wall_normals
 from mrexplore.options import Options, boolean, integer, number, option
+from mrexplore.types import Box
 
 F32 = NDArray[np.float32]
 
@@ -376,190 +382,6 @@ def _consistency_polish(
     return best_T, best_c
 
 
-#: :func:`_support_terms`: the unit normals (N, 2) and the index (N,) of their b wall cells.
-_Terms = tuple[NDArray[np.float64], NDArray[np.intp]]
-
-
-def _support_tensor(
-    wall_a: NDArray[np.bool_],
-    wall_b: NDArray[np.bool_],
-    T: Transform,
-    precise: bool = False,
-    cells_b: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None,
-) -> NDArray[np.float64] | None:
-    """``sum n n^T`` (2 x 2, (col, row) axes) of :func:`cross_support`, None without support."""
-    return _tensor(_support_terms(wall_a, wall_b, T, precise, cells_b))
-
-
-def _tensor(terms: _Terms | None) -> NDArray[np.float64] | None:
-    """``sum n n^T`` (2 x 2) of the support terms, None without support."""
-    return None if terms is None else np.asarray(terms[0].T @ terms[0], dtype=np.float64)
-
-
-def _support_terms(
-    wall_a: NDArray[np.bool_],
-    wall_b: NDArray[np.bool_],
-    T: Transform,
-    precise: bool,
-    cells_b: tuple[NDArray[np.intp], NDArray[np.intp]] | None,
-) -> tuple[NDArray[np.float64], NDArray[np.intp]] | None:
-    """The unit normals ``n`` (N, 2) of :func:`cross_support`'s sum and the index (N,) of the
-    b wall cell each belongs to (in ``cells_b``' order); None without support."""
-    rb, cb = np.nonzero(wall_b) if cells_b is None else cells_b
-    index = np.arange(rb.size)
-    T = np.asarray(T, dtype=np.float64)
-    c = np.rint(T[0, 0] * cb + T[0, 1] * rb + T[0, 2]).astype(np.int64)
-    r = np.rint(T[1, 0] * cb + T[1, 1] * rb + T[1, 2]).astype(np.int64)
-    h, w = wall_a.shape
-    inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
-    c, r, index = c[inside], r[inside], index[inside]
-    if c.size == 0:
-        return None
-    # The filters below reach 21 cells (blur 4 + Sobel 1 + blur 16): a window that far around
-    # b's landed walls gives the same tensor there as the whole map, at a fraction of the cost.
-    r0, c0 = max(int(r.min()) - _TENSOR_REACH, 0), max(int(c.min()) - _TENSOR_REACH, 0)
-    r1, c1 = min(int(r.max()) + _TENSOR_REACH + 1, h), min(int(c.max()) + _TENSOR_REACH + 1, w)
-    win = wall_a[r0:r1, c0:c1]
-    r, c = r - r0, c - c0
-    near = cv2.dilate(win.view(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
-    on = near[r, c]
-    c, r, index = c[on], r[on], index[on]
-    if c.size == 0:
-        return None
-    dtype, depth = (np.float64, cv2.CV_64F) if precise else (np.float32, cv2.CV_32F)
-    img = cv2.GaussianBlur(win.astype(dtype), (0, 0), 1.0)
-    gx = cv2.Sobel(img, depth, 1, 0, ksize=3)
-    gy = cv2.Sobel(img, depth, 0, 1, ksize=3)
-    jxx = cv2.GaussianBlur(gx * gx, (0, 0), 4.0)
-    jyy = cv2.GaussianBlur(gy * gy, (0, 0), 4.0)
-    jxy = cv2.GaussianBlur(gx * gy, (0, 0), 4.0)
-    ang = 0.5 * np.arctan2(2.0 * jxy[r, c], jxx[r, c] - jyy[r, c]).astype(np.float64)
-    return np.stack([np.cos(ang), np.sin(ang)], axis=1), index
-
-
-def lone_pin_support(
-    wall_a: NDArray[np.bool_],
-    wall_b: NDArray[np.bool_],
-    T: Transform,
-    structures_b: Structures,
-    small_cells: float,
-    cells_b: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None,
-    top: int = 3,
-    precise: bool = False,
-) -> tuple[float, int] | None:
-    """:func:`cross_support` with one small thing of b left out, the lowest over the
-    ``top`` small things (:meth:`Structures.is_small` under ``small_cells``) carrying most of
-    the support's cells, and that thing's cell count; None when no small thing agrees.
-
-    Parallel rack sides pin a pose across them only; a post beside them may be all that pins
-    it along, and a warehouse has a post by every aisle. ``precise``: as for
-    :func:`cross_support` (float32 filters unless set)."""
-    terms = _support_terms(wall_a, wall_b, T, precise, cells_b)
-    return _lone_pin(terms, wall_b, structures_b, small_cells, cells_b, top)
-
-
-def _lone_pin(
-    terms: _Terms | None,
-    wall_b: NDArray[np.bool_],
-    structures_b: Structures,
-    small_cells: float,
-    cells_b: tuple[NDArray[np.intp], NDArray[np.intp]] | None,
-    top: int = 3,
-) -> tuple[float, int] | None:
-    """:func:`lone_pin_support` from the pose's :func:`_support_terms`."""
-    if terms is None:
-        return None
-    u, index = terms
-    rb, cb = np.nonzero(wall_b) if cells_b is None else cells_b
-    labels = structures_b.labels[rb[index], cb[index]]
-    counts = np.bincount(labels)
-    lowest: tuple[float, int] | None = None
-    tried = 0
-    for k in np.argsort(-counts, kind="stable"):
-        k = int(k)
-        if tried == top or counts[k] == 0:
-            break
-        if k == 0 or not structures_b.is_small(k, small_cells):
-            continue
-        tried += 1
-        rest = u[labels != k]
-        support = float(np.linalg.eigvalsh(rest.T @ rest)[0]) if rest.size else 0.0
-        if lowest is None or support < lowest[0]:
-            lowest = (support, int(counts[k]))
-    return lowest
-
-
-def cross_support(
-    wall_a: NDArray[np.bool_],
-    wall_b: NDArray[np.bool_],
-    T: Transform,
-    precise: bool = False,
-    cells_b: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None,
-) -> float:
-    """How firmly a pose is pinned along its weakest direction, in wall cells: the smaller
-    eigenvalue of ``sum n n^T`` over b's wall cells that land within a cell of a's walls under
-    ``T`` (b cells -> a cells), ``n`` the unit normal of a's wall there.
-
-    Normals come from a's structure tensor (gradients of the lightly blurred walls, their
-    products averaged over 4 cells), which smooths the staircase and the bumps of lidar walls.
-    One straight wall, or the two parallel walls of a corridor, gives ~0 whatever its length:
-    the maps then agree equally well after a slide along it, and only wall bumps of a cell or
-    two would decide where. A room corner gives the length of its shorter wall.
-
-    In float32 (OpenCV's fast filters) unless ``precise``: float32's last bits differ between
-    CPUs' SIMD paths, by far less than a thousandth of a cell here, so a caller comparing the
-    answer with a threshold recomputes it with ``precise=True`` (float64) when it lies near.
-    ``cells_b``: ``np.nonzero(wall_b)``, when the caller has it.
-    """
-    return _cross(_support_terms(wall_a, wall_b, T, precise, cells_b))
-
-
-def _cross(terms: _Terms | None) -> float:
-    """:func:`cross_support` from the pose's :func:`_support_terms`."""
-    M = _tensor(terms)
-    return 0.0 if M is None else float(np.linalg.eigvalsh(M)[0])
-
-
-class _PinTerms:
-    """The :func:`_support_terms` of one pose, in float32 and in float64, each computed at most
-    once: the cross-support and lone-pin tests read the same ones."""
-
-    def __init__(
-        self,
-        wall_a: NDArray[np.bool_],
-        wall_b: NDArray[np.bool_],
-        T: Transform,
-        cells_b: tuple[NDArray[np.intp], NDArray[np.intp]],
-    ) -> None:
-        self._args = (wall_a, wall_b, T)
-        self._cells_b = cells_b
-        self._done: dict[bool, _Terms | None] = {}
-
-    def __call__(self, precise: bool) -> _Terms | None:
-        if precise not in self._done:
-            self._done[precise] = _support_terms(*self._args, precise, self._cells_b)
-        return self._done[precise]
-
-
-def slide_direction(
-    wall_a: NDArray[np.bool_],
-    wall_b: NDArray[np.bool_],
-    T: Transform,
-    cells_b: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None,
-) -> NDArray[np.float64] | None:
-    """The unit direction (col, row) of a's cells along which the agreeing walls pin pose ``T``
-    least (the eigenvector of :func:`cross_support`'s smallest eigenvalue, float64), None
-    without agreeing walls. Its sign is fixed (first non-zero component positive)."""
-    M = _support_tensor(wall_a, wall_b, T, True, cells_b)
-    if M is None:
-        return None
-    # rounded: the tensor's last bits differ between CPUs' SIMD paths, the slide must not
-    v = np.round(np.linalg.eigh(M)[1][:, 0], 9)
-    if v[0] < 0 or (v[0] == 0 and v[1] < 0):
-        v = -v
-    return np.asarray(v / math.hypot(float(v[0]), float(v[1])), dtype=np.float64)
-
-
 def stands_as_rival(
     best: Agreement, other: Agreement, cells_per_sample: float, o: SemanticOptions
 ) -> bool:
@@ -601,36 +423,6 @@ def _standing_slide(
             if stands_as_rival(best.agreement, verify(moved), verify.cells_per_sample, o):
                 return sign * d
     return None
-
-
-def agreeing_area(a: MapCodes, b: MapCodes, T: Transform, tolerance: int = 1) -> float:
-    """How much of the maps the evidence of a pose covers, in cells^2 of a: the area of the
-    smallest rectangle, at any angle, around the wall cells that agree under ``T`` (b cells ->
-    a cells), the verifier's agreement both ways (:class:`Verifier`): b's reliable walls that
-    land on a wall of a or on free space within ``tolerance`` cells of one, where they land,
-    and a's walls that land so on b. 0 when fewer than three agree or all on one line.
-
-    A rack or a pillar gives a square metre or a few however well it matches, and every copy
-    of it matches as well; a room's or a corridor's walls cover it (exact on any CPU:
-    :func:`~mrexplore.merge.common.rectangle_area`).
-    """
-    on_b, cb, rb = agreeing_cells(b.wall_cells(), T, a.codes(tolerance))
-    on_a, _, _ = agreeing_cells(a.wall_cells(), rigid_inverse(T), b.codes(tolerance))
-    ra, ca = a.wall_cells()
-    return rectangle_area(
-        np.concatenate(
-            [np.stack([cb[on_b], rb[on_b]], axis=1), np.stack([ca[on_a], ra[on_a]], axis=1)]
-        )
-    )
-
-
-#: Within this many cells of ``min_cross_cells`` the cross support is recomputed in float64
-#: before it decides: float32's CPU-dependent last bits move it by far less.
-_CROSS_GUARD_CELLS = 1.0
-
-#: How far (cells) the structure tensor of :func:`cross_support` reaches: float Gaussian
-#: kernels span 4 sigma each side (OpenCV), so blur 1 (4) + Sobel (1) + blur 4 (16), plus slack.
-_TENSOR_REACH = 24
 
 
 class _SharedSpace:
@@ -818,133 +610,232 @@ def merge_semantic(
     """
     t0 = time.perf_counter()
     o = SemanticOptions.from_kwargs(**options)
-    detector, use_paper = o.detector or "harris", o.paper_candidates
-    min_score, min_margin, min_evidence = o.min_score, o.min_margin, o.min_evidence_cells
-    far_cells, rival_support, slide_step = o.far_cells, o.rival_support, o.slide_step
-    min_overlap, min_overlap_cells = o.min_overlap, o.min_overlap_cells
-    scale, k_peaks, max_rot_peaks = o.scale, o.peaks_per_rotation, o.max_rotation_peaks
-    rot_step, n_refine, n_polish = o.rotation_step_deg, o.n_refine, o.n_polish
-    max_samples, w_free, w_dis, ratio_power = o.max_samples, o.w_free, o.w_disagree, o.ratio_power
-    min_common_m2, shared_weight, resolution_m = o.min_common_m2, o.shared_weight, o.resolution_m
-    slack, min_run = o.slack_cells, o.min_run_cells
     info: dict[str, Any] = {}
-
-    def refuse(reason: str, score: float = 0.0, **kw: Any) -> MergeResult:
+    detector = (o.detector or "harris") if o.paper_candidates else None
+    try:
+        pair = _Pair.of(a, b, o)
+        found = _search(pair, o, info, [*extra_hypotheses], prior)
+        judged = _judge(pair, found, o, info)
+        for rule in _RULES:
+            reason = rule(judged)
+            if reason is not None:
+                raise _Refused(reason, judged.best.score, **judged.common)
+    except _Refused as refusal:
         return MergeResult(
             matched=False,
             transform=None,
-            score=score,
+            score=refusal.score,
             method="semantic",
-            detector=detector if use_paper else None,
-            reason=reason,
+            detector=detector,
+            reason=refusal.reason,
             time_s=time.perf_counter() - t0,
             info=info,
-            **kw,
+            **refusal.fields,
+        )
+    return _accepted(a, b, pair, judged, detector, t0)
+
+
+# --------------------------------------------------------------------------------------------
+# the pipeline's stages: crop, search, judge (the rules), accept
+# --------------------------------------------------------------------------------------------
+
+
+class _Refused(Exception):
+    """A refusal from inside a stage: the reason and the figures the result carries."""
+
+    def __init__(self, reason: str, score: float = 0.0, **fields: Any) -> None:
+        super().__init__(reason)
+        self.reason, self.score, self.fields = reason, score, fields
+
+
+@dataclass
+class _Pair:
+    """The two maps cropped to their known boxes (all the work is on the crops), with what
+    every stage reads: wall masks, codes, a's wall normals and the verifiers.
+
+    Verifiers: ``verify`` on up to ``max_samples`` wall cells (the judgement), ``quick`` on
+    2,000 (polishing), ``screen`` on 2,000 with a tolerance for the coarse poses' ~scale/2
+    cells of error.
+    """
+
+    box_a: Box
+    box_b: Box
+    ac: Int8Grid
+    bc: Int8Grid
+    wall_a: NDArray[np.bool_]
+    wall_b: NDArray[np.bool_]
+    codes_a: MapCodes
+    codes_b: MapCodes
+    normals_a: tuple[NDArray[np.float64], NDArray[np.float64]]
+    verify: Verifier
+    quick: Verifier
+    screen: Verifier
+    shared: _SharedSpace
+    icp: WallICP
+
+    @classmethod
+    def of(cls, a: Int8Grid, b: Int8Grid, o: SemanticOptions) -> _Pair:
+        """Crop both maps; refuses a map with nothing known or under 20 wall cells."""
+        bba, bbb = known_bbox(a, margin=1), known_bbox(b, margin=1)
+        if bba is None or bbb is None:
+            raise _Refused(f"map {'a' if bba is None else 'b'} is all unknown")
+        ac = a[bba[0] : bba[1], bba[2] : bba[3]]
+        bc = b[bbb[0] : bbb[1], bbb[2] : bbb[3]]
+        wall_a, wall_b = ac >= OCCUPIED_THRESHOLD, bc >= OCCUPIED_THRESHOLD
+        n_wall_a, n_wall_b = int(wall_a.sum()), int(wall_b.sum())
+        if min(n_wall_a, n_wall_b) < 20:
+            raise _Refused(f"too few wall cells to align (a: {n_wall_a}, b: {n_wall_b}; need 20)")
+        codes_a, codes_b = MapCodes(ac), MapCodes(bc)  # shared by all the verifiers
+        quick_samples = min(o.max_samples, 2000) if o.max_samples else 2000
+        return cls(
+            box_a=bba,
+            box_b=bbb,
+            ac=ac,
+            bc=bc,
+            wall_a=wall_a,
+            wall_b=wall_b,
+            codes_a=codes_a,
+            codes_b=codes_b,
+            normals_a=wall_normals(wall_a),  # the rotation spectrum and the slide
+            verify=Verifier(codes_a, codes_b, max_samples=o.max_samples),
+            quick=Verifier(codes_a, codes_b, max_samples=quick_samples),
+            screen=Verifier(codes_a, codes_b, max_samples=2000, tolerance=max(1, o.scale // 2 + 1)),
+            shared=_SharedSpace(ac, bc),
+            icp=WallICP(wall_a, wall_b, max_points=1500),
         )
 
-    # --- crop to the known bounding boxes (all the work below is on the crops) ---
-    bba, bbb = known_bbox(a, margin=1), known_bbox(b, margin=1)
-    if bba is None or bbb is None:
-        return refuse(f"map {'a' if bba is None else 'b'} is all unknown")
-    ac = a[bba[0] : bba[1], bba[2] : bba[3]]
-    bc = b[bbb[0] : bbb[1], bbb[2] : bbb[3]]
-    wall_a, wall_b = ac >= OCCUPIED_THRESHOLD, bc >= OCCUPIED_THRESHOLD
-    n_wall_a, n_wall_b = int(wall_a.sum()), int(wall_b.sum())
-    if min(n_wall_a, n_wall_b) < 20:
-        return refuse(f"too few wall cells to align (a: {n_wall_a}, b: {n_wall_b}; need 20)")
+    def to_full(self, T: Transform) -> Transform:
+        """A pose between the crops as one between the full maps (b's cells -> a's)."""
+        bba, bbb = self.box_a, self.box_b
+        return chain(translation(bba[2], bba[0]), T, translation(-bbb[2], -bbb[0]))
 
-    codes_a, codes_b = MapCodes(ac), MapCodes(bc)  # shared by the four verifiers below
-    verify = Verifier(codes_a, codes_b, max_samples=max_samples)
-    shared = _SharedSpace(ac, bc)
-    quick = Verifier(codes_a, codes_b, max_samples=min(max_samples, 2000) if max_samples else 2000)
+    def to_crops(self, T: Transform) -> Transform:
+        """A pose between the full maps as one between the crops."""
+        bba, bbb = self.box_a, self.box_b
+        return chain(translation(-bba[2], -bba[0]), T, translation(bbb[2], bbb[0]))
 
-    # --- 1. rotations ---
-    normals_a = wall_normals(wall_a)  # a's wall directions: the rotation spectrum and the slide
+    def overlaps(self, h: _Hypothesis, verifier: Verifier, o: SemanticOptions) -> bool:
+        """Whether ``h``'s agreement (by ``verifier``) has the shared walls asked for."""
+        return h.agreement is not None and verifier.overlap_ok(
+            h.agreement, o.min_overlap, o.min_overlap_cells
+        )
+
+    def moved(
+        self, h: _Hypothesis, shifts: NDArray[np.float64], source: str, o: SemanticOptions
+    ) -> list[_Hypothesis]:
+        """``h`` moved by each of ``shifts``, screened and refined with this pair's tools."""
+        return _shifted_hypotheses(
+            h,
+            shifts,
+            source,
+            self.screen,
+            self.quick,
+            self.verify,
+            self.icp,
+            o.min_overlap,
+            o.min_overlap_cells,
+        )
+
+
+@dataclass
+class _Found:
+    """What the search found: every candidate it tried (``tried``) and the refined, distinct
+    ones that overlap enough (``chosen``), with the prior's region when one was given."""
+
+    tried: list[_Hypothesis]
+    chosen: list[_Hypothesis]
+    region: tuple[PosePrior, Transform, NDArray[np.float64]] | None
+
+    def in_prior(self, h: _Hypothesis) -> bool:
+        """Whether ``h`` lies in the prior's region (always, without a prior)."""
+        return self.region is None or self.region[0].admits(h.T, self.region[2], self.region[1])
+
+
+def _coarse_hypotheses(pair: _Pair, o: SemanticOptions, info: dict[str, Any]) -> list[_Hypothesis]:
+    """Steps 1 and 2: the rotation candidates, and per rotation the coarse translation peaks
+    (and with ``paper_candidates`` the seed paper's trusted-point matches)."""
     thetas = rotation_candidates(
-        wall_a, wall_b, max_rot_peaks, rot_step, normals_a, hough_max_cells=o.hough_max_cells
+        pair.wall_a,
+        pair.wall_b,
+        o.max_rotation_peaks,
+        o.rotation_step_deg,
+        pair.normals_a,
+        hough_max_cells=o.hough_max_cells,
     )
     info["rotations_deg"] = [round(float(np.degrees(t)), 2) for t in thetas]
     if not thetas:
-        return refuse("no wall edges to estimate a rotation from (add rotation_step_deg to sweep)")
-
-    # --- 2. coarse translations per rotation ---
-    rots = [_rotation_about(t, bc.shape) for t in thetas]
+        raise _Refused("no wall edges to estimate a rotation from (add rotation_step_deg to sweep)")
+    rots = [_rotation_about(t, pair.bc.shape) for t in thetas]
     max_shape = (max(s[0] for _, s in rots), max(s[1] for _, s in rots))
-    coarse = CoarseMatcher(ac, scale, max_shape, w_free, w_dis, ratio_power)
+    coarse = CoarseMatcher(pair.ac, o.scale, max_shape, o.w_free, o.w_disagree, o.ratio_power)
     hyps: list[_Hypothesis] = []
     for T_rot, shape in rots:
-        b_rot = warp_into(bc, T_rot, shape)
-        for dc, dr, _ in coarse.peaks(b_rot, k_peaks):
+        b_rot = warp_into(pair.bc, T_rot, shape)
+        for dc, dr, _ in coarse.peaks(b_rot, o.peaks_per_rotation):
             # pooled blocks are anchored at the corner: half a block of ambiguity, which ICP removes
             hyps.append(_Hypothesis(chain(translation(dc, dr), T_rot), "coarse"))
-        if use_paper:
+        if o.paper_candidates:
             hyps += [
                 _Hypothesis(T, "paper")
-                for T in _paper_hypotheses(ac, b_rot, T_rot, 150, 3, detector)
+                for T in _paper_hypotheses(pair.ac, b_rot, T_rot, 150, 3, o.detector or "harris")
             ]
+    return hyps
+
+
+def _search(
+    pair: _Pair,
+    o: SemanticOptions,
+    info: dict[str, Any],
+    given: list[Transform],
+    prior: PosePrior | None,
+) -> _Found:
+    """Steps 1-4: candidates (coarse, handed in, the prior's guess), screened with a wide
+    tolerance, the best ``n_polish`` polished by a short ICP, the ``n_refine`` best distinct
+    ones refined fully (the two best also turned by small angles), slid along a's walls; those
+    that overlap enough (and lie near the prior's guess). Refuses when none does."""
+    hyps = _coarse_hypotheses(pair, o, info)
     # the guess of a prior is one more pose handed in
-    given = [*extra_hypotheses, *([prior.T_ab] if prior is not None else [])]
+    given = [*given, *([prior.T_ab] if prior is not None else [])]
     if not hyps and not given:
-        return refuse("no candidate alignment (the maps share no structure)")
+        raise _Refused("no candidate alignment (the maps share no structure)")
 
     # --- 3. screen the raw hypotheses with a wide tolerance (they are up to ~scale/2 cells off),
     # polish the best few with a short ICP, re-verify; 4. refine the best fully ---
-    screen = Verifier(codes_a, codes_b, max_samples=2000, tolerance=max(1, scale // 2 + 1))
     for hyp in hyps:
-        hyp.agreement = screen(hyp.T)
+        hyp.agreement = pair.screen(hyp.T)
     hyps.sort(key=lambda h: -(h.agreement.agree - h.agreement.disagree if h.agreement else 0))
-    to_crops = translation(-bba[2], -bba[0]), translation(bbb[2], bbb[0])
-
-    def to_full(T: Transform) -> Transform:
-        """A pose between the crops as one between the full maps (b's cells -> a's)."""
-        return chain(translation(bba[2], bba[0]), T, translation(-bbb[2], -bbb[0]))
 
     region: tuple[PosePrior, Transform, NDArray[np.float64]] | None = None
     if prior is not None:
         # only poses near the guess; the coarse ones with room for their ~scale/2 cells of error
-        prior_crop = chain(to_crops[0], prior.T_ab, to_crops[1])
-        centre = np.asarray(verify.points_b, dtype=np.float64).mean(axis=0)
-        loose = PosePrior(prior_crop, prior.radius_cells + 2 * scale, prior.turn_deg + 2.0)
+        prior_crop = pair.to_crops(prior.T_ab)
+        centre = np.asarray(pair.verify.points_b, dtype=np.float64).mean(axis=0)
+        loose = PosePrior(prior_crop, prior.radius_cells + 2 * o.scale, prior.turn_deg + 2.0)
         hyps = [h for h in hyps if loose.admits(h.T, centre, prior_crop)]
         region = (prior, prior_crop, centre)
         info["prior"] = True
 
-    def in_prior(h: _Hypothesis) -> bool:
-        return region is None or region[0].admits(h.T, region[2], region[1])
-
     # poses handed in go first, so that they are always polished (and judged like the rest)
     hyps = [
-        _Hypothesis(chain(to_crops[0], np.asarray(T, dtype=np.float64), to_crops[1]), "given")
-        for T in given
+        _Hypothesis(pair.to_crops(np.asarray(T, dtype=np.float64)), "given") for T in given
     ] + hyps
     for hyp in hyps[: len(given)]:
-        hyp.agreement = screen(hyp.T)
-    icp = WallICP(wall_a, wall_b, max_points=1500)
-    for hyp in hyps[:n_polish]:
-        hyp.T = icp(hyp.T, iters=4, max_dist=1.5 * scale, n_points=400)
+        hyp.agreement = pair.screen(hyp.T)
+    icp, quick, verify = pair.icp, pair.quick, pair.verify
+    for hyp in hyps[: o.n_polish]:
+        hyp.T = icp(hyp.T, iters=4, max_dist=1.5 * o.scale, n_points=400)
         hyp.agreement = quick(hyp.T)
-    ok = [
-        h
-        for h in hyps[:n_polish]
-        if h.agreement is not None and quick.overlap_ok(h.agreement, min_overlap, min_overlap_cells)
-    ]
-
-    def credit_shared_space(hs: list[_Hypothesis]) -> None:
-        for h in hs:
-            h.shared_cells = shared(h.T)
-            h.shared_bonus = shared_weight * h.shared_cells
-
-    if shared_weight > 0:  # the credit of the final ranking (below), so the truth is kept
-        credit_shared_space(ok)
+    ok = [h for h in hyps[: o.n_polish] if pair.overlaps(h, quick, o)]
+    if o.shared_weight > 0:  # the credit of the final ranking (in _judge), so the truth is kept
+        _credit_shared_space(ok, pair, o)
     ok.sort(key=lambda h: -h.evidence)
     # keep distinct hypotheses only (ICP often pulls several peaks to the same pose)
-    pts = verify.points_b
     chosen: list[_Hypothesis] = []
     for h in ok:
         # a cell apart on average: the quick verifier's 2,000 walls estimate it as well as all
         if all(_mean_shift(h.T, c.T, quick.points_b) >= 1.0 for c in chosen):
             chosen.append(h)
-        if len(chosen) >= n_refine:
+        if len(chosen) >= o.n_refine:
             break
     for h in chosen:
         h.T = icp(h.T, iters=10, max_dist=3.0)
@@ -952,57 +843,109 @@ def merge_semantic(
         h.agreement = verify(h.T)
     chosen.sort(key=lambda h: -h.evidence)
     for h in chosen[:2]:
-        _rotation_polish(h, icp, verify, bc.shape)
-    chosen = [
-        h
-        for h in chosen
-        if h.agreement is not None
-        and verify.overlap_ok(h.agreement, min_overlap, min_overlap_cells)
-    ]
-
-    def moved(h: _Hypothesis, shifts: NDArray[np.float64], source: str) -> list[_Hypothesis]:
-        """``h`` moved by each of ``shifts``, screened and refined with this merge's tools."""
-        return _shifted_hypotheses(
-            h, shifts, source, screen, quick, verify, icp, min_overlap, min_overlap_cells
-        )
-
-    if slide_step > 0 and chosen:
+        _rotation_polish(h, icp, verify, pair.bc.shape)
+    chosen = [h for h in chosen if pair.overlaps(h, verify, o)]
+    if o.slide_step > 0 and chosen:
         best_so_far = max(chosen, key=lambda h: h.evidence)
-        chosen += moved(best_so_far, _slide_shifts(normals_a, bc.shape, slide_step), "slide")
-    chosen = [h for h in chosen if in_prior(h)]  # refined and slid: still near the guess?
+        shifts = _slide_shifts(pair.normals_a, pair.bc.shape, o.slide_step)
+        chosen += pair.moved(best_so_far, shifts, "slide", o)
+    found = _Found(hyps, chosen, region)
+    found.chosen = [h for h in chosen if found.in_prior(h)]  # refined and slid: still near?
     info["n_candidates"] = len(hyps)
-    if not chosen:
+    if not found.chosen:
         best_any = max((h.score for h in hyps), default=0.0)
-        return refuse(
-            f"no hypothesis overlaps enough (need {min_overlap:.0%} of b's wall cells on "
-            f"a's known cells and {min_overlap_cells} wall cells in all)",
+        raise _Refused(
+            f"no hypothesis overlaps enough (need {o.min_overlap:.0%} of b's wall cells on "
+            f"a's known cells and {o.min_overlap_cells} wall cells in all)",
             score=best_any,
             n_hypotheses=len(hyps),
         )
+    return found
+
+
+def _credit_shared_space(hs: list[_Hypothesis], pair: _Pair, o: SemanticOptions) -> None:
+    """Count the known space the maps share under each pose, and its credit in the ranking."""
+    for h in hs:
+        h.shared_cells = pair.shared(h.T)
+        h.shared_bonus = o.shared_weight * h.shared_cells
+
+
+@dataclass
+class _Judged:
+    """The best pose and its rivals, with what the decision rules (:data:`_RULES`) read."""
+
+    pair: _Pair
+    found: _Found
+    o: SemanticOptions
+    info: dict[str, Any]
+    best: _Hypothesis
+    consistency: float
+    rivals: list[_Hypothesis]
+    common: dict[str, Any]  # the figures every refusal from here on carries
+    structures_b: Structures | None = None  # b's wall structures, labelled once when needed
+    _by_structure: Any = None
+
+    @property
+    def agreement(self) -> Agreement:
+        assert self.best.agreement is not None
+        return self.best.agreement
+
+    def away(self, h: _Hypothesis) -> float:
+        """Mean displacement (cells) of b's walls between ``h``'s pose and the best's."""
+        return _mean_shift(h.T, self.best.T, self.pair.verify.points_b)
+
+    def by_structure(self) -> Any:
+        """Each map's structures and their agreement under the best pose, computed once for
+        the two object rules."""
+        if self._by_structure is None:
+            self._by_structure = agreement_by_structure(
+                self.pair.codes_a, self.pair.codes_b, self.best.T, structures_b=self.structures_b
+            )
+        return self._by_structure
+
+
+def _perfect(h: _Hypothesis, verify: Verifier, o: SemanticOptions) -> bool:
+    """A far pose the maps do not contradict at all, on ``rival_perfect_cells`` of wall or more:
+    a rival however much more the best explains (b's rest may lie in a's unseen part)."""
+    assert h.agreement is not None
+    return (
+        o.rival_perfect_cells > 0
+        and h.agreement.disagree == 0
+        and h.agreement.agree * verify.cells_per_sample >= o.rival_perfect_cells
+    )
+
+
+def _judge(pair: _Pair, found: _Found, o: SemanticOptions, info: dict[str, Any]) -> _Judged:
+    """Step 5's ranking: the best pose (consistency-polished when that makes it consistent)
+    and its rivals, recorded in ``info``."""
     # The best explains the most: agreement minus heavily weighted disagreement, plus a credit
     # for known space both maps share under the pose (one wall cell's worth per
     # ``1 / shared_weight`` shared cells). Ranking by the index alone ties every small,
     # uncontradicted overlap (a corner on a corner) with the truth; ranking by walls alone
     # prefers a long wall laid on a's wall from outside (b's rooms over a's unknown) to the
     # true pose whose rooms coincide but whose walls a bent map blurs.
-    credit_shared_space(chosen)  # their poses moved in the refinement: count again
+    chosen = found.chosen
+    _credit_shared_space(chosen, pair, o)  # their poses moved in the refinement: count again
     chosen.sort(key=lambda h: -h.evidence)
-    info["hypotheses"] = [(to_full(h.T), h.agreement) for h in chosen]
+    info["hypotheses"] = [(pair.to_full(h.T), h.agreement) for h in chosen]
     best = chosen[0]
     assert best.agreement is not None
+    verify = pair.verify
     # Consistency of the best pose with the maps' noise: walls within ``slack`` more cells of
     # the other map's walls (a wall seen from its two sides, a wall eroded by grazing beams) and
     # lone contradictions (groups under ``min_run`` cells) are noise, not evidence against it.
-    consistent_v = Verifier(codes_a, codes_b, max_samples=max_samples, slack=slack)
-    best_consistency = consistent_v.structured(best.T, min_run).score
-    if best_consistency < min_score and o.consistency_polish:
+    consistent_v = Verifier(
+        pair.codes_a, pair.codes_b, max_samples=o.max_samples, slack=o.slack_cells
+    )
+    best_consistency = consistent_v.structured(best.T, o.min_run_cells).score
+    if best_consistency < o.min_score and o.consistency_polish:
         # the best pose as ICP left it may sit a cell and a degree from where the maps agree
         # within their noise; the nearby pose that does is the same place, not a new match
         # (the rival test below still judges it, with its own agreement)
         T_pol, c_pol = _consistency_polish(
             best.T,
             consistent_v,
-            lambda T: consistent_v.structured(T, min_run).score,
+            lambda T: consistent_v.structured(T, o.min_run_cells).score,
             tuple(np.asarray(verify.points_b, dtype=np.float64).mean(axis=0)),
             start=best_consistency,
         )
@@ -1013,12 +956,12 @@ def merge_semantic(
         # The best of 125 nearby poses is consistent by selection as well as by place, so it
         # must clear the bar by a margin (a twin-wing pose polished from 0.949 to 0.971 was
         # merged 123 cells off; the correct polished poses of the bench reach 0.98-1.00).
-        if c_pol >= min_score + o.polish_margin and verify.overlap_ok(
-            ag_pol := verify(T_pol), min_overlap, min_overlap_cells
+        if c_pol >= o.min_score + o.polish_margin and verify.overlap_ok(
+            ag_pol := verify(T_pol), o.min_overlap, o.min_overlap_cells
         ):
             best.T, best_consistency = T_pol, c_pol
             best.agreement = ag_pol
-            best.shared_cells = shared(T_pol)
+            best.shared_cells = pair.shared(T_pol)
             info["consistency_polished"] = True
 
     # A rival is a pose far from the best that explains a comparable part of the maps: at least
@@ -1030,208 +973,273 @@ def merge_semantic(
     # A far pose the maps do not contradict at all, on 12.5 m of wall or more, is a rival
     # however much more the best explains: b's rest may lie in a's unseen part (a warehouse
     # shelf row explained 3x as much as the truth and was merged 342 cells off).
-    def perfect(h: _Hypothesis) -> bool:
-        assert h.agreement is not None
-        return (
-            o.rival_perfect_cells > 0
-            and h.agreement.disagree == 0
-            and h.agreement.agree * verify.cells_per_sample >= o.rival_perfect_cells
-        )
-
+    pts = verify.points_b
     rivals = [
         h
         for h in chosen[1:]
-        if _mean_shift(h.T, best.T, pts) >= far_cells
+        if _mean_shift(h.T, best.T, pts) >= o.far_cells
         and h.agreement is not None
-        and (h.agreement.agree >= rival_support * best.agreement.agree or perfect(h))
+        and (h.agreement.agree >= o.rival_support * best.agreement.agree or _perfect(h, verify, o))
     ]
-    rivals.sort(key=lambda h: not perfect(h))  # a perfect rival is the one to judge (stable)
-    runner = rivals[0].score if rivals else None
+    rivals.sort(key=lambda h: not _perfect(h, verify, o))  # a perfect rival is judged (stable)
     # every rival's pose (b's cells -> a's), for a caller that weighs them over time (the tracker)
-    info["rivals"] = [to_full(h.T) for h in rivals]
+    info["rivals"] = [pair.to_full(h.T) for h in rivals]
     info["rival_agreements"] = [h.agreement for h in rivals]
     info["best_agreement"] = best.agreement
     info["runner_up_agreement"] = rivals[0].agreement if rivals else None
-    T_full = to_full(best.T)
-    info["best_transform"] = T_full  # the pose judged below, also when it is refused
-    overlap_cells = int(best.agreement.overlap * verify.cells_per_sample)
-    common = dict(n_hypotheses=len(hyps), runner_up_score=runner, overlap_cells=overlap_cells)
+    info["best_transform"] = pair.to_full(best.T)  # the pose judged below, also when refused
     info["best_source"] = best.source
     info["consistency"] = best_consistency
-    info["consistent"] = bool(best_consistency >= min_score)
-    if best_consistency < min_score:
-        return refuse(
-            f"best hypothesis agrees only {best_consistency:.2f} < {min_score:.2f} "
-            f"(raw index {best.score:.2f})",
-            score=best.score,
-            **common,
+    info["consistent"] = bool(best_consistency >= o.min_score)
+    common = dict(
+        n_hypotheses=len(found.tried),
+        runner_up_score=rivals[0].score if rivals else None,
+        overlap_cells=int(best.agreement.overlap * verify.cells_per_sample),
+    )
+    return _Judged(pair, found, o, info, best, best_consistency, rivals, common)
+
+
+# --- 5. the decision: each rule returns the reason to refuse, or None; run in this order ---
+
+
+def _rule_consistent(j: _Judged) -> str | None:
+    """The maps contradict each other under the best pose no more than their noise explains."""
+    if j.consistency < j.o.min_score:
+        return (
+            f"best hypothesis agrees only {j.consistency:.2f} < {j.o.min_score:.2f} "
+            f"(raw index {j.best.score:.2f})"
         )
+    return None
+
+
+def _rule_unique(j: _Judged) -> str | None:
+    """Every rival is beaten by ``min_margin`` in index and ``min_evidence_cells`` more
+    contradicting wall cells, or ruled out by one object the maps show (a notch, a post:
+    ``min_evidence_cells`` wall cells in one group), while noise contradicts in scattered
+    cells (docs/merging.md, item 24)."""
+    o, best = j.o, j.best
+    if not j.rivals:
+        return None
+    rival = j.rivals[0]
+    margin = best.score - rival.score
     evidence = 0
-    if rivals and rivals[0].agreement is not None:
+    if rival.agreement is not None:
         evidence = int(
-            (rivals[0].agreement.disagree - best.agreement.disagree) * verify.cells_per_sample
+            (rival.agreement.disagree - j.agreement.disagree) * j.pair.verify.cells_per_sample
         )
-    # A rival beaten by less than the margin is still ruled out by one object the maps show
-    # (a notch, a post: ``min_evidence`` wall cells in one group), while noise contradicts
-    # in scattered cells (docs/merging.md, item 24).
-    if runner is not None and (best.score - runner < min_margin or evidence < min_evidence):
-        structure = rival_structure(verify, best.T, rivals[0].T, best.score - runner, o)
-        info["rival_structure_cells"] = structure
-        if structure < min_evidence:
-            return refuse(
-                f"ambiguous: best {best.score:.3f} vs {runner:.3f} for a pose "
-                f"{_mean_shift(rivals[0].T, best.T, pts):.0f} cells away "
-                f"(margin {best.score - runner:.3f}, {evidence} more disagreeing wall cells"
-                + (f", the largest object ruling it out {structure}" if o.structure_test else "")
-                + f"; need {min_margin} and {min_evidence}"
-                + (f", or one object of {min_evidence})" if o.structure_test else ")"),
-                score=best.score,
-                **common,
-            )
-    common_m2 = best.shared_cells * resolution_m**2
-    info["common_known_m2"] = common_m2
-    if common_m2 < min_common_m2:
-        return refuse(
+    if margin >= o.min_margin and evidence >= o.min_evidence_cells:
+        return None
+    structure = rival_structure(j.pair.verify, best.T, rival.T, margin, o)
+    j.info["rival_structure_cells"] = structure
+    if structure >= o.min_evidence_cells:
+        return None
+    return (
+        f"ambiguous: best {best.score:.3f} vs {rival.score:.3f} for a pose "
+        f"{j.away(rival):.0f} cells away "
+        f"(margin {margin:.3f}, {evidence} more disagreeing wall cells"
+        + (f", the largest object ruling it out {structure}" if o.structure_test else "")
+        + f"; need {o.min_margin} and {o.min_evidence_cells}"
+        + (f", or one object of {o.min_evidence_cells})" if o.structure_test else ")")
+    )
+
+
+def _rule_shared_space(j: _Judged) -> str | None:
+    """The maps share ``min_common_m2`` of known space under the best pose."""
+    common_m2 = j.best.shared_cells * j.o.resolution_m**2
+    j.info["common_known_m2"] = common_m2
+    if common_m2 < j.o.min_common_m2:
+        return (
             f"the maps share only {common_m2:.1f} m^2 of known space under the best pose; need "
-            f"{min_common_m2:.0f} m^2 (a match no larger than a room may be a look-alike room)",
-            score=best.score,
-            **common,
+            f"{j.o.min_common_m2:.0f} m^2 (a match no larger than a room may be a look-alike room)"
         )
-    if prior is None and common_m2 < o.room_match_m2:
-        # a room's worth of shared space is little evidence when each map holds several rooms:
-        # one of the others may be its look-alike (a guess of the pose rules those out)
-        smaller_m2 = shared.smaller_known_cells() * resolution_m**2
-        if common_m2 < o.room_match_share * smaller_m2:
-            return refuse(
-                f"the maps share only {common_m2:.1f} m^2 of known space under the best pose, "
-                f"under {o.room_match_share:g} of the smaller map's {smaller_m2:.1f} m^2 (need "
-                f"{o.room_match_m2:g} m^2 or that share): a match the size of a room, in maps "
-                "of several rooms, may be one room's look-alike",
-                score=best.score,
-                **common,
-            )
-    structures_b: Structures | None = None  # b's wall structures, labelled once when needed
-    if o.min_cross_cells > 0:
-        # a slide along one straight wall (or a corridor) explains the maps as well as the pose:
-        # its walls must also pin the pose across that direction
-        pin_terms = _PinTerms(wall_a, wall_b, best.T, icp.cells_b)
-        cross = _cross(pin_terms(False))
-        if abs(cross - o.min_cross_cells) < _CROSS_GUARD_CELLS or cross < o.min_cross_cells:
-            # near the threshold, or refused (its figure is printed): the CPU-independent value
-            cross = _cross(pin_terms(True))
-        cross = round(cross, 2)
-        info["cross_cells"] = cross
-        pinned, slid = cross >= o.min_cross_cells, None
-        if not pinned and o.slide_test:
-            # few walls cross the slide direction, but door gaps and wall ends may still pin the
-            # pose: slide it along that direction and ask whether the maps contradict every slide
-            slid = _standing_slide(verify, best, wall_a, wall_b, icp.cells_b, o)
-            info["slide_rival_cells"] = slid
-            pinned = slid is None
-        if not pinned:
-            slide = "" if slid is None else f"; a slide of {slid:+g} cells stands as a rival"
-            return refuse(
-                f"the agreeing walls do not pin the pose along them (cross support {cross:.1f} "
-                f"wall cells < {o.min_cross_cells:g}{slide}): a slide along one wall or "
-                "corridor fits as well",
-                score=best.score,
-                **common,
-            )
-        if o.lone_pin_test and cross >= o.min_cross_cells:  # pinned by the walls themselves
-            structures_b = Structures(codes_b)
-            lone_args = (wall_b, structures_b, OBJECT_CLUTTER_M / resolution_m, icp.cells_b)
-            lone = _lone_pin(pin_terms(False), *lone_args)
-            if lone is not None and lone[0] < o.min_cross_cells + _CROSS_GUARD_CELLS:
-                # near the threshold or under it: the CPU-independent value decides
-                lone = _lone_pin(pin_terms(True), *lone_args)
-            if lone is not None and round(lone[0], 2) < o.min_cross_cells:
-                info["lone_pin_cells"] = round(lone[0], 2)
-                return refuse(
-                    f"the agreeing walls pin the pose along them only through one small thing "
-                    f"(cross support {lone[0]:.1f} wall cells without its {lone[1]}; need "
-                    f"{o.min_cross_cells:g}): a post or a box beside a wall matches every copy "
-                    "of it",
-                    score=best.score,
-                    **common,
-                )
-    if o.min_wall_area_m2 > 0:
-        area_m2 = agreeing_area(codes_a, codes_b, best.T) * resolution_m**2
-        info["wall_area_m2"] = area_m2
-        if area_m2 < o.min_wall_area_m2:
-            return refuse(
-                f"the walls that agree fit in {area_m2:.2f} m^2 (need {o.min_wall_area_m2:g} "
-                "m^2): one object, a rack or a pillar, fits every copy of it",
-                score=best.score,
-                **common,
-            )
-    # one labelling and agreement of each map, shared by the two object rules below
-    by_structure = None
-    if o.min_object_m2 > 0 or o.object_hull_free > 0:
-        by_structure = agreement_by_structure(codes_a, codes_b, best.T, structures_b=structures_b)
-    if o.min_object_m2 > 0:
-        object_cells = one_object_area(codes_a, codes_b, best.T, by_structure=by_structure)
-        if object_cells is not None:
-            object_m2 = object_cells * resolution_m**2
-            info["object_m2"] = object_m2
-            if object_m2 < o.min_object_m2:
-                return refuse(
-                    f"the walls that agree lie on one structure in each map, no larger than "
-                    f"{object_m2:.1f} m^2 (need {o.min_object_m2:g} m^2): an object matches "
-                    "every copy of it, seen or not",
-                    score=best.score,
-                    **common,
-                )
-    if o.object_hull_free > 0 and outside_object(
-        codes_a,
-        codes_b,
-        best.T,
+    return None
+
+
+def _rule_room_match(j: _Judged) -> str | None:
+    """Without a prior, a room's worth of shared space is little evidence when each map holds
+    several rooms: one of the others may be its look-alike (a guess of the pose rules those
+    out). Refused under ``room_match_m2`` and under ``room_match_share`` of the smaller map."""
+    o = j.o
+    common_m2 = j.best.shared_cells * o.resolution_m**2
+    if j.found.region is not None or common_m2 >= o.room_match_m2:
+        return None
+    smaller_m2 = j.pair.shared.smaller_known_cells() * o.resolution_m**2
+    if common_m2 >= o.room_match_share * smaller_m2:
+        return None
+    return (
+        f"the maps share only {common_m2:.1f} m^2 of known space under the best pose, "
+        f"under {o.room_match_share:g} of the smaller map's {smaller_m2:.1f} m^2 (need "
+        f"{o.room_match_m2:g} m^2 or that share): a match the size of a room, in maps "
+        "of several rooms, may be one room's look-alike"
+    )
+
+
+def _rule_pinned(j: _Judged) -> str | None:
+    """The agreeing walls pin the pose along them (``min_cross_cells``; with ``slide_test``,
+    or the maps contradict every slide), and not only through one small thing
+    (``lone_pin_test``): a slide along one straight wall or a corridor explains the maps as
+    well as the pose, and a post beside rack sides matches every aisle's post."""
+    o, pair, info = j.o, j.pair, j.info
+    if o.min_cross_cells <= 0:
+        return None
+    pins = PinTerms(pair.wall_a, pair.wall_b, j.best.T, pair.icp.cells_b)
+    cross = pins.cross(False)
+    if abs(cross - o.min_cross_cells) < CROSS_GUARD_CELLS or cross < o.min_cross_cells:
+        # near the threshold, or refused (its figure is printed): the CPU-independent value
+        cross = pins.cross(True)
+    cross = round(cross, 2)
+    info["cross_cells"] = cross
+    pinned, slid = cross >= o.min_cross_cells, None
+    if not pinned and o.slide_test:
+        # few walls cross the slide direction, but door gaps and wall ends may still pin the
+        # pose: slide it along that direction and ask whether the maps contradict every slide
+        slid = _standing_slide(pair.verify, j.best, pair.wall_a, pair.wall_b, pair.icp.cells_b, o)
+        info["slide_rival_cells"] = slid
+        pinned = slid is None
+    if not pinned:
+        slide = "" if slid is None else f"; a slide of {slid:+g} cells stands as a rival"
+        return (
+            f"the agreeing walls do not pin the pose along them (cross support {cross:.1f} "
+            f"wall cells < {o.min_cross_cells:g}{slide}): a slide along one wall or "
+            "corridor fits as well"
+        )
+    if not o.lone_pin_test or cross < o.min_cross_cells:  # pinned by the slide test only
+        return None
+    j.structures_b = Structures(pair.codes_b)
+    small_cells = OBJECT_CLUTTER_M / o.resolution_m
+    lone = pins.lone_pin(False, j.structures_b, small_cells)
+    if lone is not None and lone[0] < o.min_cross_cells + CROSS_GUARD_CELLS:
+        # near the threshold or under it: the CPU-independent value decides
+        lone = pins.lone_pin(True, j.structures_b, small_cells)
+    if lone is None or round(lone[0], 2) >= o.min_cross_cells:
+        return None
+    info["lone_pin_cells"] = round(lone[0], 2)
+    return (
+        f"the agreeing walls pin the pose along them only through one small thing "
+        f"(cross support {lone[0]:.1f} wall cells without its {lone[1]}; need "
+        f"{o.min_cross_cells:g}): a post or a box beside a wall matches every copy "
+        "of it"
+    )
+
+
+def _rule_wall_area(j: _Judged) -> str | None:
+    """The agreeing walls cover ``min_wall_area_m2``: one object fits every copy of it."""
+    o = j.o
+    if o.min_wall_area_m2 <= 0:
+        return None
+    area_m2 = agreeing_area(j.pair.codes_a, j.pair.codes_b, j.best.T) * o.resolution_m**2
+    j.info["wall_area_m2"] = area_m2
+    if area_m2 < o.min_wall_area_m2:
+        return (
+            f"the walls that agree fit in {area_m2:.2f} m^2 (need {o.min_wall_area_m2:g} "
+            "m^2): one object, a rack or a pillar, fits every copy of it"
+        )
+    return None
+
+
+def _rule_one_object(j: _Judged) -> str | None:
+    """The agreeing walls are more than one structure of ``min_object_m2`` in each map: a rack
+    seen whole matches every copy of it, and the copies may lie where neither map looked."""
+    o = j.o
+    if o.min_object_m2 <= 0:
+        return None
+    object_cells = one_object_area(
+        j.pair.codes_a, j.pair.codes_b, j.best.T, by_structure=j.by_structure()
+    )
+    if object_cells is None:
+        return None
+    object_m2 = object_cells * o.resolution_m**2
+    j.info["object_m2"] = object_m2
+    if object_m2 < o.min_object_m2:
+        return (
+            f"the walls that agree lie on one structure in each map, no larger than "
+            f"{object_m2:.1f} m^2 (need {o.min_object_m2:g} m^2): an object matches "
+            "every copy of it, seen or not"
+        )
+    return None
+
+
+def _rule_outside_object(j: _Judged) -> str | None:
+    """The agreeing walls are not, in either map, one structure seen from outside plus at most
+    one small thing (``object_hull_free``): a rack and its post are what a warehouse repeats."""
+    o = j.o
+    if o.object_hull_free <= 0 or not outside_object(
+        j.pair.codes_a,
+        j.pair.codes_b,
+        j.best.T,
         o.object_hull_free,
-        clutter_cells=OBJECT_CLUTTER_M / resolution_m,
-        min_width_cells=OBJECT_WIDTH_M / resolution_m,
-        by_structure=by_structure,
+        clutter_cells=OBJECT_CLUTTER_M / o.resolution_m,
+        min_width_cells=OBJECT_WIDTH_M / o.resolution_m,
+        by_structure=j.by_structure(),
     ):
-        info["outside_object"] = True
-        return refuse(
-            "the walls that agree lie, in one map, on one object seen from outside (free "
-            f"space fills under {o.object_hull_free:g} of its hull) and at most one small "
-            "thing beside it: a rack and its post match every copy of them, seen or not",
-            score=best.score,
-            **common,
-        )
-    if o.repeat_rivals > 0:
-        # Last, since it costs an autocorrelation of each map (~2 ms) and only a pose about to
-        # be merged needs it: the poses that move the best by either map's repeats, judged as
-        # rivals are (a copy the search never tried; it only refuses, never picks the best)
-        shifts = _repeat_moves(
-            best.T,
-            repeat_shifts(ac, scale, o.repeat_rivals, 4.0 * scale),
-            repeat_shifts(bc, scale, o.repeat_rivals, 4.0 * scale),
-        )
-        for h in moved(best, shifts, "repeat") if len(shifts) else []:
-            assert h.agreement is not None
-            away = _mean_shift(h.T, best.T, pts)
-            if (
-                not in_prior(h)
-                or away < far_cells
-                or not (
-                    perfect(h)
-                    or stands_as_rival(best.agreement, h.agreement, verify.cells_per_sample, o)
-                )
-            ):
-                continue
-            info["rivals"].append(to_full(h.T))
-            info["rival_agreements"].append(h.agreement)
-            return refuse(
-                f"ambiguous: the maps repeat: best {best.score:.3f} vs {h.score:.3f} for a pose "
-                f"{away:.0f} cells away, moved by a repeat of a map "
-                f"({h.agreement.agree} agreeing, {h.agreement.disagree} disagreeing wall "
-                f"samples against {best.agreement.agree} and {best.agreement.disagree})",
-                score=best.score,
-                **common,
+        return None
+    j.info["outside_object"] = True
+    return (
+        "the walls that agree lie, in one map, on one object seen from outside (free "
+        f"space fills under {o.object_hull_free:g} of its hull) and at most one small "
+        "thing beside it: a rack and its post match every copy of them, seen or not"
+    )
+
+
+def _rule_repeats(j: _Judged) -> str | None:
+    """The poses that move the best by either map's ``repeat_rivals`` strongest repeats are
+    beaten as rivals are: a copy the coarse search never tried. Last, since it costs an
+    autocorrelation of each map (~2 ms) and only a pose about to be merged needs it; it only
+    refuses, never picks the best."""
+    o, pair, best = j.o, j.pair, j.best
+    if o.repeat_rivals <= 0:
+        return None
+    shifts = _repeat_moves(
+        best.T,
+        repeat_shifts(pair.ac, o.scale, o.repeat_rivals, 4.0 * o.scale),
+        repeat_shifts(pair.bc, o.scale, o.repeat_rivals, 4.0 * o.scale),
+    )
+    for h in pair.moved(best, shifts, "repeat", o) if len(shifts) else []:
+        assert h.agreement is not None
+        away = j.away(h)
+        if (
+            not j.found.in_prior(h)
+            or away < o.far_cells
+            or not (
+                _perfect(h, pair.verify, o)
+                or stands_as_rival(j.agreement, h.agreement, pair.verify.cells_per_sample, o)
             )
+        ):
+            continue
+        j.info["rivals"].append(pair.to_full(h.T))
+        j.info["rival_agreements"].append(h.agreement)
+        return (
+            f"ambiguous: the maps repeat: best {best.score:.3f} vs {h.score:.3f} for a pose "
+            f"{away:.0f} cells away, moved by a repeat of a map "
+            f"({h.agreement.agree} agreeing, {h.agreement.disagree} disagreeing wall "
+            f"samples against {j.agreement.agree} and {j.agreement.disagree})"
+        )
+    return None
+
+
+#: The decision rules, in the order they are asked (the cheap and the most telling first; the
+#: repeats last, as they cost most and only a pose about to be merged needs them).
+_RULES: tuple[Callable[[_Judged], str | None], ...] = (
+    _rule_consistent,
+    _rule_unique,
+    _rule_shared_space,
+    _rule_room_match,
+    _rule_pinned,
+    _rule_wall_area,
+    _rule_one_object,
+    _rule_outside_object,
+    _rule_repeats,
+)
+
+
+def _accepted(
+    a: Int8Grid, b: Int8Grid, pair: _Pair, j: _Judged, detector: str | None, t0: float
+) -> MergeResult:
+    """The merge under the best pose, with b's wall cells that land on a's walls: the point
+    pairs that support it (for figures)."""
+    T_full = j.info["best_transform"]
     merged, offset = compose(a, b, T_full)
-    # wall cells of b that land on a's walls: the point pairs that support the result (figures)
-    pb_full = icp.pb + np.array([bbb[2], bbb[0]])
+    pb_full = pair.icp.pb + np.array([pair.box_b[2], pair.box_b[0]])
     pa_full = np.stack(map_points(pb_full, T_full), axis=1)  # not BLAS: same cells on any CPU
     c, r = np.rint(pa_full[:, 0]).astype(np.int64), np.rint(pa_full[:, 1]).astype(np.int64)
     inside = (c >= 0) & (c < a.shape[1]) & (r >= 0) & (r < a.shape[0])
@@ -1243,13 +1251,13 @@ def merge_semantic(
     return MergeResult(
         matched=True,
         transform=T_full,
-        score=best.score,
+        score=j.best.score,
         merged=merged,
         offset=offset,
         method="semantic",
-        detector=detector if use_paper else None,
+        detector=detector,
         time_s=time.perf_counter() - t0,
         matches=matches,
-        info=info,
-        **common,  # type: ignore[arg-type]
+        info=j.info,
+        **j.common,
     )

@@ -97,7 +97,7 @@ def test_rotation_candidates_lie_on_their_grid() -> None:
 
 
 def test_cross_support_fast_and_precise_agree() -> None:
-    from mrexplore.merge.semantic import cross_support
+    from mrexplore.merge.pinning import cross_support
 
     wall = np.zeros((90, 90), dtype=bool)
     wall[10:80, 10] = wall[10, 10:80] = wall[10:80, 79] = True  # a room corner and a far wall

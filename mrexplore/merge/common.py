@@ -9,6 +9,7 @@ Conventions (see :mod:`mrexplore.grid`): maps are int8 ``(H, W)`` with ``UNKNOWN
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -93,6 +94,57 @@ class MergeResult:
     matches: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 4)))
     overlap_cells: int = 0
     info: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def refused(
+        cls,
+        method: str,
+        reason: str,
+        t0: float,
+        *,
+        detector: str | None = None,
+        score: float = 0.0,
+        **fields: Any,
+    ) -> MergeResult:
+        """A refusal by ``method``, timed from ``t0`` (``time.perf_counter()`` at its start)."""
+        return cls(
+            matched=False,
+            transform=None,
+            score=score,
+            method=method,
+            detector=detector,
+            reason=reason,
+            time_s=time.perf_counter() - t0,
+            **fields,
+        )
+
+    @classmethod
+    def accepted(
+        cls,
+        a: Int8Grid,
+        b: Int8Grid,
+        T_ab: Transform,
+        method: str,
+        t0: float,
+        *,
+        score: float,
+        detector: str | None = None,
+        **fields: Any,
+    ) -> MergeResult:
+        """The merge of ``b`` into ``a`` under ``T_ab`` by ``method`` (the fused canvas made
+        here, :func:`compose`), timed from ``t0``."""
+        merged, offset = compose(a, b, T_ab)
+        return cls(
+            matched=True,
+            transform=T_ab,
+            score=score,
+            merged=merged,
+            offset=offset,
+            method=method,
+            detector=detector,
+            time_s=time.perf_counter() - t0,
+            **fields,
+        )
 
 
 def detector_check(allowed: tuple[str, ...]) -> Check:

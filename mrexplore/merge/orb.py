@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 
 from mrexplore.grid import Int8Grid
-from mrexplore.merge.common import MergeResult, Verifier, compose, detector_check, to_gray
+from mrexplore.merge.common import MergeResult, Verifier, detector_check, to_gray
 from mrexplore.merge.features import detect_and_describe
 from mrexplore.options import Options, integer, number, option
 
@@ -56,15 +56,7 @@ def merge_orb(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     ransac_px, min_conf = o.ransac_px, o.min_confidence
 
     def refuse(reason: str, **kw: Any) -> MergeResult:
-        return MergeResult(
-            matched=False,
-            transform=None,
-            method="orb",
-            detector=detector,
-            reason=reason,
-            time_s=time.perf_counter() - t0,
-            **{"score": 0.0, **kw},
-        )
+        return MergeResult.refused("orb", reason, t0, detector=detector, **kw)
 
     pa, da, norm = detect_and_describe(to_gray(a), detector, n)
     pb, db, _ = detect_and_describe(to_gray(b), detector, n)
@@ -102,16 +94,14 @@ def merge_orb(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
             n_hypotheses=len(good),
             info=info,
         )
-    merged, offset = compose(a, b, T)
-    return MergeResult(
-        matched=True,
-        transform=T,
+    return MergeResult.accepted(
+        a,
+        b,
+        T,
+        "orb",
+        t0,
         score=score,
-        merged=merged,
-        offset=offset,
-        method="orb",
         detector=detector,
-        time_s=time.perf_counter() - t0,
         n_hypotheses=len(good),
         matches=matches[inliers],
         info=info,

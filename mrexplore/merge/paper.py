@@ -39,7 +39,6 @@ from mrexplore.grid import UNKNOWN, Int8Grid
 from mrexplore.merge.common import (
     MergeResult,
     Verifier,
-    compose,
     detector_check,
     to_gray,
     translation,
@@ -197,15 +196,7 @@ def merge_paper(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     max_unknown, min_corr = o.max_unknown, o.min_correlation
 
     def refuse(reason: str, **kw: Any) -> MergeResult:
-        return MergeResult(
-            matched=False,
-            transform=None,
-            method="paper",
-            detector=detector,
-            reason=reason,
-            time_s=time.perf_counter() - t0,
-            **{"score": 0.0, **kw},
-        )
+        return MergeResult.refused("paper", reason, t0, detector=detector, **kw)
 
     pa = detect_points(to_gray(a), detector, n)
     pb = detect_points(to_gray(b), detector, n)
@@ -233,16 +224,14 @@ def merge_paper(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
             matches=matches,
             info=info,
         )
-    merged, offset = compose(a, b, T)
-    return MergeResult(
-        matched=True,
-        transform=T,
+    return MergeResult.accepted(
+        a,
+        b,
+        T,
+        "paper",
+        t0,
         score=score,
-        merged=merged,
-        offset=offset,
-        method="paper",
         detector=detector,
-        time_s=time.perf_counter() - t0,
         n_hypotheses=int(C.size),
         runner_up_score=runner,
         matches=matches,

@@ -68,7 +68,6 @@ from mrexplore.merge.common import (
     MergeResult,
     Verifier,
     chain,
-    compose,
     detector_check,
     known_bbox,
     map_points,
@@ -621,14 +620,12 @@ def merge_semantic(
             if reason is not None:
                 raise _Refused(reason, judged.best.score, **judged.common)
     except _Refused as refusal:
-        return MergeResult(
-            matched=False,
-            transform=None,
-            score=refusal.score,
-            method="semantic",
+        return MergeResult.refused(
+            "semantic",
+            refusal.reason,
+            t0,
             detector=detector,
-            reason=refusal.reason,
-            time_s=time.perf_counter() - t0,
+            score=refusal.score,
             info=info,
             **refusal.fields,
         )
@@ -1238,7 +1235,6 @@ def _accepted(
     """The merge under the best pose, with b's wall cells that land on a's walls: the point
     pairs that support it (for figures)."""
     T_full = j.info["best_transform"]
-    merged, offset = compose(a, b, T_full)
     pb_full = pair.icp.pb + np.array([pair.box_b[2], pair.box_b[0]])
     pa_full = np.stack(map_points(pb_full, T_full), axis=1)  # not BLAS: same cells on any CPU
     c, r = np.rint(pa_full[:, 0]).astype(np.int64), np.rint(pa_full[:, 1]).astype(np.int64)
@@ -1248,15 +1244,14 @@ def _accepted(
     sel = np.flatnonzero(on_wall)
     sel = sel[:: max(1, sel.size // 60)]
     matches = np.concatenate([pa_full[sel], pb_full[sel]], axis=1)
-    return MergeResult(
-        matched=True,
-        transform=T_full,
+    return MergeResult.accepted(
+        a,
+        b,
+        T_full,
+        "semantic",
+        t0,
         score=j.best.score,
-        merged=merged,
-        offset=offset,
-        method="semantic",
         detector=detector,
-        time_s=time.perf_counter() - t0,
         matches=matches,
         info=j.info,
         **j.common,

@@ -6,14 +6,16 @@ odometry noise on (:data:`LOOP_ENV_OPTIONS`). Variants (same world, same seed, s
 ``robot_0``):
 
 - ``semantic``: 2 robots, the default merger, through the env's tracker;
-- ``oracle``: 2 robots, :class:`OracleMerger`: the true transform as soon as the two maps share
-  any known cell, through the same tracker (same confirmations, re-checks and drops);
+- ``oracle``: 2 robots, :class:`~mrexplore.experiments.oracle.OracleMerger`: the true
+  transform as soon as the two maps share any known cell, through the same tracker (same
+  confirmations, re-checks and drops);
 - ``none``: 2 robots that never merge;
 - ``single``: 1 robot;
-- ``seeded`` (asked for by name, not in the default set): 2 robots, :class:`SeededMerger`: the
-  semantic merger with the true pose added to its hypotheses, judged by the same rules. Between
-  ``semantic`` and ``seeded`` lies what the search misses; between ``seeded`` and ``oracle``,
-  what the decision rules (and the evidence the maps hold) refuse;
+- ``seeded`` (asked for by name, not in the default set): 2 robots,
+  :class:`~mrexplore.experiments.oracle.SeededMerger`: the semantic merger with the true pose
+  added to its hypotheses, judged by the same rules. Between ``semantic`` and ``seeded`` lies
+  what the search misses; between ``seeded`` and ``oracle``, what the decision rules (and the
+  evidence the maps hold) refuse;
 - ``sighting`` (asked for by name): 2 robots, the default merger, with sightings on
   (``sighting_range_m`` :data:`SIGHTING_RANGE_M`, the lidar's range): robots that see each
   other measure their relative pose, and the tracker looks near the guess that follows (a
@@ -23,9 +25,10 @@ Per episode it records whether the maps were merged, the first merge, the task t
 the target was reached, whether a transform >= 5 cells off the truth was held at any step, the
 seconds it was held (``merged_wrongly_s``) and the largest share of contradicting claims in a
 robot's own-or-fused map (``fused_contradiction``): see
-:mod:`mrexplore.environment.parallel_env`. Prints a table per world and writes ``<out>.json``
-and ``<out>.md``. ``--jobs N`` runs episodes in N processes; every episode depends only on its
-world, variant and seed, so the results equal a serial run.
+:mod:`mrexplore.environment.parallel_env`. Prints a table per world
+(:mod:`~mrexplore.experiments.loop_report`) and writes ``<out>.json`` and ``<out>.md``.
+``--jobs N`` runs episodes in N processes; every episode depends only on its world, variant
+and seed, so the results equal a serial run.
 
 ``--task navigate`` runs the navigation task instead (the team explores for ``nav_warmup_s``,
 120 s, then ``robot_0`` drives to a goal, ``--nav-goal far`` or ``teammate``, while its teammate
@@ -41,20 +44,15 @@ import argparse
 import json
 import math
 import multiprocessing
-import statistics
 from collections.abc import Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-from numpy.typing import NDArray
-
 from mrexplore.errors import ConfigError, MrexploreError
 from mrexplore.experiments.merge_bench import parse_options
+from mrexplore.experiments.oracle import OracleMerger, SeededMerger
 from mrexplore.experiments.task_time import NAV_WARMUP_S
-from mrexplore.grid import UNKNOWN, Int8Grid, chain
-from mrexplore.merge.common import MergeResult, translation, warp_into
 
 #: The worlds of the study (two symmetric generated floors, two real maps).
 WORLDS: tuple[str, ...] = ("symmetric_office", "twin_wings", "tb3_office", "depot")
@@ -96,101 +94,6 @@ LOOP_ENV_OPTIONS: dict[str, Any] = {
     "odom_noise_rot_per_m": 0.001,
     "target_coverage": 0.95,
 }
-
-
-class OracleMerger:
-    """A benchmark merger that knows the truth: the true transform as soon as the maps share
-    any known cell (evaluation only; the env's options never name it).
-
-    Built on :meth:`mrexplore.sim.Simulation.true_transform`; call :meth:`bind` with the env
-    before its ``reset`` (the env makes a new simulation at every reset; the oracle reads the
-    current one at each call). The :class:`~mrexplore.merge.MapMergeTracker` calls
-    :meth:`merge_pair` with the robots' ids and crop offsets, so the oracle goes through the
-    same tracker as real mergers (confirmations, re-checks, drops).
-    """
-
-    def __init__(self) -> None:
-        self._env: Any = None
-
-    def bind(self, env: Any) -> None:
-        """Read the truth from ``env.sim`` (a :class:`MultiRobotExplorationEnv`)."""
-        self._env = env
-
-    def merge(self, a: Int8Grid, b: Int8Grid) -> MergeResult:
-        """Not usable without robot ids: the tracker calls :meth:`merge_pair`."""
-        raise ConfigError("OracleMerger needs the robots' ids: use it through MapMergeTracker")
-
-    def _true_pose(
-        self, i: int, j: int, offset_a: tuple[int, int], offset_b: tuple[int, int]
-    ) -> NDArray[np.float64]:
-        """The true ``T_ab`` between robot j's crop (cell (0, 0) at ``offset_b`` of its canvas)
-        and robot i's (at ``offset_a``)."""
-        sim = None if self._env is None else self._env.sim
-        if sim is None:
-            name = type(self).__name__
-            raise ConfigError(f"{name} is not bound to a reset env: call bind(env) first")
-        # chain, not @ (BLAS): the oracle's poses have the same bits on every CPU
-        return chain(
-            translation(-offset_a[0], -offset_a[1]),
-            sim.true_transform(i, j),
-            translation(offset_b[0], offset_b[1]),
-        )
-
-    def merge_pair(
-        self,
-        i: int,
-        j: int,
-        a: Int8Grid,
-        b: Int8Grid,
-        offset_a: tuple[int, int],
-        offset_b: tuple[int, int],
-    ) -> MergeResult:
-        """Merge robot j's cropped map ``b`` into robot i's cropped map ``a``.
-
-        ``offset_a``/``offset_b``: ``(col, row)`` of each crop's cell (0, 0) in its robot's
-        canvas. Returns the true ``T_ab`` between the crops when some cell is known in both
-        maps under it (``overlap_cells`` > 0), else a refusal.
-        """
-        T = self._true_pose(i, j, offset_a, offset_b)
-        b_in_a = warp_into(b, T, a.shape)
-        shared = int(np.count_nonzero((a != UNKNOWN) & (b_in_a != UNKNOWN)))
-        if shared == 0:
-            return MergeResult(
-                matched=False, transform=None, score=0.0, method="oracle", reason="no shared cell"
-            )
-        return MergeResult(
-            matched=True, transform=T, score=1.0, method="oracle", overlap_cells=shared
-        )
-
-
-class SeededMerger(OracleMerger):
-    """The semantic merger with the true pose among its hypotheses (a diagnostic; evaluation
-    only). Same decision rules, so a refusal here is the rules' (or the maps' evidence's), not
-    the search's."""
-
-    def merge_pair(
-        self,
-        i: int,
-        j: int,
-        a: Int8Grid,
-        b: Int8Grid,
-        offset_a: tuple[int, int],
-        offset_b: tuple[int, int],
-    ) -> MergeResult:
-        """:func:`~mrexplore.merge.semantic.merge_semantic` of the crops, the true ``T_ab``
-        between them handed in as an extra hypothesis, with the options the env gives the
-        semantic merger in the loop (20 m² shared, no perfect-rival test, the map's resolution)."""
-        from mrexplore.merge.fusion import IN_LOOP_SEMANTIC_OPTIONS
-        from mrexplore.merge.semantic import merge_semantic
-
-        T = self._true_pose(i, j, offset_a, offset_b)
-        return merge_semantic(
-            a,
-            b,
-            extra_hypotheses=[T],
-            resolution_m=float(self._env.map_resolution_m),
-            **IN_LOOP_SEMANTIC_OPTIONS,
-        )
 
 
 #: The noise options switched off by ``noise=False`` (exact odometry, the env's default 1 cm
@@ -441,6 +344,8 @@ def run_study(
     todo = [k for k, r in enumerate(records) if r is None]
     from tqdm import tqdm
 
+    from mrexplore.experiments.loop_report import summarize
+
     bar = tqdm(total=len(todo), desc="loop episodes", disable=not progress, unit="ep")
     if jobs == 1:
         for k in todo:
@@ -542,308 +447,12 @@ def reusable(
     return taken
 
 
-def _median(xs: Sequence[float]) -> float | None:
-    return float(statistics.median(xs)) if xs else None
-
-
-def summarize(
-    episodes: Sequence[Mapping[str, Any]], worlds: Sequence[str], variants: Sequence[str]
-) -> dict[str, dict[str, dict[str, Any]]]:
-    """Per world and variant: episodes, share merged, median first merge, mean and std of the
-    task time, share reached, wrong-merge episodes, seconds merged wrongly, the largest fused
-    contradiction, merges lost (summed; None for records made before they were counted), the
-    mean task time relative to the oracle's, the paired difference to the oracle's task time
-    on the same seeds (mean, 95 % CI, s; None without an oracle), and the share of the
-    oracle's gain a merging variant takes: ``(base - variant) / (base - oracle)`` in mean task time,
-    against never merging (``gain_vs_none``) and against one robot (``gain_vs_single``); None
-    when a variant is missing or the oracle gains nothing."""
-    from mrexplore.experiments.evaluate import paired
-
-    out: dict[str, dict[str, dict[str, Any]]] = {}
-    for w in worlds:
-        out[w] = {}
-        for v in variants:
-            eps = [e for e in episodes if e["world"] == w and e["variant"] == v]
-            times = [float(e["task_time_s"]) for e in eps]
-            merges = [float(e["first_merge_time_s"]) for e in eps if e["merged"]]
-            contr = [
-                float(e["max_fused_contradiction"])
-                for e in eps
-                if e["max_fused_contradiction"] is not None
-            ]
-            out[w][v] = {
-                "episodes": len(eps),
-                "merged": sum(bool(e["merged"]) for e in eps),
-                "median_first_merge_s": _median(merges),
-                "task_time_mean_s": float(statistics.fmean(times)) if times else None,
-                "task_time_std_s": float(statistics.pstdev(times)) if len(times) > 1 else 0.0,
-                "reached": sum(bool(e["reached"]) for e in eps),
-                "wrong_merge_episodes": sum(bool(e["wrong_merge"]) for e in eps),
-                "merged_wrongly_s": float(sum(float(e["merged_wrongly_s"]) for e in eps)),
-                "max_fused_contradiction": max(contr) if contr else None,
-                "merges_lost": (
-                    sum(int(e["merges_lost"]) for e in eps)
-                    if all("merges_lost" in e for e in eps)
-                    else None
-                ),
-            }
-        oracle = out[w].get("oracle", {}).get("task_time_mean_s")
-        by_seed = (
-            {
-                (e["variant"], e["seed"]): float(e["task_time_s"])
-                for e in episodes
-                if e["world"] == w and e["variant"] in variants
-            }
-            if "oracle" in variants
-            else {}
-        )
-        for v in variants:
-            m = out[w][v]["task_time_mean_s"]
-            out[w][v]["vs_oracle"] = float(m / oracle - 1.0) if oracle and m is not None else None
-            for base in ("none", "single"):
-                b = out[w].get(base, {}).get("task_time_mean_s")
-                share = None
-                merging = v not in ("oracle", "none", "single")  # what a merger takes
-                if merging and b is not None and oracle and m is not None:
-                    share = float((b - m) / (b - oracle)) if b != oracle else None
-                out[w][v][f"gain_vs_{base}"] = share
-            seeds = sorted(s for (v2, s) in by_seed if v2 == v and ("oracle", s) in by_seed)
-            out[w][v]["minus_oracle_s"] = (
-                paired([by_seed[(v, s)] for s in seeds], [by_seed[("oracle", s)] for s in seeds])
-                if seeds and v != "oracle"
-                else None
-            )
-        for v in SEMANTIC_OPTION_VARIANTS:
-            if v in variants and "semantic" in variants:
-                out[w][v]["minus_semantic"] = _against_semantic(
-                    [e for e in episodes if e["world"] == w], v
-                )
-    return out
-
-
-#: Variants that are the semantic merger with one option or diagnostic: the study also prints
-#: each one's paired difference to ``semantic`` when both ran.
-SEMANTIC_OPTION_VARIANTS: tuple[str, ...] = ("seeded", "sighting")
-
-
-def _compare_pairs(
-    pairs: Sequence[tuple[Mapping[str, Any], Mapping[str, Any]]],
-) -> dict[str, Any]:
-    """Episodes ``(a, b)`` of the same world and seed: the paired task-time difference a - b
-    (mean, 95 % CI, s), in how many pairs a's first merge came earlier / later than b's (never
-    merging counts as latest), and how many of each reached the target."""
-    from mrexplore.experiments.evaluate import paired
-
-    def first(e: Mapping[str, Any]) -> float:
-        return float(e["first_merge_time_s"]) if e["merged"] else math.inf
-
-    return {
-        "task_time_s": paired(
-            [float(a["task_time_s"]) for a, _ in pairs], [float(b["task_time_s"]) for _, b in pairs]
-        ),
-        "first_merge_earlier": sum(first(a) < first(b) for a, b in pairs),
-        "first_merge_later": sum(first(a) > first(b) for a, b in pairs),
-        "episodes": len(pairs),
-        "reached": [
-            sum(bool(a["reached"]) for a, _ in pairs),
-            sum(bool(b["reached"]) for _, b in pairs),
-        ],
-    }
-
-
-def _against_semantic(episodes: Sequence[Mapping[str, Any]], variant: str) -> dict[str, Any]:
-    """``variant`` against ``semantic`` on the (world, seed) episodes both ran
-    (:func:`_compare_pairs`)."""
-    runs = {(e["world"], e["variant"], e["seed"]): e for e in episodes}
-    keys = sorted((w, s) for (w, v, s) in runs if v == variant and (w, "semantic", s) in runs)
-    return _compare_pairs([(runs[(w, variant, s)], runs[(w, "semantic", s)]) for w, s in keys])
-
-
-def _paired_text(p: Mapping[str, Any] | None) -> str:
-    if p is None:
-        return "-"
-    if p.get("ci_low") is None:
-        return f"{p['mean']:+.1f} s"
-    return f"{p['mean']:+.1f} s [{p['ci_low']:+.1f}, {p['ci_high']:+.1f}]"
-
-
-def _gain_text(s: Mapping[str, Any]) -> str:
-    shares = [s.get("gain_vs_none"), s.get("gain_vs_single")]
-    if all(x is None for x in shares):
-        return "-"
-    return " / ".join("-" if x is None else f"{x:.0%}" for x in shares)
-
-
-def _against_semantic_text(variant: str, d: Mapping[str, Any], where: str = "") -> str:
-    return (
-        f"{where + ': ' if where else ''}{variant} minus semantic, paired over "
-        f"{d['episodes']} episodes: task time {_paired_text(d['task_time_s'])}; first merge "
-        f"earlier in {d['first_merge_earlier']}, later in {d['first_merge_later']}"
-    )
-
-
-def load_study(path: str | Path, flag: str = "--against") -> dict[str, Any]:
-    """A loop study's JSON given with ``flag`` (``--against``, ``--reuse``); a
-    :class:`ConfigError` naming the problem when it cannot be read or is not one."""
-    f = Path(path)
-    try:
-        doc = json.loads(f.read_text())
-    except (OSError, ValueError) as exc:
-        raise ConfigError(f"loop study: {flag} {str(f)!r} cannot be read: {exc}") from exc
-    if not (isinstance(doc, dict) and isinstance(doc.get("episodes"), list)):
-        raise ConfigError(f"loop study: {flag} {str(f)!r} is not a loop study's JSON")
-    return doc
-
-
-def against(doc: Mapping[str, Any], other: Mapping[str, Any], label: str) -> dict[str, Any]:
-    """This run against another study's episodes of the same (world, variant, seed): per world
-    and variant, and per variant over all worlds, the paired task-time difference (this minus
-    that: :func:`_compare_pairs`). ``label`` names the other run (its file)."""
-    theirs = {(e["world"], e["variant"], e["seed"]): e for e in other["episodes"]}
-    per: dict[str, dict[str, Any]] = {}
-    pooled: dict[str, Any] = {}
-    for v in doc["variants"]:
-        all_pairs = []
-        for w in doc["worlds"]:
-            pairs = [
-                (e, theirs[(w, v, e["seed"])])
-                for e in doc["episodes"]
-                if e["world"] == w and e["variant"] == v and (w, v, e["seed"]) in theirs
-            ]
-            if pairs:
-                per.setdefault(w, {})[v] = _compare_pairs(pairs)
-                all_pairs += pairs
-        if all_pairs:
-            pooled[v] = _compare_pairs(all_pairs)
-    return {
-        "file": label,
-        "env_options": dict(other.get("env_options", {})),
-        "per_world": per,
-        "all_worlds": pooled,
-    }
-
-
-def _against_text(a: Mapping[str, Any]) -> list[str]:
-    lines = [f"Against {a['file']} (the same seeds; this run minus that one, paired):"]
-    rows = [(w, v, d) for w, by in a["per_world"].items() for v, d in by.items()]
-    rows += [("all worlds", v, d) for v, d in a["all_worlds"].items()]
-    for w, v, d in rows:
-        lines.append(
-            f"  {w}, {v}: task time {_paired_text(d['task_time_s'])} over {d['episodes']} "
-            f"episodes; first merge earlier in {d['first_merge_earlier']}, later in "
-            f"{d['first_merge_later']}; reached {d['reached'][0]} vs {d['reached'][1]}"
-        )
-    return lines
-
-
-def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
-    """One table per world (text as printed, or markdown)."""
-    n = len(doc["seeds"])
-    o = doc["env_options"]
-    if o.get("task") == "navigate":
-        what = (
-            f"explore {o['nav_warmup_s']:.0f} s, then robot_0 drives to a goal "
-            f"(nav_goal {o['nav_goal']}) within {o['max_time_s']:.0f} s; task time = the time "
-            "after the warm-up (simulated s)"
-        )
-    else:
-        what = f"explore to {o['target_coverage']:.0%} within {o['max_time_s']:.0f} s (simulated s)"
-    head = (
-        f"In-loop study: policy {doc['policy']}, {n} seeds from {doc['seeds'][0]}, random "
-        f"headings, range noise {o['range_noise_m']} m, odometry noise {o['odom_noise_trans']} "
-        f"/ {o['odom_noise_rot']} rad/rad / {o['odom_noise_rot_per_m']} rad/m; {what}"
-    )
-    if doc.get("extra_env_options"):
-        opts = ",".join(f"{k}={v}" for k, v in doc["extra_env_options"].items())
-        head += f"; env options {opts} (every variant)"
-    if doc.get("merge_options"):
-        opts = ",".join(f"{k}={v}" for k, v in doc["merge_options"].items())
-        head += f"; merger options {opts} (variants {', '.join(MERGER_VARIANTS)})"
-    if any(doc.get("reused", {}).values()):
-        took = ", ".join(f"{n} from {f}" for f, n in doc["reused"].items() if n)
-        head += f"; episodes taken from studies of the same settings: {took}"
-    cols = (
-        "variant",
-        "merged",
-        "1st merge med",
-        "task time mean +- std",
-        "reached",
-        "wrong",
-        "wrong s",
-        "max contr",
-        "lost",
-        "vs oracle",
-        "minus oracle, paired [95% CI]",
-        "oracle's gain taken",
-    )
-    lines = [head, ""]
-    for w, rows in doc["summary"].items():
-        body = []
-        for v, s in rows.items():
-            two = v != "single"
-            med = s["median_first_merge_s"]
-            mean = s["task_time_mean_s"]
-            body.append(
-                (
-                    v,
-                    f"{s['merged']}/{s['episodes']}" if two else "-",
-                    "-" if med is None else f"{med:.1f} s",
-                    "-" if mean is None else f"{mean:.1f} +- {s['task_time_std_s']:.1f} s",
-                    f"{s['reached']}/{s['episodes']}",
-                    str(s["wrong_merge_episodes"]) if two else "-",
-                    f"{s['merged_wrongly_s']:.1f}" if two else "-",
-                    "-"
-                    if s["max_fused_contradiction"] is None
-                    else f"{s['max_fused_contradiction']:.3f}",
-                    "-" if s.get("merges_lost") is None or not two else str(s["merges_lost"]),
-                    "-" if s["vs_oracle"] is None else f"{s['vs_oracle']:+.1%}",
-                    _paired_text(s.get("minus_oracle_s")),
-                    _gain_text(s),
-                )
-            )
-        if markdown:
-            lines += [f"### {w}", "", "| " + " | ".join(cols) + " |"]
-            lines.append("|" + "---|" * len(cols))
-            lines += ["| " + " | ".join(r) + " |" for r in body]
-        else:
-            widths = [max(len(c), *(len(r[k]) for r in body)) for k, c in enumerate(cols)]
-            lines.append(f"{w}:")
-            for r in (cols, *body):
-                lines.append("  ".join(x.ljust(widths[k]) for k, x in enumerate(r)).rstrip())
-        for v, s in rows.items():
-            d = s.get("minus_semantic")
-            if d is not None:
-                lines += ["", _against_semantic_text(v, d)]
-        lines.append("")
-    if doc.get("against"):
-        text = _against_text(doc["against"])
-        lines += [text[0], "", *(f"- {x.strip()}" for x in text[1:])] if markdown else text
-        lines.append("")
-    ran = doc.get("variants", ())
-    for v in SEMANTIC_OPTION_VARIANTS:
-        if v in ran and "semantic" in ran:
-            lines += [
-                _against_semantic_text(v, _against_semantic(doc["episodes"], v), "all worlds"),
-                "",
-            ]
-    lines.append(
-        "merged: episodes whose maps were merged; wrong: episodes in which a robot held a "
-        "transform >= 5 cells off the truth, beyond what odometry drift explains, at some step; "
-        "wrong s: seconds merged wrongly, summed "
-        "over episodes; max contr: largest share of a robot's own-or-fused map contradicting the "
-        "truth; lost: times a robot's merge was dropped by a re-check, summed over episodes; "
-        "vs oracle: mean task time relative to the oracle's; minus oracle: the task time minus "
-        "the oracle's on the same seed, mean and 95 % confidence interval (Student's t), s; "
-        "oracle's gain taken: (base - variant) / (base - oracle) in mean task time, against "
-        "never merging / against one robot."
-    )
-    return "\n".join(lines)
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """CLI: ``mrexplore bench loop [--worlds ..] [--seeds N] [--first-seed S] [--variants ..]
     [--max-time-s T] [--jobs N] [--task T] [--nav-goal G] [--out STEM] [--force]``; returns the
     exit code."""
+    from mrexplore.experiments.loop_report import against, format_tables, load_study
+
     p = argparse.ArgumentParser(
         prog="mrexplore bench loop", description=__doc__.split("\n\n")[0] if __doc__ else None
     )

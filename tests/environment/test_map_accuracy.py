@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import mrexplore
-from mrexplore.experiments.loop_study import OracleMerger
+from mrexplore.experiments.oracle import OracleMerger
 from mrexplore.grid import make_transform
 from mrexplore.merge.common import MergeResult
 from mrexplore.truth import IncrementalScore, MapScorer

@@ -1,0 +1,320 @@
+"""The loop study's figures: per-world summaries, paired comparisons and the printed tables.
+
+:func:`summarize` turns a study's episodes into the per-world, per-variant figures its JSON
+holds; :func:`against` compares a run with another study's episodes of the same seeds;
+:func:`format_tables` prints them (text, or markdown for ``<out>.md``); :func:`load_study`
+reads a study's JSON with a clear error. Running the study is
+:mod:`mrexplore.experiments.loop_study`'s job.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import statistics
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from mrexplore.errors import ConfigError
+from mrexplore.experiments.loop_study import MERGER_VARIANTS
+
+__all__ = ["against", "format_tables", "load_study", "summarize"]
+
+
+def _median(xs: Sequence[float]) -> float | None:
+    return float(statistics.median(xs)) if xs else None
+
+
+def summarize(
+    episodes: Sequence[Mapping[str, Any]], worlds: Sequence[str], variants: Sequence[str]
+) -> dict[str, dict[str, dict[str, Any]]]:
+    """Per world and variant: episodes, share merged, median first merge, mean and std of the
+    task time, share reached, wrong-merge episodes, seconds merged wrongly, the largest fused
+    contradiction, merges lost (summed; None for records made before they were counted), the
+    mean task time relative to the oracle's, the paired difference to the oracle's task time
+    on the same seeds (mean, 95 % CI, s; None without an oracle), and the share of the
+    oracle's gain a merging variant takes: ``(base - variant) / (base - oracle)`` in mean task time,
+    against never merging (``gain_vs_none``) and against one robot (``gain_vs_single``); None
+    when a variant is missing or the oracle gains nothing."""
+    from mrexplore.experiments.evaluate import paired
+
+    out: dict[str, dict[str, dict[str, Any]]] = {}
+    for w in worlds:
+        out[w] = {}
+        for v in variants:
+            eps = [e for e in episodes if e["world"] == w and e["variant"] == v]
+            times = [float(e["task_time_s"]) for e in eps]
+            merges = [float(e["first_merge_time_s"]) for e in eps if e["merged"]]
+            contr = [
+                float(e["max_fused_contradiction"])
+                for e in eps
+                if e["max_fused_contradiction"] is not None
+            ]
+            out[w][v] = {
+                "episodes": len(eps),
+                "merged": sum(bool(e["merged"]) for e in eps),
+                "median_first_merge_s": _median(merges),
+                "task_time_mean_s": float(statistics.fmean(times)) if times else None,
+                "task_time_std_s": float(statistics.pstdev(times)) if len(times) > 1 else 0.0,
+                "reached": sum(bool(e["reached"]) for e in eps),
+                "wrong_merge_episodes": sum(bool(e["wrong_merge"]) for e in eps),
+                "merged_wrongly_s": float(sum(float(e["merged_wrongly_s"]) for e in eps)),
+                "max_fused_contradiction": max(contr) if contr else None,
+                "merges_lost": (
+                    sum(int(e["merges_lost"]) for e in eps)
+                    if all("merges_lost" in e for e in eps)
+                    else None
+                ),
+            }
+        oracle = out[w].get("oracle", {}).get("task_time_mean_s")
+        by_seed = (
+            {
+                (e["variant"], e["seed"]): float(e["task_time_s"])
+                for e in episodes
+                if e["world"] == w and e["variant"] in variants
+            }
+            if "oracle" in variants
+            else {}
+        )
+        for v in variants:
+            m = out[w][v]["task_time_mean_s"]
+            out[w][v]["vs_oracle"] = float(m / oracle - 1.0) if oracle and m is not None else None
+            for base in ("none", "single"):
+                b = out[w].get(base, {}).get("task_time_mean_s")
+                share = None
+                merging = v not in ("oracle", "none", "single")  # what a merger takes
+                if merging and b is not None and oracle and m is not None:
+                    share = float((b - m) / (b - oracle)) if b != oracle else None
+                out[w][v][f"gain_vs_{base}"] = share
+            seeds = sorted(s for (v2, s) in by_seed if v2 == v and ("oracle", s) in by_seed)
+            out[w][v]["minus_oracle_s"] = (
+                paired([by_seed[(v, s)] for s in seeds], [by_seed[("oracle", s)] for s in seeds])
+                if seeds and v != "oracle"
+                else None
+            )
+        for v in SEMANTIC_OPTION_VARIANTS:
+            if v in variants and "semantic" in variants:
+                out[w][v]["minus_semantic"] = _against_semantic(
+                    [e for e in episodes if e["world"] == w], v
+                )
+    return out
+
+
+#: Variants that are the semantic merger with one option or diagnostic: the study also prints
+#: each one's paired difference to ``semantic`` when both ran.
+SEMANTIC_OPTION_VARIANTS: tuple[str, ...] = ("seeded", "sighting")
+
+
+def _compare_pairs(
+    pairs: Sequence[tuple[Mapping[str, Any], Mapping[str, Any]]],
+) -> dict[str, Any]:
+    """Episodes ``(a, b)`` of the same world and seed: the paired task-time difference a - b
+    (mean, 95 % CI, s), in how many pairs a's first merge came earlier / later than b's (never
+    merging counts as latest), and how many of each reached the target."""
+    from mrexplore.experiments.evaluate import paired
+
+    def first(e: Mapping[str, Any]) -> float:
+        return float(e["first_merge_time_s"]) if e["merged"] else math.inf
+
+    return {
+        "task_time_s": paired(
+            [float(a["task_time_s"]) for a, _ in pairs], [float(b["task_time_s"]) for _, b in pairs]
+        ),
+        "first_merge_earlier": sum(first(a) < first(b) for a, b in pairs),
+        "first_merge_later": sum(first(a) > first(b) for a, b in pairs),
+        "episodes": len(pairs),
+        "reached": [
+            sum(bool(a["reached"]) for a, _ in pairs),
+            sum(bool(b["reached"]) for _, b in pairs),
+        ],
+    }
+
+
+def _against_semantic(episodes: Sequence[Mapping[str, Any]], variant: str) -> dict[str, Any]:
+    """``variant`` against ``semantic`` on the (world, seed) episodes both ran
+    (:func:`_compare_pairs`)."""
+    runs = {(e["world"], e["variant"], e["seed"]): e for e in episodes}
+    keys = sorted((w, s) for (w, v, s) in runs if v == variant and (w, "semantic", s) in runs)
+    return _compare_pairs([(runs[(w, variant, s)], runs[(w, "semantic", s)]) for w, s in keys])
+
+
+def _paired_text(p: Mapping[str, Any] | None) -> str:
+    if p is None:
+        return "-"
+    if p.get("ci_low") is None:
+        return f"{p['mean']:+.1f} s"
+    return f"{p['mean']:+.1f} s [{p['ci_low']:+.1f}, {p['ci_high']:+.1f}]"
+
+
+def _gain_text(s: Mapping[str, Any]) -> str:
+    shares = [s.get("gain_vs_none"), s.get("gain_vs_single")]
+    if all(x is None for x in shares):
+        return "-"
+    return " / ".join("-" if x is None else f"{x:.0%}" for x in shares)
+
+
+def _against_semantic_text(variant: str, d: Mapping[str, Any], where: str = "") -> str:
+    return (
+        f"{where + ': ' if where else ''}{variant} minus semantic, paired over "
+        f"{d['episodes']} episodes: task time {_paired_text(d['task_time_s'])}; first merge "
+        f"earlier in {d['first_merge_earlier']}, later in {d['first_merge_later']}"
+    )
+
+
+def load_study(path: str | Path, flag: str = "--against") -> dict[str, Any]:
+    """A loop study's JSON given with ``flag`` (``--against``, ``--reuse``); a
+    :class:`ConfigError` naming the problem when it cannot be read or is not one."""
+    f = Path(path)
+    try:
+        doc = json.loads(f.read_text())
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"loop study: {flag} {str(f)!r} cannot be read: {exc}") from exc
+    if not (isinstance(doc, dict) and isinstance(doc.get("episodes"), list)):
+        raise ConfigError(f"loop study: {flag} {str(f)!r} is not a loop study's JSON")
+    return doc
+
+
+def against(doc: Mapping[str, Any], other: Mapping[str, Any], label: str) -> dict[str, Any]:
+    """This run against another study's episodes of the same (world, variant, seed): per world
+    and variant, and per variant over all worlds, the paired task-time difference (this minus
+    that: :func:`_compare_pairs`). ``label`` names the other run (its file)."""
+    theirs = {(e["world"], e["variant"], e["seed"]): e for e in other["episodes"]}
+    per: dict[str, dict[str, Any]] = {}
+    pooled: dict[str, Any] = {}
+    for v in doc["variants"]:
+        all_pairs = []
+        for w in doc["worlds"]:
+            pairs = [
+                (e, theirs[(w, v, e["seed"])])
+                for e in doc["episodes"]
+                if e["world"] == w and e["variant"] == v and (w, v, e["seed"]) in theirs
+            ]
+            if pairs:
+                per.setdefault(w, {})[v] = _compare_pairs(pairs)
+                all_pairs += pairs
+        if all_pairs:
+            pooled[v] = _compare_pairs(all_pairs)
+    return {
+        "file": label,
+        "env_options": dict(other.get("env_options", {})),
+        "per_world": per,
+        "all_worlds": pooled,
+    }
+
+
+def _against_text(a: Mapping[str, Any]) -> list[str]:
+    lines = [f"Against {a['file']} (the same seeds; this run minus that one, paired):"]
+    rows = [(w, v, d) for w, by in a["per_world"].items() for v, d in by.items()]
+    rows += [("all worlds", v, d) for v, d in a["all_worlds"].items()]
+    for w, v, d in rows:
+        lines.append(
+            f"  {w}, {v}: task time {_paired_text(d['task_time_s'])} over {d['episodes']} "
+            f"episodes; first merge earlier in {d['first_merge_earlier']}, later in "
+            f"{d['first_merge_later']}; reached {d['reached'][0]} vs {d['reached'][1]}"
+        )
+    return lines
+
+
+def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
+    """One table per world (text as printed, or markdown)."""
+    n = len(doc["seeds"])
+    o = doc["env_options"]
+    if o.get("task") == "navigate":
+        what = (
+            f"explore {o['nav_warmup_s']:.0f} s, then robot_0 drives to a goal "
+            f"(nav_goal {o['nav_goal']}) within {o['max_time_s']:.0f} s; task time = the time "
+            "after the warm-up (simulated s)"
+        )
+    else:
+        what = f"explore to {o['target_coverage']:.0%} within {o['max_time_s']:.0f} s (simulated s)"
+    head = (
+        f"In-loop study: policy {doc['policy']}, {n} seeds from {doc['seeds'][0]}, random "
+        f"headings, range noise {o['range_noise_m']} m, odometry noise {o['odom_noise_trans']} "
+        f"/ {o['odom_noise_rot']} rad/rad / {o['odom_noise_rot_per_m']} rad/m; {what}"
+    )
+    if doc.get("extra_env_options"):
+        opts = ",".join(f"{k}={v}" for k, v in doc["extra_env_options"].items())
+        head += f"; env options {opts} (every variant)"
+    if doc.get("merge_options"):
+        opts = ",".join(f"{k}={v}" for k, v in doc["merge_options"].items())
+        head += f"; merger options {opts} (variants {', '.join(MERGER_VARIANTS)})"
+    if any(doc.get("reused", {}).values()):
+        took = ", ".join(f"{n} from {f}" for f, n in doc["reused"].items() if n)
+        head += f"; episodes taken from studies of the same settings: {took}"
+    cols = (
+        "variant",
+        "merged",
+        "1st merge med",
+        "task time mean +- std",
+        "reached",
+        "wrong",
+        "wrong s",
+        "max contr",
+        "lost",
+        "vs oracle",
+        "minus oracle, paired [95% CI]",
+        "oracle's gain taken",
+    )
+    lines = [head, ""]
+    for w, rows in doc["summary"].items():
+        body = []
+        for v, s in rows.items():
+            two = v != "single"
+            med = s["median_first_merge_s"]
+            mean = s["task_time_mean_s"]
+            body.append(
+                (
+                    v,
+                    f"{s['merged']}/{s['episodes']}" if two else "-",
+                    "-" if med is None else f"{med:.1f} s",
+                    "-" if mean is None else f"{mean:.1f} +- {s['task_time_std_s']:.1f} s",
+                    f"{s['reached']}/{s['episodes']}",
+                    str(s["wrong_merge_episodes"]) if two else "-",
+                    f"{s['merged_wrongly_s']:.1f}" if two else "-",
+                    "-"
+                    if s["max_fused_contradiction"] is None
+                    else f"{s['max_fused_contradiction']:.3f}",
+                    "-" if s.get("merges_lost") is None or not two else str(s["merges_lost"]),
+                    "-" if s["vs_oracle"] is None else f"{s['vs_oracle']:+.1%}",
+                    _paired_text(s.get("minus_oracle_s")),
+                    _gain_text(s),
+                )
+            )
+        if markdown:
+            lines += [f"### {w}", "", "| " + " | ".join(cols) + " |"]
+            lines.append("|" + "---|" * len(cols))
+            lines += ["| " + " | ".join(r) + " |" for r in body]
+        else:
+            widths = [max(len(c), *(len(r[k]) for r in body)) for k, c in enumerate(cols)]
+            lines.append(f"{w}:")
+            for r in (cols, *body):
+                lines.append("  ".join(x.ljust(widths[k]) for k, x in enumerate(r)).rstrip())
+        for v, s in rows.items():
+            d = s.get("minus_semantic")
+            if d is not None:
+                lines += ["", _against_semantic_text(v, d)]
+        lines.append("")
+    if doc.get("against"):
+        text = _against_text(doc["against"])
+        lines += [text[0], "", *(f"- {x.strip()}" for x in text[1:])] if markdown else text
+        lines.append("")
+    ran = doc.get("variants", ())
+    for v in SEMANTIC_OPTION_VARIANTS:
+        if v in ran and "semantic" in ran:
+            lines += [
+                _against_semantic_text(v, _against_semantic(doc["episodes"], v), "all worlds"),
+                "",
+            ]
+    lines.append(
+        "merged: episodes whose maps were merged; wrong: episodes in which a robot held a "
+        "transform >= 5 cells off the truth, beyond what odometry drift explains, at some step; "
+        "wrong s: seconds merged wrongly, summed "
+        "over episodes; max contr: largest share of a robot's own-or-fused map contradicting the "
+        "truth; lost: times a robot's merge was dropped by a re-check, summed over episodes; "
+        "vs oracle: mean task time relative to the oracle's; minus oracle: the task time minus "
+        "the oracle's on the same seed, mean and 95 % confidence interval (Student's t), s; "
+        "oracle's gain taken: (base - variant) / (base - oracle) in mean task time, against "
+        "never merging / against one robot."
+    )
+    return "\n".join(lines)

@@ -4,7 +4,8 @@ Reads the JSON files of ``mrexplore bench merge`` (each case records its source 
 outcome and the merger's reason) and prints, for one method's default rows (``semantic`` unless
 ``--method``), per family and source map: the pairs with overlap >= ``--min-overlap`` (0.4), how
 many were merged correctly, wrongly and refused, and the refusals grouped by the first words of
-their reason (the text up to its first figure). Cases of several files add up, so the seeds of
+their reason (the text up to its first figure or parenthesis). Methods that run with several
+detectors (``paper``, ``orb``) need ``--detector``. Cases of several files add up, so the seeds of
 every held-out file can be pooled:
 
     python scripts/merge_by_map.py docs/results/merge_seeds.json docs/results/merge_heldout*.json
@@ -52,12 +53,21 @@ def source_map(case_name: str) -> str:
     return case_name.split("#", 1)[0].strip()
 
 
+def _detector(row: Mapping[str, Any]) -> str | None:
+    d = row.get("detector")
+    return None if d in (None, "-", "") else str(d)
+
+
 def tally(
-    docs: Iterable[Mapping[str, Any]], method: str, min_overlap: float
+    docs: Iterable[Mapping[str, Any]],
+    method: str,
+    min_overlap: float,
+    detector: str | None = None,
 ) -> dict[tuple[str, str], dict[str, Any]]:
     """Per (family, source map): ``pairs``, ``correct``, ``wrong``, ``imprecise``, ``refused``
-    among the cases with overlap >= ``min_overlap`` of ``method``'s default rows, and
-    ``reasons`` (a Counter of :func:`reason_kind` over the refusals)."""
+    among the cases with overlap >= ``min_overlap`` of ``method``'s default rows with
+    ``detector`` (None: rows that name none), and ``reasons`` (a Counter of
+    :func:`reason_kind` over the refusals)."""
     out: dict[tuple[str, str], dict[str, Any]] = defaultdict(
         lambda: {
             "pairs": 0,
@@ -71,6 +81,8 @@ def tally(
     for doc in docs:
         for row in doc["rows"]:
             if row["method"] != method or row.get("options") not in ("-", "", None):
+                continue
+            if _detector(row) != detector:
                 continue
             for case in row["cases"]:
                 if case["overlap"] < min_overlap:
@@ -101,6 +113,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0] if __doc__ else None)
     p.add_argument("files", nargs="+", help="merge bench JSON files (their cases add up)")
     p.add_argument("--method", default="semantic", help="the method's rows (default semantic)")
+    p.add_argument("--detector", default=None, help="the detector's rows (methods that use one)")
     p.add_argument("--min-overlap", type=float, default=0.4, help="overlap floor (default 0.4)")
     args = p.parse_args(argv)
     if not 0.0 <= args.min_overlap <= 1.0:
@@ -118,9 +131,16 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"error: {f!r} cannot be read as a merge bench result: {exc}", file=sys.stderr)
             return 2
         docs.append(doc)
-    t = tally(docs, args.method, args.min_overlap)
+    detectors = sorted(
+        {str(_detector(r)) for d in docs for r in d["rows"] if r["method"] == args.method}
+    )
+    t = tally(docs, args.method, args.min_overlap, args.detector)
     if not t:
-        print(f"error: no {args.method!r} default rows in these files", file=sys.stderr)
+        print(
+            f"error: no {args.method!r} default rows with detector {args.detector!r} in these "
+            f"files (their detectors: {', '.join(detectors) or 'none'}; name one with --detector)",
+            file=sys.stderr,
+        )
         return 2
     print(format_tally(t, args.min_overlap))
     return 0

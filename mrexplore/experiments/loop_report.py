@@ -17,9 +17,12 @@ from pathlib import Path
 from typing import Any
 
 from mrexplore.errors import ConfigError
-from mrexplore.experiments.loop_study import MERGER_VARIANTS
 
-__all__ = ["against", "format_tables", "load_study", "summarize"]
+__all__ = ["MERGER_VARIANTS", "against", "format_tables", "load_study", "summarize"]
+
+#: The variants that merge with the env's named semantic merger: the study's ``--merge-options``
+#: apply to them (and the tables' heading says so).
+MERGER_VARIANTS: tuple[str, ...] = ("semantic", "sighting")
 
 
 def _median(xs: Sequence[float]) -> float | None:

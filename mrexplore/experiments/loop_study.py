@@ -50,6 +50,13 @@ from pathlib import Path
 from typing import Any
 
 from mrexplore.errors import ConfigError, MrexploreError
+from mrexplore.experiments.loop_report import (
+    MERGER_VARIANTS,
+    against,
+    format_tables,
+    load_study,
+    summarize,
+)
 from mrexplore.experiments.merge_bench import parse_options
 from mrexplore.experiments.oracle import OracleMerger, SeededMerger
 from mrexplore.experiments.task_time import NAV_WARMUP_S
@@ -80,8 +87,6 @@ STUDY_SET_KEYS: tuple[str, ...] = (
     "odom_noise_rot_per_m",
     "target_coverage",
 )
-#: The variants that merge with the env's named semantic merger (``--merge-options`` apply).
-MERGER_VARIANTS: tuple[str, ...] = ("semantic", "sighting")
 POLICY = "coordinated-frontier"
 #: Env options of every episode: random start headings, range noise 2 cm (std), odometry
 #: translation noise 1 % of the distance, heading noise 0.005 rad per radian turned and
@@ -344,8 +349,6 @@ def run_study(
     todo = [k for k, r in enumerate(records) if r is None]
     from tqdm import tqdm
 
-    from mrexplore.experiments.loop_report import summarize
-
     bar = tqdm(total=len(todo), desc="loop episodes", disable=not progress, unit="ep")
     if jobs == 1:
         for k in todo:
@@ -451,8 +454,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     """CLI: ``mrexplore bench loop [--worlds ..] [--seeds N] [--first-seed S] [--variants ..]
     [--max-time-s T] [--jobs N] [--task T] [--nav-goal G] [--out STEM] [--force]``; returns the
     exit code."""
-    from mrexplore.experiments.loop_report import against, format_tables, load_study
-
     p = argparse.ArgumentParser(
         prog="mrexplore bench loop", description=__doc__.split("\n\n")[0] if __doc__ else None
     )

@@ -98,10 +98,10 @@ class MergeResult:
     @classmethod
     def refused(
         cls,
-        method: str,
         reason: str,
-        t0: float,
         *,
+        method: str,
+        t0: float,
         detector: str | None = None,
         score: float = 0.0,
         **fields: Any,
@@ -124,9 +124,9 @@ class MergeResult:
         a: Int8Grid,
         b: Int8Grid,
         T_ab: Transform,
+        *,
         method: str,
         t0: float,
-        *,
         score: float,
         detector: str | None = None,
         **fields: Any,

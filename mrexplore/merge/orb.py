@@ -56,7 +56,7 @@ def merge_orb(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     ransac_px, min_conf = o.ransac_px, o.min_confidence
 
     def refuse(reason: str, **kw: Any) -> MergeResult:
-        return MergeResult.refused("orb", reason, t0, detector=detector, **kw)
+        return MergeResult.refused(reason, method="orb", t0=t0, detector=detector, **kw)
 
     pa, da, norm = detect_and_describe(to_gray(a), detector, n)
     pb, db, _ = detect_and_describe(to_gray(b), detector, n)
@@ -98,8 +98,8 @@ def merge_orb(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
         a,
         b,
         T,
-        "orb",
-        t0,
+        method="orb",
+        t0=t0,
         score=score,
         detector=detector,
         n_hypotheses=len(good),

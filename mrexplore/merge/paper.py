@@ -196,7 +196,7 @@ def merge_paper(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
     max_unknown, min_corr = o.max_unknown, o.min_correlation
 
     def refuse(reason: str, **kw: Any) -> MergeResult:
-        return MergeResult.refused("paper", reason, t0, detector=detector, **kw)
+        return MergeResult.refused(reason, method="paper", t0=t0, detector=detector, **kw)
 
     pa = detect_points(to_gray(a), detector, n)
     pb = detect_points(to_gray(b), detector, n)
@@ -228,8 +228,8 @@ def merge_paper(a: Int8Grid, b: Int8Grid, **options: Any) -> MergeResult:
         a,
         b,
         T,
-        "paper",
-        t0,
+        method="paper",
+        t0=t0,
         score=score,
         detector=detector,
         n_hypotheses=int(C.size),

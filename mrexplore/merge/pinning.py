@@ -43,7 +43,7 @@ CROSS_GUARD_CELLS = 1.0
 
 #: How far (cells) the structure tensor of :func:`cross_support` reaches: float Gaussian
 #: kernels span 4 sigma each side (OpenCV), so blur 1 (4) + Sobel (1) + blur 4 (16), plus slack.
-TENSOR_REACH = 24
+_TENSOR_REACH = 24
 
 
 #: :func:`_support_terms`: the unit normals (N, 2) and the index (N,) of their b wall cells.
@@ -87,8 +87,8 @@ def _support_terms(
         return None
     # The filters below reach 21 cells (blur 4 + Sobel 1 + blur 16): a window that far around
     # b's landed walls gives the same tensor there as the whole map, at a fraction of the cost.
-    r0, c0 = max(int(r.min()) - TENSOR_REACH, 0), max(int(c.min()) - TENSOR_REACH, 0)
-    r1, c1 = min(int(r.max()) + TENSOR_REACH + 1, h), min(int(c.max()) + TENSOR_REACH + 1, w)
+    r0, c0 = max(int(r.min()) - _TENSOR_REACH, 0), max(int(c.min()) - _TENSOR_REACH, 0)
+    r1, c1 = min(int(r.max()) + _TENSOR_REACH + 1, h), min(int(c.max()) + _TENSOR_REACH + 1, w)
     win = wall_a[r0:r1, c0:c1]
     r, c = r - r0, c - c0
     near = cv2.dilate(win.view(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
@@ -251,9 +251,10 @@ def slide_direction(
 def agreeing_area(a: MapCodes, b: MapCodes, T: Transform, tolerance: int = 1) -> float:
     """How much of the maps the evidence of a pose covers, in cells^2 of a: the area of the
     smallest rectangle, at any angle, around the wall cells that agree under ``T`` (b cells ->
-    a cells), the verifier's agreement both ways (:class:`Verifier`): b's reliable walls that
-    land on a wall of a or on free space within ``tolerance`` cells of one, where they land,
-    and a's walls that land so on b. 0 when fewer than three agree or all on one line.
+    a cells), the verifier's agreement both ways (:class:`~mrexplore.merge.common.Verifier`): b's
+    reliable walls that land on a wall of a or on free space within ``tolerance`` cells of one,
+    where they land, and a's walls that land so on b. 0 when fewer than three agree or all on
+    one line.
 
     A rack or a pillar gives a square metre or a few however well it matches, and every copy
     of it matches as well; a room's or a corridor's walls cover it (exact on any CPU:

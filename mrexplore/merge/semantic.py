@@ -17,19 +17,20 @@ Pipeline (all on the maps cropped to their known bounding boxes):
    wall cells of both maps with a one-cell tolerance (:class:`~mrexplore.merge.common.Verifier`;
    lone occupied cells, the speckle of real maps, take no part). The best pose is also slid
    along a's wall directions (``slide_step``), so ridges of repetitive layouts are examined.
-5. **Decision** (two rules). *Consistent*: under the best pose (most agreeing minus 10 x
-   disagreeing wall cells) the maps contradict each other no more than their noise explains:
-   a wall within ``1 + slack_cells`` cells of the other map's wall (a wall seen from its two
-   sides, eroded by grazing beams) and lone contradictions (groups under ``min_run_cells``)
-   are noise, and what remains must leave an index >= ``min_score``. *Unique*: every far pose
-   (``far_cells`` mean displacement) that explains at least ``rival_support`` as much is beaten
-   by ``min_margin`` in index and ``min_evidence_cells`` disagreeing cells. Two look-alike rooms
-   pass the first and fail the second: refused, to be merged later once more is known.
-   Enough shared knowledge (``min_overlap``, ``min_overlap_cells``, ``min_common_m2``) is asked
-   for too, walls that pin the pose without a slide along them, nor through one small thing
-   (``min_cross_cells``, ``lone_pin_test``), evidence that is more than one object
-   (``min_wall_area_m2``, ``min_object_m2``, ``object_hull_free``), and last the poses that
-   move the best by either map's repeats must be beaten as rivals are (``repeat_rivals``).
+5. **Decision** (the rules of :data:`_RULES`, in order). *Consistent*: under the best pose
+   (most agreeing minus 10 x disagreeing wall cells) the maps contradict each other no more
+   than their noise explains: a wall within ``1 + slack_cells`` cells of the other map's wall (a
+   wall seen from its two sides, eroded by grazing beams) and lone contradictions (groups under
+   ``min_run_cells``) are noise, and what remains must leave an index >= ``min_score``.
+   *Unique*: the strongest far pose (``far_cells`` mean displacement) that explains at least
+   ``rival_support`` as much is beaten by ``min_margin`` in index and ``min_evidence_cells``
+   disagreeing cells. Two look-alike rooms pass the first and fail the second: refused, to be
+   merged later once more is known. Enough shared knowledge (``min_overlap``,
+   ``min_overlap_cells``, ``min_common_m2``) is asked for too, walls that pin the pose without a
+   slide along them, nor through one small thing (``min_cross_cells``, ``lone_pin_test``),
+   evidence that is more than one object (``min_wall_area_m2``, ``min_object_m2``,
+   ``object_hull_free``), and last the poses that move the best by either map's repeats must
+   be beaten as rivals are (``repeat_rivals``).
    Measurements behind each default: ``docs/merging.md``.
 
 The steps' machinery lives beside this module (:mod:`~mrexplore.merge.rotation`,
@@ -84,6 +85,7 @@ from mrexplore.merge.pinning import (
 from mrexplore.merge.repeats import (
     OBJECT_CLUTTER_M,
     OBJECT_WIDTH_M,
+    ByStructure,
     Structures,
     agreement_by_structure,
     one_object_area,
@@ -132,9 +134,11 @@ class PosePrior:
 
     ``T_ab``: the guessed pose (3x3, b's cells -> a's cells, both maps' full grids). A pose is
     considered only when it puts the centre of b's walls within ``radius_cells`` of where the
-    guess puts it and turns b by at most ``turn_deg`` from the guess. Every other rule holds
-    inside that region: consistency, a unique best (a rival inside the region still refuses),
-    the pin and the wall area. A wrong guess can make a wrong merge: the merger trusts it.
+    guess puts it and turns b by at most ``turn_deg`` from the guess. Every other rule but the
+    room match holds inside that region: consistency, a unique best (a rival inside the region
+    still refuses), the pin, the wall area and the object rules; the room match, which guards
+    against a look-alike room elsewhere, is what the guess rules out. A wrong guess can make a
+    wrong merge: the merger trusts it.
 
     >>> PosePrior(np.eye(3), radius_cells=-1.0)
     Traceback (most recent call last):
@@ -570,8 +574,8 @@ def merge_semantic(
       consistent pose within 2 cells and 1 degree of it, if that one reaches ``min_score`` +
       ``polish_margin`` (0.01: the best of 125 nearby poses scores higher by selection alone);
     - ``min_cross_cells`` (10; 0 = off): refuse a pose whose agreeing walls pin it less than this
-      (:func:`cross_support`, wall cells) across their direction: one straight wall or a
-      corridor slides;
+      (:func:`~mrexplore.merge.pinning.cross_support`, wall cells) across their direction: one
+      straight wall or a corridor slides;
     - ``slide_test`` (False): a pose under ``min_cross_cells`` is still pinned when the maps
       contradict every slide of it along that direction by 5, 10, 20 and 40 cells both ways
       (each beaten as a rival is: ``min_margin`` and ``min_evidence_cells``): door gaps, wall
@@ -585,8 +589,8 @@ def merge_semantic(
       matches every copy of it, and the copies may lie where neither map has looked;
     - ``lone_pin_test`` (True): a pose that ``min_cross_cells`` finds pinned must stay pinned
       with any one of b's small things (under 1.5 m: a post, a box) left out
-      (:func:`lone_pin_support`): rack sides pinned along only by the post beside them match
-      every aisle's post;
+      (:func:`~mrexplore.merge.pinning.lone_pin_support`): rack sides pinned along only by the
+      post beside them match every aisle's post;
     - ``object_hull_free`` (0.2; 0 = off): refuse a pose whose agreeing walls lie (95 %), in
       either map, on one structure seen from outside (at least 1 m across, the map's free
       cells under this share of its convex hull) plus at most one thing under 1.5 m
@@ -621,9 +625,9 @@ def merge_semantic(
                 raise _Refused(reason, judged.best.score, **judged.common)
     except _Refused as refusal:
         return MergeResult.refused(
-            "semantic",
             refusal.reason,
-            t0,
+            method="semantic",
+            t0=t0,
             detector=detector,
             score=refusal.score,
             info=info,
@@ -741,11 +745,21 @@ class _Found:
 
     tried: list[_Hypothesis]
     chosen: list[_Hypothesis]
-    region: tuple[PosePrior, Transform, NDArray[np.float64]] | None
+    region: _Region | None
 
     def in_prior(self, h: _Hypothesis) -> bool:
         """Whether ``h`` lies in the prior's region (always, without a prior)."""
-        return self.region is None or self.region[0].admits(h.T, self.region[2], self.region[1])
+        return _in_region(self.region, h)
+
+
+#: A prior's region in the crops' cells: the prior, its guess between the crops and the centre
+#: (2,) of b's walls it is judged about.
+_Region = tuple[PosePrior, Transform, NDArray[np.float64]]
+
+
+def _in_region(region: _Region | None, h: _Hypothesis) -> bool:
+    """Whether ``h`` lies in ``region`` (always, without one)."""
+    return region is None or region[0].admits(h.T, region[2], region[1])
 
 
 def _coarse_hypotheses(pair: _Pair, o: SemanticOptions, info: dict[str, Any]) -> list[_Hypothesis]:
@@ -802,7 +816,7 @@ def _search(
         hyp.agreement = pair.screen(hyp.T)
     hyps.sort(key=lambda h: -(h.agreement.agree - h.agreement.disagree if h.agreement else 0))
 
-    region: tuple[PosePrior, Transform, NDArray[np.float64]] | None = None
+    region: _Region | None = None
     if prior is not None:
         # only poses near the guess; the coarse ones with room for their ~scale/2 cells of error
         prior_crop = pair.to_crops(prior.T_ab)
@@ -846,8 +860,8 @@ def _search(
         best_so_far = max(chosen, key=lambda h: h.evidence)
         shifts = _slide_shifts(pair.normals_a, pair.bc.shape, o.slide_step)
         chosen += pair.moved(best_so_far, shifts, "slide", o)
+    chosen = [h for h in chosen if _in_region(region, h)]  # refined and slid: still near?
     found = _Found(hyps, chosen, region)
-    found.chosen = [h for h in chosen if found.in_prior(h)]  # refined and slid: still near?
     info["n_candidates"] = len(hyps)
     if not found.chosen:
         best_any = max((h.score for h in hyps), default=0.0)
@@ -869,34 +883,57 @@ def _credit_shared_space(hs: list[_Hypothesis], pair: _Pair, o: SemanticOptions)
 
 @dataclass
 class _Judged:
-    """The best pose and its rivals, with what the decision rules (:data:`_RULES`) read."""
+    """The best pose and its rivals, with what the decision rules (:data:`_RULES`) read.
+
+    The rules also write: each records its figure in ``info`` (so the order of ``_RULES`` is the
+    order of those keys), and b's wall structures, labelled at most once, are shared by the
+    lone-pin and object rules (:meth:`structures_b`).
+    """
 
     pair: _Pair
     found: _Found
     o: SemanticOptions
     info: dict[str, Any]
     best: _Hypothesis
+    T_full: Transform  # the best pose between the full maps (b's cells -> a's)
     consistency: float
     rivals: list[_Hypothesis]
     common: dict[str, Any]  # the figures every refusal from here on carries
-    structures_b: Structures | None = None  # b's wall structures, labelled once when needed
-    _by_structure: Any = None
+    _structures_b: Structures | None = None
+    _by_structure: ByStructure | None = None
 
     @property
     def agreement(self) -> Agreement:
+        """The best pose's agreement (the verifier's, on up to ``max_samples`` wall cells)."""
         assert self.best.agreement is not None
         return self.best.agreement
+
+    @property
+    def common_m2(self) -> float:
+        """The known space the maps share under the best pose, m^2."""
+        return self.best.shared_cells * self.o.resolution_m**2
+
+    @property
+    def prior_given(self) -> bool:
+        """Whether the caller gave a :class:`PosePrior` (its region bounds every pose)."""
+        return self.found.region is not None
 
     def away(self, h: _Hypothesis) -> float:
         """Mean displacement (cells) of b's walls between ``h``'s pose and the best's."""
         return _mean_shift(h.T, self.best.T, self.pair.verify.points_b)
 
-    def by_structure(self) -> Any:
-        """Each map's structures and their agreement under the best pose, computed once for
-        the two object rules."""
+    def structures_b(self) -> Structures:
+        """b's wall structures (connected groups of wall cells), labelled once."""
+        if self._structures_b is None:
+            self._structures_b = Structures(self.pair.codes_b)
+        return self._structures_b
+
+    def by_structure(self) -> ByStructure:
+        """Each map's agreement under the best pose by structure, computed once for the two
+        object rules."""
         if self._by_structure is None:
             self._by_structure = agreement_by_structure(
-                self.pair.codes_a, self.pair.codes_b, self.best.T, structures_b=self.structures_b
+                self.pair.codes_a, self.pair.codes_b, self.best.T, structures_b=self.structures_b()
             )
         return self._by_structure
 
@@ -984,7 +1021,8 @@ def _judge(pair: _Pair, found: _Found, o: SemanticOptions, info: dict[str, Any])
     info["rival_agreements"] = [h.agreement for h in rivals]
     info["best_agreement"] = best.agreement
     info["runner_up_agreement"] = rivals[0].agreement if rivals else None
-    info["best_transform"] = pair.to_full(best.T)  # the pose judged below, also when refused
+    T_full = pair.to_full(best.T)
+    info["best_transform"] = T_full  # the pose judged below, also when refused
     info["best_source"] = best.source
     info["consistency"] = best_consistency
     info["consistent"] = bool(best_consistency >= o.min_score)
@@ -993,7 +1031,7 @@ def _judge(pair: _Pair, found: _Found, o: SemanticOptions, info: dict[str, Any])
         runner_up_score=rivals[0].score if rivals else None,
         overlap_cells=int(best.agreement.overlap * verify.cells_per_sample),
     )
-    return _Judged(pair, found, o, info, best, best_consistency, rivals, common)
+    return _Judged(pair, found, o, info, best, T_full, best_consistency, rivals, common)
 
 
 # --- 5. the decision: each rule returns the reason to refuse, or None; run in this order ---
@@ -1010,8 +1048,9 @@ def _rule_consistent(j: _Judged) -> str | None:
 
 
 def _rule_unique(j: _Judged) -> str | None:
-    """Every rival is beaten by ``min_margin`` in index and ``min_evidence_cells`` more
-    contradicting wall cells, or ruled out by one object the maps show (a notch, a post:
+    """The rival judged (a perfect one if any, else the one explaining most; see :func:`_judge`)
+    is beaten by ``min_margin`` in index and ``min_evidence_cells`` more contradicting wall
+    cells, or ruled out by one object the maps show (a notch, a post:
     ``min_evidence_cells`` wall cells in one group), while noise contradicts in scattered
     cells (docs/merging.md, item 24)."""
     o, best = j.o, j.best
@@ -1042,7 +1081,7 @@ def _rule_unique(j: _Judged) -> str | None:
 
 def _rule_shared_space(j: _Judged) -> str | None:
     """The maps share ``min_common_m2`` of known space under the best pose."""
-    common_m2 = j.best.shared_cells * j.o.resolution_m**2
+    common_m2 = j.common_m2
     j.info["common_known_m2"] = common_m2
     if common_m2 < j.o.min_common_m2:
         return (
@@ -1057,8 +1096,8 @@ def _rule_room_match(j: _Judged) -> str | None:
     several rooms: one of the others may be its look-alike (a guess of the pose rules those
     out). Refused under ``room_match_m2`` and under ``room_match_share`` of the smaller map."""
     o = j.o
-    common_m2 = j.best.shared_cells * o.resolution_m**2
-    if j.found.region is not None or common_m2 >= o.room_match_m2:
+    common_m2 = j.common_m2
+    if j.prior_given or common_m2 >= o.room_match_m2:
         return None
     smaller_m2 = j.pair.shared.smaller_known_cells() * o.resolution_m**2
     if common_m2 >= o.room_match_share * smaller_m2:
@@ -1072,8 +1111,8 @@ def _rule_room_match(j: _Judged) -> str | None:
 
 
 def _rule_pinned(j: _Judged) -> str | None:
-    """The agreeing walls pin the pose along them (``min_cross_cells``; with ``slide_test``,
-    or the maps contradict every slide), and not only through one small thing
+    """The agreeing walls pin the pose along them (``min_cross_cells``; or, with
+    ``slide_test``, the maps contradict every slide of it), and not only through one small thing
     (``lone_pin_test``): a slide along one straight wall or a corridor explains the maps as
     well as the pose, and a post beside rack sides matches every aisle's post."""
     o, pair, info = j.o, j.pair, j.info
@@ -1102,12 +1141,11 @@ def _rule_pinned(j: _Judged) -> str | None:
         )
     if not o.lone_pin_test or cross < o.min_cross_cells:  # pinned by the slide test only
         return None
-    j.structures_b = Structures(pair.codes_b)
     small_cells = OBJECT_CLUTTER_M / o.resolution_m
-    lone = pins.lone_pin(False, j.structures_b, small_cells)
+    lone = pins.lone_pin(False, j.structures_b(), small_cells)
     if lone is not None and lone[0] < o.min_cross_cells + CROSS_GUARD_CELLS:
         # near the threshold or under it: the CPU-independent value decides
-        lone = pins.lone_pin(True, j.structures_b, small_cells)
+        lone = pins.lone_pin(True, j.structures_b(), small_cells)
     if lone is None or round(lone[0], 2) >= o.min_cross_cells:
         return None
     info["lone_pin_cells"] = round(lone[0], 2)
@@ -1135,8 +1173,9 @@ def _rule_wall_area(j: _Judged) -> str | None:
 
 
 def _rule_one_object(j: _Judged) -> str | None:
-    """The agreeing walls are more than one structure of ``min_object_m2`` in each map: a rack
-    seen whole matches every copy of it, and the copies may lie where neither map looked."""
+    """Unless the agreeing walls lie (95 %) on one structure in each map whose larger one fits
+    in a rectangle under ``min_object_m2``: a rack seen whole matches every copy of it, and the
+    copies may lie where neither map looked."""
     o = j.o
     if o.min_object_m2 <= 0:
         return None
@@ -1234,7 +1273,7 @@ def _accepted(
 ) -> MergeResult:
     """The merge under the best pose, with b's wall cells that land on a's walls: the point
     pairs that support it (for figures)."""
-    T_full = j.info["best_transform"]
+    T_full = j.T_full
     pb_full = pair.icp.pb + np.array([pair.box_b[2], pair.box_b[0]])
     pa_full = np.stack(map_points(pb_full, T_full), axis=1)  # not BLAS: same cells on any CPU
     c, r = np.rint(pa_full[:, 0]).astype(np.int64), np.rint(pa_full[:, 1]).astype(np.int64)
@@ -1248,8 +1287,8 @@ def _accepted(
         a,
         b,
         T_full,
-        "semantic",
-        t0,
+        method="semantic",
+        t0=t0,
         score=j.best.score,
         detector=detector,
         matches=matches,

@@ -31,7 +31,8 @@ def _doc() -> dict[str, Any]:
     rows = [
         {"method": "semantic", "options": "-", "family": "real", "cases": cases},
         {"method": "semantic", "options": "slide_test=True", "family": "real", "cases": cases},
-        {"method": "orb", "options": "-", "family": "real", "cases": cases},
+        {"method": "orb", "detector": "orb", "options": "-", "family": "real", "cases": cases},
+        {"method": "orb", "detector": "sift", "options": "-", "family": "real", "cases": cases},
     ]
     return {"rows": rows}
 
@@ -49,6 +50,10 @@ def test_counts_the_default_rows_above_the_overlap_floor(
     assert _script().main([str(f)]) == 0
     out = capsys.readouterr().out
     assert "nav2/depot.yaml" in out and "1 /     3" in out and "ambiguous: best" in out
+    orb = _script().tally([_doc()], "orb", 0.4, "sift")  # one detector's rows, not both
+    assert orb[("real", "nav2/depot.yaml")]["pairs"] == 3
+    assert _script().main([str(f), "--method", "orb"]) == 2  # which detector?
+    assert "orb, sift" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(

@@ -52,11 +52,11 @@
 #   4. goal_policy_eval/{office,twin,tb3}/eval.{json,png}: the shipped learned goal chooser
 #      (policies/goal_ppo_2r) against the frontier planners on 50 held-out worlds of each family,
 #      on this version's merger
-# It replaces the committed files, so it asks for --force. Measured 2026-11-27 on 2 cores shared
-# with other work, its merge steps and its loop steps run side by side in two processes: 4 h 20 min
-# of wall time (merge steps ~4.2 h, loop, task-time and evaluation steps ~3.6 h, each process
-# getting about one core). Run as written, one step after another, it takes longer (estimated
-# 5-6 hours, not measured).
+# It replaces the committed files, so it asks for --force. Steps 1 (merge files, one process
+# each) and 2-4 (loop, task-time and evaluation files, two processes) run side by side, each
+# group in its given order; the merge group's output is printed when it ends. Measured
+# 2026-11-27 on 2 cores shared with other work, the groups run so: 4 h 20 min of wall time (merge
+# steps ~4.2 h, the others ~3.6 h).
 # Every figure but the timings (ms, steps/s) comes out the same on any machine with the pinned
 # versions (requirements/constraints.txt); timings depend on the machine and its load.
 set -euo pipefail
@@ -71,87 +71,103 @@ out=docs/results
 cache="$(mktemp -d)"
 trap 'rm -rf "$cache"' EXIT
 bench_merge() { mrexplore bench merge --case-cache "$cache" "$@"; }
-bench_merge --n 30 --families symmetric,real,noisy,lidar --out "$out/merge_table" --force
-bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
-  --semantic-variant slack_cells=0,min_run_cells=1 \
-  --semantic-variant max_rotation_peaks=3,peaks_per_rotation=6,n_polish=12,n_refine=5 \
-  --semantic-variant paper_candidates=true \
-  --semantic-variant shared_weight=0 --semantic-variant consistency_polish=false \
-  --semantic-variant min_cross_cells=0 --semantic-variant min_wall_area_m2=0 \
-  --semantic-variant polish_margin=0 --semantic-variant min_object_m2=0 \
-  --semantic-variant repeat_rivals=0 --semantic-variant object_hull_free=0 \
-  --semantic-variant lone_pin_test=false --semantic-variant room_match_m2=0 \
-  --semantic-variant structure_test=false \
-  --out "$out/merge_ablation" --force
-bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
-  --seeds 0-9,12 --out "$out/merge_seeds" --force
-bench_merge --methods semantic,orb --n 30 --families large --seeds 0-9 \
-  --semantic-variant hough_max_cells=0 --out "$out/merge_large" --force
-bench_merge --methods semantic,orb --n 30 --families aliased --seeds 0-9 \
-  --semantic-variant min_wall_area_m2=0 --semantic-variant min_wall_area_m2=10 \
-  --out "$out/merge_aliased" --force
-bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
-  --seeds 13-22 --semantic-variant min_wall_area_m2=0 --semantic-variant polish_margin=0 \
-  --out "$out/merge_heldout" --force
-bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
-  --seeds 23-32 --semantic-variant polish_margin=0 --out "$out/merge_heldout2" --force
-bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
-  --seeds 33-42 --semantic-variant slide_test=true --out "$out/merge_heldout3" --force
-bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
-  --seeds 53-62 --semantic-variant repeat_rivals=0,min_object_m2=0 \
-  --out "$out/merge_heldout4" --force
-bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
-  --seeds 73-82 --semantic-variant object_hull_free=0 --semantic-variant lone_pin_test=false \
-  --semantic-variant object_hull_free=0,lone_pin_test=false --out "$out/merge_heldout5" --force
-bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
-  --seeds 83-92 --semantic-variant lone_pin_test=false \
-  --semantic-variant object_hull_free=0,lone_pin_test=false --out "$out/merge_heldout6" --force
-bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
-  --seeds 113-122 --semantic-variant room_match_m2=0 --out "$out/merge_heldout7" --force
-bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
-  --seeds 123-132 --semantic-variant structure_test=false --out "$out/merge_heldout8" --force
-bench_merge --methods semantic --n 30 --families aliased --seeds 83-142 \
-  --semantic-variant object_hull_free=0 --semantic-variant lone_pin_test=false \
-  --semantic-variant object_hull_free=0,lone_pin_test=false \
-  --out "$out/merge_aliased_heldout" --force
-bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
-  --seeds 0-9,12 --semantic-variant slide_test=true --out "$out/merge_slide" --force
-bench_merge --methods semantic,seeded --n 30 --families symmetric,real,noisy,lidar \
-  --seeds 0-9,12 --out "$out/merge_seeded" --force
-bench_merge --methods semantic,guided --n 30 \
-  --families symmetric,real,noisy,lidar,aliased --seeds 0-9,12 --out "$out/merge_guided" --force
-bench_merge --methods semantic --n 30 --families lidar --seeds 0-9,12 \
-  --lidar-options map_l_occ=1.4 --semantic-variant room_match_m2=15 \
-  --out "$out/merge_lidar_mapper" --force
-bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
-  --seeds 133-142 --semantic-variant room_match_m2=15 --out "$out/merge_heldout9" --force
-bench_merge --methods semantic --n 30 --families lidar --seeds 133-142 \
-  --lidar-options map_l_occ=1.4 --semantic-variant room_match_m2=15 \
-  --out "$out/merge_lidar_mapper_heldout" --force
-mrexplore bench loop --seeds 20 --jobs 2 --out "$out/loop_study" --force
-mrexplore bench loop --noise off --variants semantic oracle --seeds 20 --jobs 2 \
-  --out "$out/loop_exact" --force
-mrexplore bench loop --task navigate --noise off --seeds 20 --jobs 2 --out "$out/loop_nav" --force
-mrexplore bench loop --variants seeded --seeds 20 --jobs 2 --out "$out/loop_seeded" --force
-mrexplore bench loop --variants semantic oracle --seeds 20 --first-seed 2000 --jobs 2 \
-  --out "$out/loop_heldout" --force
-mrexplore bench loop --variants semantic oracle --seeds 20 --first-seed 2000 --jobs 2 \
-  --noise off --out "$out/loop_heldout_exact" --force
-mrexplore bench loop --variants semantic oracle --seeds 20 --first-seed 4000 --jobs 2 \
-  --out "$out/loop_heldout2" --force
-mrexplore bench loop --variants semantic --seeds 20 --jobs 2 \
-  --merge-options slide_test=true,keep_run_on_refusal=true --out "$out/loop_rules_on" --force
-mrexplore bench loop --variants semantic sighting oracle --seeds 20 --jobs 2 \
-  --reuse "$out/loop_study.json" --out "$out/loop_sighting" --force
-mrexplore bench loop --variants semantic sighting oracle --seeds 20 --first-seed 2000 --jobs 2 \
-  --reuse "$out/loop_heldout.json" --out "$out/loop_sighting_heldout" --force
-mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --out "$out" --force
-mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --tasks navigate \
-  --nav-goal teammate --out "$out/nav_teammate" --force
-ev="$out/goal_policy_eval"
-mrexplore evaluate policies/goal_ppo_2r --seeds 50 --max-time-s 300 \
-  --worlds "random:symmetric_office?width_m=10&height_m=8" --out "$ev/office" --force
-mrexplore evaluate policies/goal_ppo_2r --seeds 50 --max-time-s 300 \
-  --worlds "random:twin_wings?width_m=14&height_m=14" --out "$ev/twin" --force
-mrexplore evaluate policies/goal_ppo_2r --seeds 50 --max-time-s 300 --worlds tb3_office \
-  --out "$ev/tb3" --force
+merge_steps() {
+  bench_merge --n 30 --families symmetric,real,noisy,lidar --out "$out/merge_table" --force
+  bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
+    --semantic-variant slack_cells=0,min_run_cells=1 \
+    --semantic-variant max_rotation_peaks=3,peaks_per_rotation=6,n_polish=12,n_refine=5 \
+    --semantic-variant paper_candidates=true \
+    --semantic-variant shared_weight=0 --semantic-variant consistency_polish=false \
+    --semantic-variant min_cross_cells=0 --semantic-variant min_wall_area_m2=0 \
+    --semantic-variant polish_margin=0 --semantic-variant min_object_m2=0 \
+    --semantic-variant repeat_rivals=0 --semantic-variant object_hull_free=0 \
+    --semantic-variant lone_pin_test=false --semantic-variant room_match_m2=0 \
+    --semantic-variant structure_test=false \
+    --out "$out/merge_ablation" --force
+  bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
+    --seeds 0-9,12 --out "$out/merge_seeds" --force
+  bench_merge --methods semantic,orb --n 30 --families large --seeds 0-9 \
+    --semantic-variant hough_max_cells=0 --out "$out/merge_large" --force
+  bench_merge --methods semantic,orb --n 30 --families aliased --seeds 0-9 \
+    --semantic-variant min_wall_area_m2=0 --semantic-variant min_wall_area_m2=10 \
+    --out "$out/merge_aliased" --force
+  bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
+    --seeds 13-22 --semantic-variant min_wall_area_m2=0 --semantic-variant polish_margin=0 \
+    --out "$out/merge_heldout" --force
+  bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
+    --seeds 23-32 --semantic-variant polish_margin=0 --out "$out/merge_heldout2" --force
+  bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
+    --seeds 33-42 --semantic-variant slide_test=true --out "$out/merge_heldout3" --force
+  bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
+    --seeds 53-62 --semantic-variant repeat_rivals=0,min_object_m2=0 \
+    --out "$out/merge_heldout4" --force
+  bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
+    --seeds 73-82 --semantic-variant object_hull_free=0 --semantic-variant lone_pin_test=false \
+    --semantic-variant object_hull_free=0,lone_pin_test=false --out "$out/merge_heldout5" --force
+  bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
+    --seeds 83-92 --semantic-variant lone_pin_test=false \
+    --semantic-variant object_hull_free=0,lone_pin_test=false --out "$out/merge_heldout6" --force
+  bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
+    --seeds 113-122 --semantic-variant room_match_m2=0 --out "$out/merge_heldout7" --force
+  bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
+    --seeds 123-132 --semantic-variant structure_test=false --out "$out/merge_heldout8" --force
+  bench_merge --methods semantic --n 30 --families aliased --seeds 83-142 \
+    --semantic-variant object_hull_free=0 --semantic-variant lone_pin_test=false \
+    --semantic-variant object_hull_free=0,lone_pin_test=false \
+    --out "$out/merge_aliased_heldout" --force
+  bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
+    --seeds 0-9,12 --semantic-variant slide_test=true --out "$out/merge_slide" --force
+  bench_merge --methods semantic,seeded --n 30 --families symmetric,real,noisy,lidar \
+    --seeds 0-9,12 --out "$out/merge_seeded" --force
+  bench_merge --methods semantic,guided --n 30 \
+    --families symmetric,real,noisy,lidar,aliased --seeds 0-9,12 --out "$out/merge_guided" --force
+  bench_merge --methods semantic --n 30 --families lidar --seeds 0-9,12 \
+    --lidar-options map_l_occ=1.4 --semantic-variant room_match_m2=15 \
+    --out "$out/merge_lidar_mapper" --force
+  bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
+    --seeds 133-142 --semantic-variant room_match_m2=15 --out "$out/merge_heldout9" --force
+  bench_merge --methods semantic --n 30 --families lidar --seeds 133-142 \
+    --lidar-options map_l_occ=1.4 --semantic-variant room_match_m2=15 \
+    --out "$out/merge_lidar_mapper_heldout" --force
+}
+other_steps() {
+  mrexplore bench loop --seeds 20 --jobs 2 --out "$out/loop_study" --force
+  mrexplore bench loop --noise off --variants semantic oracle --seeds 20 --jobs 2 \
+    --out "$out/loop_exact" --force
+  mrexplore bench loop --task navigate --noise off --seeds 20 --jobs 2 --out "$out/loop_nav" --force
+  mrexplore bench loop --variants seeded --seeds 20 --jobs 2 --out "$out/loop_seeded" --force
+  mrexplore bench loop --variants semantic oracle --seeds 20 --first-seed 2000 --jobs 2 \
+    --out "$out/loop_heldout" --force
+  mrexplore bench loop --variants semantic oracle --seeds 20 --first-seed 2000 --jobs 2 \
+    --noise off --out "$out/loop_heldout_exact" --force
+  mrexplore bench loop --variants semantic oracle --seeds 20 --first-seed 4000 --jobs 2 \
+    --out "$out/loop_heldout2" --force
+  mrexplore bench loop --variants semantic --seeds 20 --jobs 2 \
+    --merge-options slide_test=true,keep_run_on_refusal=true --out "$out/loop_rules_on" --force
+  mrexplore bench loop --variants semantic sighting oracle --seeds 20 --jobs 2 \
+    --reuse "$out/loop_study.json" --out "$out/loop_sighting" --force
+  mrexplore bench loop --variants semantic sighting oracle --seeds 20 --first-seed 2000 --jobs 2 \
+    --reuse "$out/loop_heldout.json" --out "$out/loop_sighting_heldout" --force
+  mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --out "$out" --force
+  mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --tasks navigate \
+    --nav-goal teammate --out "$out/nav_teammate" --force
+  ev="$out/goal_policy_eval"
+  mrexplore evaluate policies/goal_ppo_2r --seeds 50 --max-time-s 300 \
+    --worlds "random:symmetric_office?width_m=10&height_m=8" --out "$ev/office" --force
+  mrexplore evaluate policies/goal_ppo_2r --seeds 50 --max-time-s 300 \
+    --worlds "random:twin_wings?width_m=14&height_m=14" --out "$ev/twin" --force
+  mrexplore evaluate policies/goal_ppo_2r --seeds 50 --max-time-s 300 --worlds tb3_office \
+    --out "$ev/tb3" --force
+}
+merge_log="$cache/merge_steps.log"
+merge_steps > "$merge_log" 2>&1 &
+merge_pid=$!
+# If a step of the other group fails (set -e), stop the merge group and its running step too.
+trap 'pkill -P "$merge_pid" 2>/dev/null || true; kill "$merge_pid" 2>/dev/null || true; rm -rf "$cache"' EXIT
+other_steps
+if ! wait "$merge_pid"; then
+  cat "$merge_log" >&2
+  echo "reproduce_paper.sh: a merge step failed (its output is above)" >&2
+  exit 1
+fi
+cat "$merge_log"

@@ -12,6 +12,8 @@ every held-out file can be pooled:
 
 A refusal at high overlap is a merge the evidence may have allowed; the reasons say which rule
 (ambiguity between look-alike places, consistency, shared space, ...) and the source maps where.
+Files that record the pose each refusal judged (``best_error_cells``, written since 2026-11-27)
+also say in how many refusals that pose was the truth: merges the rules gave away.
 Reads only; writes nothing.
 """
 
@@ -25,6 +27,8 @@ from collections import Counter, defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
+
+from mrexplore.experiments.merge_bench import CORRECT_CELLS
 
 #: The first figure or parenthesis of a reason ends its fixed words ("best hypothesis agrees only
 #: 0.94 < 0.97" -> "best hypothesis agrees only").
@@ -66,8 +70,11 @@ def tally(
 ) -> dict[tuple[str, str], dict[str, Any]]:
     """Per (family, source map): ``pairs``, ``correct``, ``wrong``, ``imprecise``, ``refused``
     among the cases with overlap >= ``min_overlap`` of ``method``'s default rows with
-    ``detector`` (None: rows that name none), and ``reasons`` (a Counter of
-    :func:`reason_kind` over the refusals)."""
+    ``detector`` (None: rows that name none), ``reasons`` (a Counter of :func:`reason_kind`
+    over the refusals), and of the refusals whose judged pose the file records
+    (``best_error_cells``; ``judged``), those where that pose was the truth (``truth_refused``:
+    within the bench's :data:`~mrexplore.experiments.merge_bench.CORRECT_CELLS` plus the
+    case's drift): merges the rules gave away."""
     out: dict[tuple[str, str], dict[str, Any]] = defaultdict(
         lambda: {
             "pairs": 0,
@@ -76,6 +83,8 @@ def tally(
             "imprecise": 0,
             "refused": 0,
             "reasons": Counter(),
+            "judged": 0,
+            "truth_refused": 0,
         }
     )
     for doc in docs:
@@ -92,6 +101,10 @@ def tally(
                 t[case["kind"]] += 1
                 if case["kind"] == "refused":
                     t["reasons"][reason_kind(case["reason"])] += 1
+                    best = case.get("best_error_cells")
+                    if best is not None:  # files written since the field exists
+                        t["judged"] += 1
+                        t["truth_refused"] += best < CORRECT_CELLS + case.get("drift_cells", 0.0)
     return dict(out)
 
 
@@ -103,6 +116,11 @@ def format_tally(t: Mapping[tuple[str, str], Mapping[str, Any]], min_overlap: fl
         lines.append(
             f"{family:10s} {src:34s} {r['correct']:5d} / {r['pairs']:5d} ({share:4.0%})"
             f"  wrong {r['wrong']}, imprecise {r['imprecise']}, refused {r['refused']}"
+            + (
+                f" (the refused pose was the truth in {r['truth_refused']} of {r['judged']})"
+                if r["judged"]
+                else ""
+            )
         )
         for kind, n in r["reasons"].most_common():
             lines.append(f"{'':12s}{n:5d}  {kind}")

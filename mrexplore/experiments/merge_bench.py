@@ -124,6 +124,20 @@ def guide(case: MergeCase) -> Any:
     return PosePrior(guess, GUIDE_RADIUS_CELLS, GUIDE_REGION_DEG)
 
 
+def _refused_best_error(case: MergeCase, res: Any) -> float | None:
+    """For a refusal: how far (cells, as :func:`classify` measures) the pose the merger judged
+    and refused (``info["best_transform"]``) lies from the truth; None when it judged none.
+
+    A refusal whose best pose was the truth is a merge the rules gave away; one whose best pose
+    was elsewhere is a refusal the evidence called for. Evaluation only: the truth never
+    reaches the merger."""
+    best = res.info.get("best_transform") if isinstance(res.info, dict) else None
+    if best is None:
+        return None
+    measured = merge_error(np.asarray(best, dtype=np.float64), case.T_ab, case.b)
+    return None if measured is None or not np.isfinite(measured[0]) else round(measured[0], 2)
+
+
 def evaluate(
     cases: Sequence[MergeCase], method: str, detector: str | None, **options: Any
 ) -> dict[str, Any]:
@@ -164,6 +178,7 @@ def evaluate(
                 "overlap": round(c.overlap, 3),
                 "kind": kind,
                 "error_cells": None if not np.isfinite(err) else round(err, 2),
+                "best_error_cells": _refused_best_error(c, res) if kind == "refused" else None,
                 "drift_cells": round(float(c.meta.get("drift_cells", 0.0)), 2),
                 "score": round(res.score, 3),
                 "reason": res.reason,

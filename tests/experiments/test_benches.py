@@ -216,3 +216,18 @@ def test_guided_guess_lies_within_its_bounds_and_repeats() -> None:
         assert np.hypot(x1 - x0, y1 - y0)[0] <= mb.GUIDE_SHIFT_CELLS + 1e-9
         turn = np.degrees(transform_angle(p.T_ab) - transform_angle(case.T_ab))
         assert abs((turn + 180) % 360 - 180) <= mb.GUIDE_TURN_DEG + 1e-9
+
+
+def test_a_refusal_records_how_far_its_judged_pose_lay_from_the_truth() -> None:
+    """A refusal after the judgement keeps the pose it refused; the bench measures it against
+    the truth (``best_error_cells``, evaluation only): here the truth, refused by a shared-space
+    floor no pair can meet. Merges record None."""
+    from mrexplore.experiments import merge_bench as mb
+
+    cases = mb.make_cases("real", 2, 3)
+    refused = mb.evaluate(cases, "semantic", None, min_common_m2=1e9)["cases"]
+    assert [c["kind"] for c in refused] == ["refused", "refused"]
+    judged = [c["best_error_cells"] for c in refused]
+    assert all(e is not None and e < mb.CORRECT_CELLS for e in judged), judged
+    merged = mb.evaluate(cases, "semantic", None)["cases"]
+    assert all(c["best_error_cells"] is None for c in merged if c["kind"] != "refused")

@@ -56,6 +56,31 @@ def test_counts_the_default_rows_above_the_overlap_floor(
     assert "orb, sift" in capsys.readouterr().err
 
 
+def test_refusals_whose_judged_pose_was_the_truth_are_counted(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Files that record the refused pose's error (``best_error_cells``) say how many refusals
+    gave away the truth (within 2 cells plus the case's drift); older files say nothing."""
+    cases = [
+        {**_case("w#0", 0.8, "refused", "ambiguous: best 1.0"), "best_error_cells": 0.5},
+        {**_case("w#1", 0.8, "refused", "ambiguous: best 1.0"), "best_error_cells": 80.0},
+        {
+            **_case("w#2", 0.8, "refused", "ambiguous: best 1.0"),
+            "best_error_cells": 2.5,
+            "drift_cells": 1.0,
+        },
+        {**_case("w#3", 0.8, "refused", "too few wall cells"), "best_error_cells": None},
+    ]
+    doc = {"rows": [{"method": "semantic", "options": "-", "family": "lidar", "cases": cases}]}
+    t = _script().tally([doc], "semantic", 0.4)[("lidar", "w")]
+    assert (t["refused"], t["judged"], t["truth_refused"]) == (4, 3, 2)
+    assert "the refused pose was the truth in 2 of 3" in _script().format_tally(
+        {("lidar", "w"): t}, 0.4
+    )
+    old = _script().format_tally(_script().tally([_doc()], "semantic", 0.4), 0.4)
+    assert "refused pose" not in old
+
+
 @pytest.mark.parametrize(
     ("content", "argv_tail"),
     [("not json", []), ('{"rows": [{"method": "semantic"}]}', []), ("{}", [])],

@@ -13,7 +13,8 @@ every held-out file can be pooled:
 A refusal at high overlap is a merge the evidence may have allowed; the reasons say which rule
 (ambiguity between look-alike places, consistency, shared space, ...) and the source maps where.
 Files that record the pose each refusal judged (``best_error_cells``, written since 2026-11-27)
-also say in how many refusals that pose was the truth: merges the rules gave away.
+also say in how many refusals that pose was the truth: the search found it and a rule held it
+back (rightly, when a rival explains the maps as well: the truth won the ranking by chance).
 Reads only; writes nothing.
 """
 
@@ -74,7 +75,7 @@ def tally(
     over the refusals), and of the refusals whose judged pose the file records
     (``best_error_cells``; ``judged``), those where that pose was the truth (``truth_refused``:
     within the bench's :data:`~mrexplore.experiments.merge_bench.CORRECT_CELLS` plus the
-    case's drift): merges the rules gave away."""
+    case's drift): the search found the truth and a rule held it back."""
     out: dict[tuple[str, str], dict[str, Any]] = defaultdict(
         lambda: {
             "pairs": 0,

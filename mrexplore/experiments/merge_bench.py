@@ -128,9 +128,9 @@ def _refused_best_error(case: MergeCase, res: Any) -> float | None:
     """For a refusal: how far (cells, as :func:`classify` measures) the pose the merger judged
     and refused (``info["best_transform"]``) lies from the truth; None when it judged none.
 
-    A refusal whose best pose was the truth is a merge the rules gave away; one whose best pose
-    was elsewhere is a refusal the evidence called for. Evaluation only: the truth never
-    reaches the merger."""
+    A refusal whose judged pose was the truth is one where the search found the truth and a
+    rule held it back (rightly, when a rival explains the maps as well); one whose judged pose
+    lay elsewhere refused a wrong pose. Evaluation only: the truth never reaches the merger."""
     best = res.info.get("best_transform") if isinstance(res.info, dict) else None
     if best is None:
         return None

@@ -80,9 +80,9 @@ class OccupancyMap:
             (-1.2, +3.6) make one observation enough to cross the int8 readers' thresholds
             (free at most 25 %, occupied at least 65 %): exploration maps each cell once or a
             few times, and a map that needs three looks per cell would lag the robot. A hit
-            outweighs three passes: a beam grazing a wall at a shallow angle passes through
-            wall cells before it ends, and with a hit worth one pass (+1.4, the former default)
-            such walls were erased (``docs/mapper.md``).
+            outweighs two passes (three leave the cell undecided): a beam grazing a wall at a
+            shallow angle passes through wall cells before it ends, and with a hit worth one
+            pass (+1.4, the former default) such walls were erased (``docs/mapper.md``).
         l_min, l_max: clamp of the log-odds (keeps the map able to change its mind).
 
     >>> m = OccupancyMap((21, 21), 0.05, (10, 10))

@@ -134,8 +134,8 @@ def _refused_best_error(case: MergeCase, res: Any) -> float | None:
     best = res.info.get("best_transform") if isinstance(res.info, dict) else None
     if best is None:
         return None
-    measured = merge_error(np.asarray(best, dtype=np.float64), case.T_ab, case.b)
-    return None if measured is None or not np.isfinite(measured[0]) else round(measured[0], 2)
+    _, err = classify(case, True, np.asarray(best, dtype=np.float64))
+    return round(err, 2) if np.isfinite(err) else None
 
 
 def evaluate(

@@ -1,4 +1,4 @@
-"""The ``mrexplore`` command: ``demo | merge | task-time | bench | train | evaluate``."""
+"""The ``mrexplore`` command: ``demo | merge | task-time | bench | train | evaluate | imitate``."""
 
 from __future__ import annotations
 
@@ -100,6 +100,12 @@ def _train(argv: Sequence[str]) -> int:
     return int(train_main(list(argv)))
 
 
+def _imitate(argv: Sequence[str]) -> int:
+    from mrexplore.experiments.imitate import main as imitate_main
+
+    return int(imitate_main(list(argv)))
+
+
 def _evaluate(argv: Sequence[str]) -> int:
     from mrexplore.experiments.evaluate import main as eval_main
 
@@ -184,6 +190,7 @@ def build_parser() -> argparse.ArgumentParser:
         ("bench", "benchmarks: mrexplore bench {merge,loop,env,sensor,policies,wrappers}"),
         ("train", "train a shared policy with stable-baselines3"),
         ("evaluate", "evaluate a trained policy against the baselines"),
+        ("imitate", "clone the goal-level keep-or-Burgard rule (a start for train --init-from)"),
     ):
         sub.add_parser(name, help=helptext, add_help=False)
     return p
@@ -192,7 +199,13 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``mrexplore`` command; returns the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    passthrough = {"merge": _merge, "bench": _bench, "train": _train, "evaluate": _evaluate}
+    passthrough = {
+        "merge": _merge,
+        "bench": _bench,
+        "train": _train,
+        "evaluate": _evaluate,
+        "imitate": _imitate,
+    }
     try:
         if argv and argv[0] in passthrough:
             return passthrough[argv[0]](argv[1:])

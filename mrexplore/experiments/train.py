@@ -101,7 +101,8 @@ def _load_weights(model: Any, path: Path) -> None:
         ) from None
 
 
-def _versions() -> dict[str, str]:
+def versions() -> dict[str, str]:
+    """Versions of mrexplore and the libraries a trained model depends on (for config.yaml)."""
     import gymnasium
     import numpy
     import pettingzoo
@@ -228,7 +229,7 @@ def train(
             "seeds": eval_seeds,
             "final_seeds": final_seeds,
         },
-        "versions": _versions(),
+        "versions": versions(),
     }
     if init_file is not None:
         digest = hashlib.sha256(init_file.read_bytes()).hexdigest()

@@ -34,6 +34,7 @@ from mrexplore.experiments.evaluate import EVAL_SEED_BASE
 from mrexplore.experiments.train import load_hyperparams, save_for_inference, versions
 from mrexplore.experiments.trained import algo_class
 from mrexplore.io_safety import atomic_path, check_out_dir, write_text
+from mrexplore.options import integer, validate
 from mrexplore.policies.goal_rules import KeepOrBurgardTeam
 
 ALGO = "maskable_ppo"
@@ -230,8 +231,7 @@ def imitate(
         OutputExistsError: ``out`` is a file or a non-empty folder (without ``force``).
     """
     for name, value, lo in (("decisions", decisions, 1), ("epochs", epochs, 1), ("seed", seed, 0)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < lo:
-            raise ConfigError(f"imitate: {name} must be an integer >= {lo}, got {value!r}")
+        validate("imitate", name, value, integer(lo), kind="argument")
     cfg = load_hyperparams(ALGO, hyperparams_file)
     env_opts = dict(cfg["env"])
     if env_opts.get("action_mode") != "goal":

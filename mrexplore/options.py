@@ -161,6 +161,21 @@ def validate(
         raise error(f"{prefix} {name} must be {exc}, got {value!r}") from None
 
 
+def integer_argument(owner: str, name: str, value: Any, lo: int, hi: int | None = None) -> int:
+    """``value`` (an int or a numpy integer) as an int in ``[lo, hi]``; a ``ConfigError`` naming
+    ``owner`` and the argument otherwise (the commands' numeric arguments).
+
+    >>> integer_argument("train", "seed", 3, 0)
+    3
+    >>> integer_argument("train", "seed", -1, 0)
+    Traceback (most recent call last):
+    ...
+    mrexplore.errors.ConfigError: train: argument seed must be an integer >= 0, got -1
+    """
+    validate(owner, name, value, integer(lo, hi), kind="argument")
+    return int(value)
+
+
 _FLOAT_FIELDS: dict[type, frozenset[str]] = {}
 
 

@@ -34,7 +34,7 @@ from mrexplore.experiments.evaluate import EVAL_SEED_BASE
 from mrexplore.experiments.train import load_hyperparams, save_for_inference, versions
 from mrexplore.experiments.trained import algo_class
 from mrexplore.io_safety import atomic_path, check_out_dir, write_text
-from mrexplore.options import integer, validate
+from mrexplore.options import integer_argument
 from mrexplore.policies.goal_rules import KeepOrBurgardTeam
 
 ALGO = "maskable_ppo"
@@ -231,7 +231,7 @@ def imitate(
         OutputExistsError: ``out`` is a file or a non-empty folder (without ``force``).
     """
     for name, value, lo in (("decisions", decisions, 1), ("epochs", epochs, 1), ("seed", seed, 0)):
-        validate("imitate", name, value, integer(lo), kind="argument")
+        integer_argument("imitate", name, value, lo)
     cfg = load_hyperparams(ALGO, hyperparams_file)
     env_opts = dict(cfg["env"])
     if env_opts.get("action_mode") != "goal":

@@ -27,6 +27,7 @@ import mrexplore
 from mrexplore.errors import ConfigError, OutputExistsError
 from mrexplore.experiments.episode import EpisodeResult, run_episode
 from mrexplore.io_safety import atomic_path, check_out_dir, check_outputs, write_text
+from mrexplore.options import integer_argument
 from mrexplore.types import RobotView
 
 #: The seed paper's figures (Durdu & Korkmaz 2019, section 4): seconds.
@@ -86,12 +87,6 @@ def _stats(xs: Sequence[float]) -> dict[str, float]:
 
 EPISODE_LOG = "episodes.jsonl"
 RESULT_FILES = ("task_time.json", "task_time.csv", "task_time.png")
-
-
-def _check_int(name: str, value: Any, lo: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
-        raise ConfigError(f"task-time: {name} must be an integer >= {lo}, got {value!r}")
-    return int(value)
 
 
 def _episode_to_json(r: EpisodeResult) -> dict[str, Any]:
@@ -248,9 +243,9 @@ def run_task_time(
         OutputExistsError: ``out`` is a file, or holds results (or another run's episodes) and
             ``force`` is False.
     """
-    seeds = _check_int("seeds", seeds, 1)
-    first_seed = _check_int("first_seed", first_seed, 0)
-    workers = _check_int("workers", workers, 1)
+    seeds = integer_argument("task-time", "seeds", seeds, 1)
+    first_seed = integer_argument("task-time", "first_seed", first_seed, 0)
+    workers = integer_argument("task-time", "workers", workers, 1)
     if address is not None and (not isinstance(address, str) or not address.strip()):
         raise ConfigError(f"task-time: address must be a Ray address like 'auto', got {address!r}")
     unknown = sorted(set(tasks) - set(TASKS))

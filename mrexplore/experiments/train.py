@@ -22,7 +22,6 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import yaml
 
 from mrexplore.errors import ConfigError
@@ -36,6 +35,7 @@ from mrexplore.experiments.evaluate import (
 from mrexplore.experiments.train_setup import final_eval_seed_count, training_world
 from mrexplore.experiments.trained import ALGOS, TrainedTeamPolicy, algo_class
 from mrexplore.io_safety import atomic_path, check_out_dir, write_text
+from mrexplore.options import integer_argument
 
 
 def load_hyperparams(algo: str, path: str | Path | None = None) -> dict[str, Any]:
@@ -124,12 +124,6 @@ def versions() -> dict[str, str]:
     return {k: str(v) for k, v in versions.items()}
 
 
-def _check_int(name: str, value: Any, lo: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
-        raise ConfigError(f"train: {name} must be an integer >= {lo}, got {value!r}")
-    return int(value)
-
-
 def train(
     algo: str = "ppo",
     timesteps: int = 1_000_000,
@@ -170,14 +164,14 @@ def train(
     from mrexplore.policies import make_team_policy
     from mrexplore.wrappers.sb3_vec import make_vec_env
 
-    timesteps = _check_int("timesteps", timesteps, 1)
-    seed = _check_int("seed", seed, 0)
-    eval_every = _check_int("eval_every", eval_every, 1)
-    eval_seeds = _check_int("eval_seeds", eval_seeds, 1)
+    timesteps = integer_argument("train", "timesteps", timesteps, 1)
+    seed = integer_argument("train", "seed", seed, 0)
+    eval_every = integer_argument("train", "eval_every", eval_every, 1)
+    eval_seeds = integer_argument("train", "eval_seeds", eval_seeds, 1)
     final_seeds = (
         final_eval_seed_count(timesteps)
         if final_eval_seeds is None
-        else _check_int("final_eval_seeds", final_eval_seeds, 0)
+        else integer_argument("train", "final_eval_seeds", final_eval_seeds, 0)
     )
     init_file = None if init_from is None else _init_file(init_from)
     cfg = load_hyperparams(algo, hyperparams_file)
@@ -187,8 +181,9 @@ def train(
     # --world replaces them all.
     worlds = [str(w) for w in cfg.get("worlds") or []] if world is None else []
     if n_robots is not None:
-        env_opts["n_robots"] = _check_int("n_robots", n_robots, 1)
-    copies = _check_int("n_copies", n_copies if n_copies is not None else cfg.get("n_copies", 1), 1)
+        env_opts["n_robots"] = integer_argument("train", "n_robots", n_robots, 1)
+    n_copies = n_copies if n_copies is not None else cfg.get("n_copies", 1)
+    copies = integer_argument("train", "n_copies", n_copies, 1)
     use_subprocess = bool(cfg.get("use_subprocess", False))
     # ``batched: true``: the copies as one batched env (make_vec_env(batched=True): one engine,
     # one merge worker for all copies; the same slots, seeds and results)

@@ -27,6 +27,7 @@ import yaml
 
 from mrexplore.errors import ConfigError
 from mrexplore.io_safety import check_out_dir, write_text
+from mrexplore.options import integer_argument
 
 #: The name RLlib knows our env by (``register_env``).
 ENV_NAME = "mrexplore"
@@ -94,12 +95,6 @@ def build_ppo_config(
     )
 
 
-def _check_int(name: str, value: Any, lo: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < lo:
-        raise ConfigError(f"train: {name} must be an integer >= {lo}, got {value!r}")
-    return value
-
-
 def train_rllib(
     timesteps: int = 200_000,
     out: str | Path = "runs/rllib",
@@ -129,21 +124,21 @@ def train_rllib(
     from mrexplore.environment.config import EnvConfig
     from mrexplore.experiments.train_setup import final_eval_seed_count, training_world
 
-    timesteps = _check_int("timesteps", timesteps, 1)
+    timesteps = integer_argument("train", "timesteps", timesteps, 1)
     final_seeds = (
         final_eval_seed_count(timesteps)
         if final_eval_seeds is None
-        else _check_int("final_eval_seeds", final_eval_seeds, 0)
+        else integer_argument("train", "final_eval_seeds", final_eval_seeds, 0)
     )
-    seed = _check_int("seed", seed, 0)
-    env_runners = _check_int("env_runners", env_runners, 0)
+    seed = integer_argument("train", "seed", seed, 0)
+    env_runners = integer_argument("train", "env_runners", env_runners, 0)
     if address is not None and (not isinstance(address, str) or not address.strip()):
         raise ConfigError(f"train: address must be a Ray address like 'auto', got {address!r}")
     cfg = load_rllib_config(hyperparams_file)
     env_opts = dict(cfg["env"])
     env_opts["world"] = training_world(world, env_opts.get("world", "random:symmetric_office"))
     if n_robots is not None:
-        env_opts["n_robots"] = _check_int("n_robots", n_robots, 1)
+        env_opts["n_robots"] = integer_argument("train", "n_robots", n_robots, 1)
     checked = EnvConfig.from_kwargs(**{k: v for k, v in env_opts.items() if k != "world"})
     if checked.obs_layout != "hwc" or checked.obs_dtype != "float32":
         raise ConfigError(

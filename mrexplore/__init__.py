@@ -30,7 +30,7 @@ __all__ = ["__version__", "env", "parallel_env", "raw_env", "vector_env"]
 #: Options of the goal level (``mrexplore.environment.goal_actions.GOAL_OPTIONS``, kept here so
 #: that the low-level path imports nothing more).
 _GOAL_KEYS = frozenset(
-    {"action_mode", "goal_candidates", "goal_max_steps", "goal_memory", "goal_gain"}
+    {"action_mode", "goal_candidates", "goal_max_steps", "goal_memory", "goal_gain", "goal_turns"}
 )
 
 

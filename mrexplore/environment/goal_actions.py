@@ -12,6 +12,8 @@ the decision ends, for the whole team, when some robot needs a new one (it reach
 the goal stopped being a frontier, it is stuck or collided, or ``goal_max_steps`` simulator
 steps passed) or the episode ends. So a robot still on its way decides again too: its current
 target is among its candidates (feature ``is_current``) and choosing it keeps going.
+With ``goal_turns=1`` the robots choose in turn (Burgard's coordinated exploration): one env
+step per robot, each robot's claim features holding the targets chosen just before it.
 
 ===================  ==========================================================================
 Agents               as the low-level env: ``robot_0`` ... ``robot_{n-1}``
@@ -32,7 +34,8 @@ Reward               the sum of the low-level team rewards over the decision's s
 Termination          as the low-level env, at the simulator step it happens.
 Infos                the low-level infos of the decision's last step (``task_time_s`` in
                      simulated seconds), plus ``decision_steps`` (simulator steps of this
-                     decision, int) and ``n_candidates`` (reachable frontiers, int).
+                     decision, int), ``n_candidates`` (reachable frontiers, int) and, with
+                     ``goal_turns=1``, ``on_turn`` (bool: this robot chooses at the next step).
 ===================  ==========================================================================
 
 No ground truth reaches the candidates or features: they come from
@@ -69,7 +72,7 @@ ACTION_MODES = ("low", "goal")
 #: Draws of a random world tried at ``reset`` before a generator's error is passed on.
 WORLD_RETRIES = 3
 #: The ``parallel_env`` options that belong to the goal level (the rest go to the low level).
-GOAL_OPTIONS = ("goal_candidates", "goal_max_steps", "goal_memory", "goal_gain")
+GOAL_OPTIONS = ("goal_candidates", "goal_max_steps", "goal_memory", "goal_gain", "goal_turns")
 
 
 @dataclass(frozen=True)
@@ -90,17 +93,25 @@ class GoalConfig:
             :data:`~mrexplore.policies.candidates.GAIN_FEATURE_NAMES` (share of unknown cells
             around the target within 1 m and within the sensor range), before the memory
             columns: ``F`` becomes 18.
+        goal_turns: 0 (default) or 1: the robots choose in turn, as in Burgard's coordinated
+            exploration. A decision then takes one env step per live robot (sorted order): at
+            each, only the robot on turn has a choice (its ``info["on_turn"]`` is True), and its
+            ``claim`` and ``mate_target_m`` features already hold the targets the robots before
+            it chose in this decision; the others' masks allow row 0 only and their actions
+            are ignored. The simulator runs after the last robot's turn; the turns before it
+            return reward 0 and no simulator step (``decision_steps`` 0).
     """
 
     goal_candidates: int = 8
     goal_max_steps: int = 10
     goal_memory: int = 0
     goal_gain: int = 0
+    goal_turns: int = 0
 
     def __post_init__(self) -> None:
         for name in GOAL_OPTIONS:
             v = getattr(self, name)
-            lo, hi = (0, 1) if name in ("goal_memory", "goal_gain") else (1, 10**6)
+            lo, hi = (0, 1) if name in ("goal_memory", "goal_gain", "goal_turns") else (1, 10**6)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
                 raise ConfigError(f"{name} must be an integer in [{lo}, {hi}], got {v!r}")
 
@@ -173,6 +184,15 @@ class GoalActionEnv(ParallelEnv[AgentID, dict[str, NDArray[Any]], int]):
         self._obs: dict[AgentID, dict[str, NDArray[Any]]] = {}
         self._index: dict[AgentID, NDArray[np.int64]] = {}
         self._n_cands: dict[AgentID, int] = {}
+        # what each robot's features are built from at this decision (candidates, view, target
+        # before it, gain and memory columns), so a turn can rebuild them with new claims
+        self._parts: dict[AgentID, tuple[Any, RobotView, Any, Any, Any]] = {}
+        # goal_turns: the targets before this decision, the order of turns, whose turn it is,
+        # and the low-level infos of the last simulator step (returned again by the turns)
+        self._start_targets: dict[AgentID, tuple[int, int] | None] = {}
+        self._order: list[AgentID] = []
+        self._turn = 0
+        self._low_infos: dict[AgentID, dict[str, Any]] = {}
         # goal_memory: per agent, the (rows, 2) targets and (rows, F) features of the last
         # proposal's valid rows
         self._prev: dict[AgentID, tuple[NDArray[np.float64], NDArray[np.float32]]] = {}
@@ -216,6 +236,7 @@ class GoalActionEnv(ParallelEnv[AgentID, dict[str, NDArray[Any]], int]):
         self.step_trace = []
         self._prev = {}
         self._propose_all()
+        self._low_infos = {a: infos[a] for a in self.agents}
         out = {a: self._info(a, infos[a], 0) for a in self.agents}
         return {a: self._obs[a] for a in self.agents}, out
 
@@ -229,16 +250,20 @@ class GoalActionEnv(ParallelEnv[AgentID, dict[str, NDArray[Any]], int]):
         dict[AgentID, dict[str, Any]],
     ]:
         """One decision: commit every robot's choice, then run the simulator until some robot
-        needs a new decision, ``goal_max_steps`` steps passed, or the episode ended."""
+        needs a new decision, ``goal_max_steps`` steps passed, or the episode ended. With
+        ``goal_turns``, one robot's turn (see :class:`GoalConfig`)."""
         if not self.agents:
             raise RuntimeError("step() called on an env that is not running: call reset() first")
         low = self.low
-        for a in self.agents:
-            row = int(actions.get(a, 0))
-            mask = self._obs[a]["action_mask"]
-            if not 0 <= row < mask.size or not mask[row]:
-                row = 0  # a masked (or missing) choice falls back to the first row
-            self.executors[a].commit(int(self._index[a][row]), low.robot_view(a))
+        if self.config.goal_turns:
+            on_turn = self._order[self._turn]
+            self._commit(on_turn, actions.get(on_turn, 0))
+            self._turn += 1
+            if self._turn < len(self._order):
+                return self._next_turn(on_turn)
+        else:
+            for a in self.agents:
+                self._commit(a, actions.get(a, 0))
         total = 0.0
         n = 0
         self.step_trace = []
@@ -259,6 +284,7 @@ class GoalActionEnv(ParallelEnv[AgentID, dict[str, NDArray[Any]], int]):
         done = not low.agents
         if not done:
             self._propose_all()
+        self._low_infos = {a: infos[a] for a in agents}
         obs = {a: self._obs[a] for a in agents}
         rewards_out = dict.fromkeys(agents, total)
         terms_out = {a: bool(terms[a]) for a in agents}
@@ -318,11 +344,21 @@ class GoalActionEnv(ParallelEnv[AgentID, dict[str, NDArray[Any]], int]):
         self.low.close()
 
     # ------------------------------------------------------------------ internals
+    def _commit(self, agent: AgentID, action: Any) -> None:
+        """Commit ``agent``'s chosen row (a masked or missing choice falls back to row 0)."""
+        row = int(action if action is not None else 0)
+        mask = self._obs[agent]["action_mask"]
+        if not 0 <= row < mask.size or not mask[row]:
+            row = 0
+        self.executors[agent].commit(int(self._index[agent][row]), self.low.robot_view(agent))
+
     def _propose_all(self) -> None:
-        """New candidates, features and masks for every live robot (in sorted order)."""
+        """New candidates, features and masks for every live robot (in sorted order); with
+        ``goal_turns``, the first robot's turn."""
         low = self.low
         k = self.config.goal_candidates
         targets = {a: ex.target for a, ex in self.executors.items()}
+        self._start_targets = targets
         for a in sorted(low.agents):
             view = low.robot_view(a)
             ex = self.executors[a]
@@ -330,14 +366,65 @@ class GoalActionEnv(ParallelEnv[AgentID, dict[str, NDArray[Any]], int]):
             cands = ex.propose(view)
             claims = teammate_claims(view, targets)
             feats, mask, index = candidate_features(cands, view, k, current, claims)
+            gain = None
             if self.config.goal_gain:
                 gain = gain_features(view, cands, index, self._sensor_range_m)
                 feats = np.concatenate([feats, gain], axis=1)
+            prev = None
             if self.config.goal_memory:
                 feats = self._with_memory(a, feats, index, cands, float(view.resolution_m))
+                prev = feats[:, feats.shape[1] // 2 :]
+            self._parts[a] = (cands, view, current, gain, prev)
             self._obs[a] = {"observation": feats, "action_mask": mask}
             self._index[a] = index
             self._n_cands[a] = 0 if cands is None else len(cands)
+        if self.config.goal_turns:
+            self._order = sorted(low.agents)
+            self._turn = 0
+            for a in self._order[1:]:
+                self._obs[a] = self._waiting(a)
+
+    def _waiting(self, agent: AgentID) -> dict[str, NDArray[Any]]:
+        """``agent``'s observation while another robot is on turn: row 0 is its only choice."""
+        mask = np.zeros(self.config.goal_candidates, dtype=np.int8)
+        mask[0] = 1
+        return {"observation": self._obs[agent]["observation"], "action_mask": mask}
+
+    def _next_turn(
+        self, done: AgentID
+    ) -> tuple[
+        dict[AgentID, dict[str, NDArray[Any]]],
+        dict[AgentID, float],
+        dict[AgentID, bool],
+        dict[AgentID, bool],
+        dict[AgentID, dict[str, Any]],
+    ]:
+        """The next robot's turn (``done`` has just chosen): its features rebuilt with the
+        targets chosen so far in this decision; no simulator step, reward 0."""
+        a = self._order[self._turn]
+        chosen = set(self._order[: self._turn])
+        targets = {
+            b: (ex.target if b in chosen else self._start_targets.get(b))
+            for b, ex in self.executors.items()
+        }
+        cands, view, current, gain, prev = self._parts[a]
+        k = self.config.goal_candidates
+        feats, mask, index = candidate_features(
+            cands, view, k, current, teammate_claims(view, targets)
+        )
+        feats = np.concatenate([x for x in (feats, gain, prev) if x is not None], axis=1)
+        self._obs[a] = {"observation": feats, "action_mask": mask}
+        self._index[a] = index
+        self._obs[done] = self._waiting(done)
+        self.step_trace = []
+        agents = list(self.agents)
+        return (
+            {b: self._obs[b] for b in agents},
+            dict.fromkeys(agents, 0.0),
+            dict.fromkeys(agents, False),
+            dict.fromkeys(agents, False),
+            {b: self._info(b, self._low_infos[b], 0) for b in agents},
+        )
 
     def _with_memory(
         self,
@@ -370,6 +457,10 @@ class GoalActionEnv(ParallelEnv[AgentID, dict[str, NDArray[Any]], int]):
         out = dict(info)
         out["decision_steps"] = int(steps)
         out["n_candidates"] = int(self._n_cands.get(agent, 0))
+        if self.config.goal_turns:
+            out["on_turn"] = bool(
+                self._order and agent == self._order[self._turn % len(self._order)]
+            )
         return out
 
     def _check_agent(self, agent: AgentID) -> None:

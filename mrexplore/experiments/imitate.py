@@ -150,8 +150,10 @@ def clone(
     Loss per batch: cross-entropy of the teacher's row under the masked policy plus ``vf_coef``
     times the squared error of the value against the return. The last :data:`HOLDOUT` of the
     episodes is held out: each epoch reports the share of its decisions where the greedy choice
-    equals the teacher's (``holdout_agreement``) and, as the gap PPO will see, the same on the
-    fitted part.
+    equals the teacher's (``holdout_agreement``), the same over the held-out decisions with a
+    choice (two valid rows or more: not a robot that can only wait or, with ``goal_turns``, is
+    off turn; ``holdout_agreement_with_choice``) and, as the gap PPO will see, on the fitted
+    part.
     """
     import torch
 
@@ -159,6 +161,7 @@ def clone(
     first_held = max(1, round(n_ep * (1.0 - HOLDOUT)))
     fit = np.flatnonzero(demos.episodes < first_held)
     held = np.flatnonzero(demos.episodes >= first_held)
+    held_choice = held[demos.masks[held].sum(axis=1) > 1]
     opt = torch.optim.Adam(policy.parameters(), lr=learning_rate)
 
     def tensors(idx: NDArray[np.int64]) -> tuple[dict[str, Any], Any, Any, Any]:
@@ -204,6 +207,7 @@ def clone(
                 "value_mse": v_sum / max(batches, 1),
                 "fit_agreement": agreement(fit),
                 "holdout_agreement": agreement(held),
+                "holdout_agreement_with_choice": agreement(held_choice),
             }
         )
         policy.set_training_mode(True)
@@ -304,7 +308,8 @@ def imitate(
         final = history[-1]
         print(
             f"cloned in {clone_s:.0f} s: agreement with the teacher {final['fit_agreement']:.1%} "
-            f"(fitted), {final['holdout_agreement']:.1%} (held-out episodes); wrote {out}"
+            f"(fitted), {final['holdout_agreement']:.1%} (held-out episodes; "
+            f"{final['holdout_agreement_with_choice']:.1%} where it had a choice); wrote {out}"
         )
     return config
 

@@ -37,6 +37,7 @@ OBSERVATION_OPTIONS = (
     "goal_max_steps",
     "goal_memory",
     "goal_gain",
+    "goal_turns",
 )
 
 

@@ -13,7 +13,8 @@ import mrexplore
 from mrexplore.environment import MultiRobotExplorationEnv
 from mrexplore.environment.goal_actions import GoalActionEnv, GoalConfig, split_options
 from mrexplore.errors import ConfigError, WorldError
-from mrexplore.policies.candidates import FEATURE_NAMES
+from mrexplore.policies.candidates import FEATURE_NAMES, candidate_features, teammate_claims
+from mrexplore.policies.goal_rules import COL, keep_or_burgard
 
 SMALL = {"world": "small_office", "n_robots": 2, "max_time_s": 30.0}
 
@@ -68,6 +69,8 @@ def test_default_and_low_mode_are_the_low_level_env() -> None:
         ({"action_mode": "goal", "goal_memory": 2}, "goal_memory"),
         ({"action_mode": "goal", "goal_gain": 2}, "goal_gain"),
         ({"goal_gain": 1}, "goal_gain"),
+        ({"action_mode": "goal", "goal_turns": 2}, "goal_turns"),
+        ({"action_mode": "goal", "goal_turns": True}, "goal_turns"),
         ({"action_mode": "goal", "no_such_option": 1}, "unknown option"),  # low-level check
     ],
 )
@@ -201,3 +204,83 @@ def test_goal_max_steps_above_ten_lengthens_decisions() -> None:
         longest[m] = max(steps)
         assert longest[m] <= m
     assert longest[10] == 10 and longest[40] > 10
+
+
+# ------------------------------------------------------------------ goal_turns
+
+
+def test_goal_turns_env_passes_pettingzoo_parallel_api_test() -> None:
+    parallel_api_test(_goal_env(goal_turns=1), num_cycles=40)
+
+
+def test_turns_split_a_decision_one_robot_at_a_time() -> None:
+    """With goal_turns, robot_0 then robot_1 choose; the simulator runs after the last turn;
+    the robot off turn has row 0 only and its action is ignored."""
+    env = _goal_env(goal_turns=1, reward_mode="time")
+    obs, infos = env.reset(seed=3)
+    for _ in range(5):
+        assert infos["robot_0"]["on_turn"] and not infos["robot_1"]["on_turn"]
+        assert obs["robot_1"]["action_mask"].tolist() == [1] + [0] * 7
+        t0 = env.coverage, infos["robot_0"]["task_time_s"]
+        obs, rew, term, trunc, infos = env.step({"robot_0": 0, "robot_1": 5})
+        # robot_0 chose: no simulator step, reward 0; robot_1 on turn with its own mask
+        assert (env.coverage, infos["robot_0"]["task_time_s"]) == t0
+        assert rew == {"robot_0": 0.0, "robot_1": 0.0}
+        assert not any(term.values()) and not any(trunc.values())
+        assert env.step_trace == [] and infos["robot_0"]["decision_steps"] == 0
+        assert infos["robot_1"]["on_turn"] and not infos["robot_0"]["on_turn"]
+        assert obs["robot_0"]["action_mask"].tolist() == [1] + [0] * 7
+        assert np.array_equal(obs["robot_1"]["action_mask"], env.action_masks("robot_1"))
+        obs, rew, term, _trunc, infos = env.step({"robot_0": 4, "robot_1": 0})
+        steps = infos["robot_0"]["decision_steps"]
+        assert steps >= 1 and rew["robot_0"] == pytest.approx(-0.25 * steps)
+        if not env.agents:
+            break
+
+
+def test_off_turn_actions_change_nothing() -> None:
+    def run(off: int) -> list[Any]:
+        env = _goal_env(goal_turns=1)
+        obs, infos = env.reset(seed=5)
+        out: list[Any] = [obs]
+        for _ in range(10):
+            on = next(a for a in env.agents if infos[a]["on_turn"])
+            acts = {a: (1 if a == on else off) for a in env.agents}
+            obs, rew, _term, _trunc, infos = env.step(acts)
+            out += [obs, rew]
+        return out
+
+    assert _equal(run(0), run(7))
+
+
+def test_a_robot_on_turn_sees_the_targets_chosen_before_it() -> None:
+    """Once merged, robot_1's claim features at its turn hold robot_0's new target (Burgard's
+    turn-taking), not the one robot_0 had before the decision."""
+    env = _goal_env(goal_turns=1, max_time_s=120.0)
+    obs, _ = env.reset(seed=5)  # merged from 12 s on (seeds 1-3 never merge in small_office)
+    seen = 0
+    while env.agents and seen < 3:
+        before = env.executors["robot_0"].target
+        start = obs["robot_1"]["observation"].copy()
+        obs, *_ = env.step(
+            {
+                "robot_0": keep_or_burgard(
+                    obs["robot_0"]["observation"], obs["robot_0"]["action_mask"]
+                )
+            }
+        )
+        after = env.executors["robot_0"].target
+        view = env.robot_view("robot_1")
+        cands, _view, current, _gain, _prev = env._parts["robot_1"]
+        claims = teammate_claims(view, {"robot_0": after, "robot_1": current})
+        want, _, _ = candidate_features(cands, view, 8, current, claims)
+        assert np.array_equal(obs["robot_1"]["observation"], want)
+        if view.merged and claims is not None and after != before:
+            # the start-of-decision features used robot_0's old target
+            assert not np.array_equal(start[:, COL["claim"]], want[:, COL["claim"]]) or (
+                not np.array_equal(start[:, COL["mate_target_m"]], want[:, COL["mate_target_m"]])
+            )
+            seen += 1
+        if env.agents:
+            obs, *_ = env.step({"robot_1": 0})
+    assert seen >= 1, "no decision in which merged robots changed targets"

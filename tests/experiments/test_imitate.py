@@ -60,6 +60,7 @@ def test_cloning_learns_the_rule_on_held_out_decisions() -> None:
     assert last["value_mse"] < first["value_mse"]
     # the held-out decisions (last 10 %) are predicted well, far above a random row (~30 %)
     assert last["holdout_agreement"] > 0.85
+    assert last["holdout_agreement_with_choice"] > 0.85
 
 
 def test_recording_is_seeded_and_labels_every_decision_with_the_rule() -> None:
@@ -72,6 +73,18 @@ def test_recording_is_seeded_and_labels_every_decision_with_the_rule() -> None:
         a.actions[i] == keep_or_burgard(a.observations[i], a.masks[i]) for i in range(len(a))
     )
     assert np.isfinite(a.returns).all()
+
+
+def test_recording_with_turns_holds_every_turn_and_the_rule_on_turn() -> None:
+    """With goal_turns, each robot's record alternates its turn (its candidates) and the other
+    robot's (row 0 only); the rule labels both."""
+    a = collect({**GOAL_ENV, "goal_turns": 1}, ["small_office"], decisions=40, seed=5, gamma=0.9)
+    only_row0 = (a.masks[:, 0] == 1) & (a.masks[:, 1:].sum(axis=1) == 0)
+    assert only_row0.mean() >= 0.5  # every decision: one turn on, one off, per robot
+    assert (~only_row0).any()
+    assert all(
+        a.actions[i] == keep_or_burgard(a.observations[i], a.masks[i]) for i in range(len(a))
+    )
 
 
 def _yaml(tmp_path: Path, env: dict[str, Any]) -> Path:

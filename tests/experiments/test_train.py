@@ -401,3 +401,27 @@ def test_recurrent_ppo_carries_each_robots_memory_and_clears_it_on_reset(tmp_pat
     team.reset(np.random.default_rng(0))
     assert team._lstm == {}
     assert team.act_obs(obs) == first  # a new episode starts from zero memory again
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "maskable_ppo",
+        "maskable_ppo_gain",
+        "maskable_ppo_memory",
+        "maskable_ppo_imitated",
+        "maskable_ppo_turns",
+    ],
+)
+def test_shipped_goal_recipes_build_their_env_and_worlds(name: str) -> None:
+    import importlib.resources
+
+    import mrexplore
+
+    path = importlib.resources.files("mrexplore") / "configs" / f"{name}.yaml"
+    cfg = load_hyperparams("maskable_ppo", str(path))
+    for world in cfg.get("worlds") or [cfg["env"]["world"]]:
+        env = mrexplore.parallel_env(**{**cfg["env"], "world": world})
+        obs, _ = env.reset(seed=0)
+        assert all(env.observation_space(a).contains(obs[a]) for a in env.agents)
+    assert bool(cfg["env"].get("goal_turns", 0)) == (name == "maskable_ppo_turns")

@@ -71,6 +71,14 @@ AgentID = str
 ACTION_MODES = ("low", "goal")
 #: Draws of a random world tried at ``reset`` before a generator's error is passed on.
 WORLD_RETRIES = 3
+#: What ``step`` returns: observations, rewards, terminations, truncations, infos per agent.
+StepResult = tuple[
+    dict[AgentID, dict[str, NDArray[Any]]],
+    dict[AgentID, float],
+    dict[AgentID, bool],
+    dict[AgentID, bool],
+    dict[AgentID, dict[str, Any]],
+]
 #: The ``parallel_env`` options that belong to the goal level (the rest go to the low level).
 GOAL_OPTIONS = ("goal_candidates", "goal_max_steps", "goal_memory", "goal_gain", "goal_turns")
 
@@ -240,15 +248,7 @@ class GoalActionEnv(ParallelEnv[AgentID, dict[str, NDArray[Any]], int]):
         out = {a: self._info(a, infos[a], 0) for a in self.agents}
         return {a: self._obs[a] for a in self.agents}, out
 
-    def step(
-        self, actions: dict[AgentID, int]
-    ) -> tuple[
-        dict[AgentID, dict[str, NDArray[Any]]],
-        dict[AgentID, float],
-        dict[AgentID, bool],
-        dict[AgentID, bool],
-        dict[AgentID, dict[str, Any]],
-    ]:
+    def step(self, actions: dict[AgentID, int]) -> StepResult:
         """One decision: commit every robot's choice, then run the simulator until some robot
         needs a new decision, ``goal_max_steps`` steps passed, or the episode ended. With
         ``goal_turns``, one robot's turn (see :class:`GoalConfig`)."""
@@ -390,15 +390,7 @@ class GoalActionEnv(ParallelEnv[AgentID, dict[str, NDArray[Any]], int]):
         mask[0] = 1
         return {"observation": self._obs[agent]["observation"], "action_mask": mask}
 
-    def _next_turn(
-        self, done: AgentID
-    ) -> tuple[
-        dict[AgentID, dict[str, NDArray[Any]]],
-        dict[AgentID, float],
-        dict[AgentID, bool],
-        dict[AgentID, bool],
-        dict[AgentID, dict[str, Any]],
-    ]:
+    def _next_turn(self, done: AgentID) -> StepResult:
         """The next robot's turn (``done`` has just chosen): its features rebuilt with the
         targets chosen so far in this decision; no simulator step, reward 0."""
         a = self._order[self._turn]

@@ -23,6 +23,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from mrexplore.environment.goal_actions import split_options
 from mrexplore.experiments.evaluate import PAIRED_BASELINE, evaluate_policies, paired
 from mrexplore.io_safety import check_outputs, write_text
 from mrexplore.policies import make_team_policy
@@ -67,8 +68,7 @@ def main(argv: list[str] | None = None) -> int:
         learned = _times(rows["results"][LEARNED])[: args.seeds]
         check = seeds[: args.check_seeds]
         if check:
-            base = {k: v for k, v in opts.items() if not k.startswith("goal_")}
-            base.pop("action_mode", None)
+            _, _, base = split_options(opts)  # the planner runs on the low level
             again = evaluate_policies(
                 {"cf": lambda ag: make_team_policy("coordinated-frontier", ag)},
                 base,

@@ -192,8 +192,8 @@ class GoalActionEnv(ParallelEnv[AgentID, dict[str, NDArray[Any]], int]):
         self._obs: dict[AgentID, dict[str, NDArray[Any]]] = {}
         self._index: dict[AgentID, NDArray[np.int64]] = {}
         self._n_cands: dict[AgentID, int] = {}
-        # what each robot's features are built from at this decision (candidates, view, target
-        # before it, gain and memory columns), so a turn can rebuild them with new claims
+        # goal_turns: what each robot's features are built from at this decision (candidates,
+        # view, target before it, gain and memory columns), so a turn can rebuild them
         self._parts: dict[AgentID, tuple[Any, RobotView, Any, Any, Any]] = {}
         # goal_turns: the targets before this decision, the order of turns, whose turn it is,
         # and the low-level infos of the last simulator step (returned again by the turns)
@@ -370,11 +370,11 @@ class GoalActionEnv(ParallelEnv[AgentID, dict[str, NDArray[Any]], int]):
             if self.config.goal_gain:
                 gain = gain_features(view, cands, index, self._sensor_range_m)
                 feats = np.concatenate([feats, gain], axis=1)
-            prev = None
             if self.config.goal_memory:
                 feats = self._with_memory(a, feats, index, cands, float(view.resolution_m))
-                prev = feats[:, feats.shape[1] // 2 :]
-            self._parts[a] = (cands, view, current, gain, prev)
+            if self.config.goal_turns:  # a later turn rebuilds the features with new claims
+                prev = feats[:, feats.shape[1] // 2 :] if self.config.goal_memory else None
+                self._parts[a] = (cands, view, current, gain, prev)
             self._obs[a] = {"observation": feats, "action_mask": mask}
             self._index[a] = index
             self._n_cands[a] = 0 if cands is None else len(cands)

@@ -3,12 +3,13 @@
 worlds, paired with its saved coordinated-frontier and learned-policy rows (issue 16).
 
 Usage: ``python scripts/rule_on_saved.py --saved docs/results/goal_policy_eval/office/eval.json
-[--seeds 50] [--check-seeds 5] [--json OUT] [--force]``
+[--seeds 50] [--check-seeds 5] [--size-weight W] [--json OUT] [--force]``
 
 Runs :class:`~mrexplore.policies.goal_rules.KeepOrBurgardTeam` (keep the current target while
 it is a valid row, else Burgard's pick) in the saved evaluation's goal-level env on its seeds,
 once as saved (every robot chooses at once) and once with ``goal_turns=1`` (the robots choose in
-turn, each seeing the targets chosen before it). Before using the saved rows it re-runs
+turn, each seeing the targets chosen before it), both with the rule's ``size_weight`` (default
+0, Burgard's utility). Before using the saved rows it re-runs
 coordinated-frontier on the first ``--check-seeds`` seeds and stops unless their times equal
 the saved ones (the rows must belong to this code). Prints, per variant, the worlds that reached
 the saved target coverage, the mean time to 95 %, and paired differences (mean, 95 % interval)
@@ -46,9 +47,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--saved", required=True, help="an eval.json of mrexplore evaluate (goal level)")
     p.add_argument("--seeds", type=int, default=50)
     p.add_argument("--check-seeds", type=int, default=5)
+    p.add_argument(
+        "--size-weight", type=float, default=0.0, help="the rule's frontier-length weight (>= 0)"
+    )
     p.add_argument("--json", default=None, help="write the per-seed times here")
     p.add_argument("--force", action="store_true", help="overwrite an existing --json")
     args = p.parse_args(argv)
+    if not args.size_weight >= 0:
+        p.error(f"--size-weight must be >= 0, got {args.size_weight}")
     saved_path = Path(args.saved)
     if not saved_path.is_file():
         p.error(f"--saved {saved_path} is not a file")
@@ -61,7 +67,12 @@ def main(argv: list[str] | None = None) -> int:
     if not 1 <= args.seeds <= len(doc["seeds"]) or not 0 <= args.check_seeds <= args.seeds:
         p.error(f"need 1 <= --seeds <= {len(doc['seeds'])} and 0 <= --check-seeds <= --seeds")
     seeds = doc["seeds"][: args.seeds]
-    out: dict[str, Any] = {"saved": str(saved_path), "seeds": seeds, "worlds": {}}
+    out: dict[str, Any] = {
+        "saved": str(saved_path),
+        "seeds": seeds,
+        "size_weight": args.size_weight,
+        "worlds": {},
+    }
     for world, rows in doc["worlds"].items():
         opts = {**env, "world": world}
         cf = _times(rows["results"][PAIRED_BASELINE])[: args.seeds]
@@ -83,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
         res = {}
         for name, turns in (("rule", 0), ("rule with turns", 1)):
             s = evaluate_policies(
-                {name: lambda ag: KeepOrBurgardTeam(ag)},
+                {name: lambda ag: KeepOrBurgardTeam(ag, size_weight=args.size_weight)},
                 {**opts, "goal_turns": turns},
                 seeds,
                 progress=False,

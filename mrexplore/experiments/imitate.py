@@ -40,6 +40,9 @@ from mrexplore.policies.goal_rules import KeepOrBurgardTeam
 ALGO = "maskable_ppo"
 #: Share of the demonstrations (the last episodes) held out to measure the clone's agreement.
 HOLDOUT = 0.1
+#: The teacher's weights (:func:`~mrexplore.policies.goal_rules.keep_or_burgard`) unless the
+#: hyperparameter file's ``teacher`` section sets them.
+TEACHER_DEFAULTS = {"beta": 1.0, "size_weight": 0.0}
 
 
 @dataclass(frozen=True)
@@ -85,6 +88,7 @@ def collect(
     seed: int,
     gamma: float,
     beta: float = 1.0,
+    size_weight: float = 0.0,
 ) -> Demonstrations:
     """Run the teacher until at least ``decisions`` robot-decisions are recorded.
 
@@ -108,7 +112,7 @@ def collect(
         if world not in envs:
             envs[world] = mrexplore.parallel_env(**{**env_options, "world": world})
         env = envs[world]
-        team = KeepOrBurgardTeam(env.possible_agents, beta)
+        team = KeepOrBurgardTeam(env.possible_agents, beta, size_weight)
         obs, _ = env.reset(seed=int(rng.integers(EVAL_SEED_BASE)))
         trace: dict[str, list[tuple[Any, int, float]]] = {a: [] for a in env.agents}
         while env.agents:
@@ -215,6 +219,29 @@ def clone(
     return history
 
 
+def teacher_weights(cfg: dict[str, Any]) -> dict[str, float]:
+    """The teacher's weights from a hyperparameter file's optional ``teacher`` section.
+
+    >>> teacher_weights({})
+    {'beta': 1.0, 'size_weight': 0.0}
+    >>> teacher_weights({"teacher": {"size_weight": 2}})
+    {'beta': 1.0, 'size_weight': 2.0}
+    """
+    section = cfg.get("teacher") or {}
+    if not isinstance(section, dict):
+        raise ConfigError("imitate: the hyperparameter file's teacher section must be a mapping")
+    weights = dict(TEACHER_DEFAULTS)
+    for key, value in section.items():
+        if key not in weights:
+            raise ConfigError(
+                f"imitate: unknown teacher weight {key!r}; choose from {', '.join(weights)}"
+            )
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
+            raise ConfigError(f"imitate: teacher weight {key} must be a number >= 0, got {value!r}")
+        weights[key] = float(value)
+    return weights
+
+
 def imitate(
     out: str | Path,
     hyperparams_file: str | Path | None = None,
@@ -228,7 +255,8 @@ def imitate(
 
     The env options, training worlds, policy and network come from the hyperparameter file (as
     for ``mrexplore train --algo maskable_ppo``; default its shipped YAML); it must set
-    ``action_mode: goal``. Returns the ``config.yaml`` written.
+    ``action_mode: goal``; its optional ``teacher`` section sets the rule's weights
+    (:func:`teacher_weights`). Returns the ``config.yaml`` written.
 
     Raises:
         ConfigError: a bad argument or a file without ``action_mode: goal``.
@@ -246,12 +274,13 @@ def imitate(
     worlds = [str(w) for w in cfg.get("worlds") or [env_opts.get("world", "")]]
     out = check_out_dir(out, force=force, what="mrexplore imitate")
     gamma = float(cfg["hyperparams"].get("gamma", 0.99))
+    weights = teacher_weights(cfg)
 
     import torch
 
     torch.set_num_threads(int(cfg.get("torch_threads", 1)))
     t0 = time.perf_counter()
-    demos = collect(env_opts, worlds, decisions, seed, gamma)
+    demos = collect(env_opts, worlds, decisions, seed, gamma, **weights)
     collect_s = time.perf_counter() - t0
     if progress:
         print(f"recorded {len(demos)} decisions in {collect_s:.0f} s; cloning")
@@ -284,6 +313,7 @@ def imitate(
         save_for_inference(model, tmp)
     record = {
         "teacher": "keep_or_burgard",
+        "teacher_weights": weights,
         "decisions": len(demos),
         "episodes": int(demos.episodes.max()) + 1,
         "epochs": epochs,

@@ -11,7 +11,13 @@ import pytest
 import yaml
 
 from mrexplore.errors import ConfigError, OutputExistsError
-from mrexplore.experiments.imitate import Demonstrations, clone, collect, imitate
+from mrexplore.experiments.imitate import (
+    Demonstrations,
+    clone,
+    collect,
+    imitate,
+    teacher_weights,
+)
 from mrexplore.policies.candidates import FEATURE_NAMES
 from mrexplore.policies.goal_rules import COL, keep_or_burgard
 
@@ -87,7 +93,15 @@ def test_recording_with_turns_holds_every_turn_and_the_rule_on_turn() -> None:
     )
 
 
-def _yaml(tmp_path: Path, env: dict[str, Any]) -> Path:
+def test_recording_follows_the_teacher_weights() -> None:
+    a = collect(GOAL_ENV, ["small_office"], decisions=30, seed=5, gamma=0.9, size_weight=2.0)
+    assert all(
+        a.actions[i] == keep_or_burgard(a.observations[i], a.masks[i], size_weight=2.0)
+        for i in range(len(a))
+    )
+
+
+def _yaml(tmp_path: Path, env: dict[str, Any], **extra: Any) -> Path:
     path = tmp_path / "goal.yaml"
     path.write_text(
         yaml.safe_dump(
@@ -96,10 +110,27 @@ def _yaml(tmp_path: Path, env: dict[str, Any]) -> Path:
                 "env": env,
                 "hyperparams": {"n_steps": 8, "batch_size": 8, "n_epochs": 1},
                 "policy_kwargs": {"net_arch": [16]},
+                **extra,
             }
         )
     )
     return path
+
+
+@pytest.mark.parametrize(
+    ("teacher", "match"),
+    [
+        ({"gain": 1.0}, "unknown teacher weight 'gain'"),
+        ({"size_weight": -1.0}, "size_weight must be a number >= 0"),
+        ({"beta": "high"}, "beta must be a number >= 0"),
+        ([1.0], "teacher section must be a mapping"),
+    ],
+)
+def test_bad_teacher_weights_are_named(tmp_path: Path, teacher: Any, match: str) -> None:
+    with pytest.raises(ConfigError, match=match):
+        imitate(tmp_path / "a", hyperparams_file=_yaml(tmp_path, GOAL_ENV, teacher=teacher))
+    assert not (tmp_path / "a").exists()
+    assert teacher_weights({"teacher": {"beta": 2}}) == {"beta": 2.0, "size_weight": 0.0}
 
 
 def test_bad_input_is_refused_before_any_work(tmp_path: Path) -> None:

@@ -29,6 +29,17 @@ def test_burgard_pick_trades_path_against_claims() -> None:
     assert keep_or_burgard(_rows([0.2, 0.5, 1.0], [0.1, 0.0, 0.0]), ones, beta=3.0) == 0
 
 
+def test_the_size_weight_trades_frontier_length_against_path() -> None:
+    ones = np.ones(3, dtype=np.int8)
+    x = _rows([0.2, 0.5, 1.0])
+    x[:, COL["size_m"]] = [0.05, 0.3, 0.6]  # 0.5 m, 3 m and 6 m of frontier
+    assert keep_or_burgard(x, ones) == 0  # size_weight 0: Burgard's pick, the nearest
+    assert keep_or_burgard(x, ones, size_weight=0.5) == 0  # 0.825 against 0.65 and 0.3
+    assert keep_or_burgard(x, ones, size_weight=2.0) == 2  # 1.2 beats 1.1 and 0.9
+    x[0, COL["is_current"]] = 1.0  # a current target is kept whatever the weights
+    assert keep_or_burgard(x, ones, size_weight=2.0) == 0
+
+
 def test_the_current_target_is_kept_and_masked_rows_never_chosen() -> None:
     x = _rows([0.2, 0.5, 1.0])
     x[2, COL["is_current"]] = 1.0

@@ -612,12 +612,20 @@ class CostFrontierPolicy(FrontierExplorer):
         return int(np.argmin(cost))
 
 
+#: Frontier length that adds ``size_weight`` to a frontier's utility in Burgard's choice (metres;
+#: the goal-level candidates' ``size_m`` feature is in the same unit).
+SIZE_UNIT_M = 10.0
+
+
 class _BurgardExplorer(FrontierExplorer):
     """One robot of :class:`CoordinatedFrontierPolicy`: utility minus normalised cost."""
 
-    def __init__(self, beta: float, sensor_range_m: float, **options: float) -> None:
+    def __init__(
+        self, beta: float, sensor_range_m: float, size_weight: float = 0.0, **options: float
+    ) -> None:
         self.beta = float(beta)
         self.sensor_range_m = float(sensor_range_m)
+        self.size_weight = float(size_weight)
         super().__init__(**options)  # type: ignore[arg-type]
 
     def choose(
@@ -632,6 +640,8 @@ class _BurgardExplorer(FrontierExplorer):
                 cands.targets[:, None, 1] - claims[None, :, 1],
             )
             utility -= np.clip(1.0 - d / rng_cells, 0.0, None).sum(axis=1)
+        if self.size_weight:
+            utility += self.size_weight * cands.size_m / SIZE_UNIT_M
         return int(np.argmax(utility - self.beta * cost))
 
 
@@ -642,6 +652,9 @@ class CoordinatedFrontierPolicy(TeamPolicy):
         agents: agent names known up front (others are added when they first appear).
         beta: weight of the normalised path cost against the utility (Burgard's beta, 1.0).
         sensor_range_m: range of the discount around a teammate's target (the lidar range, 4 m).
+        size_weight: utility per :data:`SIZE_UNIT_M` of frontier length (0: Burgard's, every
+            frontier worth 1). The goal-level rule :func:`~mrexplore.policies.goal_rules.
+            keep_or_burgard` has the same term; ``docs/goal_policy.md`` measures both at 2.
         **options: :class:`FrontierExplorer` options for every robot.
 
     Robots are handled in sorted name order ("in turn"); a robot that re-plans sees the current
@@ -655,20 +668,23 @@ class CoordinatedFrontierPolicy(TeamPolicy):
         agents: Sequence[str] = (),
         beta: float = 1.0,
         sensor_range_m: float = 4.0,
+        size_weight: float = 0.0,
         **options: float,
     ) -> None:
-        if beta < 0 or sensor_range_m <= 0:
+        if not (beta >= 0 and sensor_range_m > 0 and size_weight >= 0):
             raise ConfigError(
-                f"beta must be >= 0 and sensor_range_m > 0, got {beta}, {sensor_range_m}"
+                "beta and size_weight must be >= 0 and sensor_range_m > 0, got "
+                f"{beta}, {size_weight}, {sensor_range_m}"
             )
         self.beta = float(beta)
         self.sensor_range_m = float(sensor_range_m)
+        self.size_weight = float(size_weight)
         self.options = dict(options)
         self.robots: dict[str, _BurgardExplorer] = {a: self._make() for a in agents}
         self._was_merged: set[str] = set()
 
     def _make(self) -> _BurgardExplorer:
-        return _BurgardExplorer(self.beta, self.sensor_range_m, **self.options)
+        return _BurgardExplorer(self.beta, self.sensor_range_m, self.size_weight, **self.options)
 
     def reset(self, rng: np.random.Generator) -> None:
         self._was_merged = set()

@@ -50,7 +50,7 @@
 #      125 s -> 85 s); nav_teammate/: navigation to a place near robot_1's start (the paper's
 #      protocol: a robot goes where its teammate mapped)
 #   4. goal_policy_eval/{office,twin,tb3}/eval.{json,png}: the shipped learned goal chooser
-#      (policies/goal_turns_2r) against the frontier planners on 50 held-out worlds of each family,
+#      (policies/goal_size_2r) against the frontier planners on 50 held-out worlds of each family,
 #      on this version's merger
 # It replaces the committed files, so it asks for --force. Steps 1 (merge files, one process
 # each) and 2-4 (loop, task-time and evaluation files, two processes) run side by side, each
@@ -152,11 +152,11 @@ other_steps() {
   mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --tasks navigate \
     --nav-goal teammate --out "$out/nav_teammate" --force
   ev="$out/goal_policy_eval"
-  mrexplore evaluate policies/goal_turns_2r --seeds 50 --max-time-s 300 \
+  mrexplore evaluate policies/goal_size_2r --seeds 50 --max-time-s 300 \
     --worlds "random:symmetric_office?width_m=10&height_m=8" --out "$ev/office" --force
-  mrexplore evaluate policies/goal_turns_2r --seeds 50 --max-time-s 300 \
+  mrexplore evaluate policies/goal_size_2r --seeds 50 --max-time-s 300 \
     --worlds "random:twin_wings?width_m=14&height_m=14" --out "$ev/twin" --force
-  mrexplore evaluate policies/goal_turns_2r --seeds 50 --max-time-s 300 --worlds tb3_office \
+  mrexplore evaluate policies/goal_size_2r --seeds 50 --max-time-s 300 --worlds tb3_office \
     --out "$ev/tb3" --force
 }
 merge_log="$cache/merge_steps.log"

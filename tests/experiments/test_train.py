@@ -12,6 +12,7 @@ import yaml
 import mrexplore
 from mrexplore.errors import ConfigError
 from mrexplore.experiments.evaluate import evaluate_folder
+from mrexplore.experiments.imitate import teacher_weights
 from mrexplore.experiments.task_time import run_task_time
 from mrexplore.experiments.train import load_hyperparams, train
 from mrexplore.experiments.trained import TrainedTeamPolicy
@@ -411,6 +412,7 @@ def test_recurrent_ppo_carries_each_robots_memory_and_clears_it_on_reset(tmp_pat
         "maskable_ppo_memory",
         "maskable_ppo_imitated",
         "maskable_ppo_turns",
+        "maskable_ppo_size",
     ],
 )
 def test_shipped_goal_recipes_build_their_env_and_worlds(name: str) -> None:
@@ -424,4 +426,7 @@ def test_shipped_goal_recipes_build_their_env_and_worlds(name: str) -> None:
         env = mrexplore.parallel_env(**{**cfg["env"], "world": world})
         obs, _ = env.reset(seed=0)
         assert all(env.observation_space(a).contains(obs[a]) for a in env.agents)
-    assert bool(cfg["env"].get("goal_turns", 0)) == (name == "maskable_ppo_turns")
+    with_turns = name in ("maskable_ppo_turns", "maskable_ppo_size")
+    assert bool(cfg["env"].get("goal_turns", 0)) == with_turns
+    # only the size recipe's teacher values frontier length (imitate reads the section)
+    assert teacher_weights(cfg)["size_weight"] == (2.0 if name == "maskable_ppo_size" else 0.0)

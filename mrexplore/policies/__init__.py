@@ -7,11 +7,14 @@ and ``act(views: Mapping[agent, RobotView]) -> {agent: action}``. Views come fro
 
 >>> from mrexplore.policies import make_team_policy
 >>> team = make_team_policy("nearest-frontier", ["robot_0", "robot_1"])
->>> sorted(POLICIES)
-['coordinated-frontier', 'cost-frontier', 'goal', 'nearest-frontier', 'random']
+>>> sorted(POLICIES)  # doctest: +NORMALIZE_WHITESPACE
+['coordinated-frontier', 'coordinated-frontier-size', 'cost-frontier', 'goal',
+ 'nearest-frontier', 'random']
 
 Names in :data:`POLICIES` map to a factory ``(agents) -> TeamPolicy``; per-robot policies are
-lifted with :class:`IndependentTeam`.
+lifted with :class:`IndependentTeam`. ``coordinated-frontier-size`` is Burgard's coordination with
+a frontier-length term in the utility (``size_weight`` :data:`SIZE_WEIGHT`), the planner
+counterpart of the shipped goal chooser's rule (``docs/goal_policy.md``).
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from mrexplore.policies.random_policy import RandomPolicy
 
 __all__ = [
     "POLICIES",
+    "SIZE_WEIGHT",
     "CoordinatedFrontierPolicy",
     "CostFrontierPolicy",
     "Frontier",
@@ -52,12 +56,18 @@ __all__ = [
     "make_team_policy",
 ]
 
+#: The frontier-length weight of ``coordinated-frontier-size`` (utility per 10 m of frontier).
+SIZE_WEIGHT = 2.0
+
 #: Policy name -> factory ``(agents) -> TeamPolicy``.
 POLICIES: dict[str, Callable[[Sequence[str]], TeamPolicy]] = {
     "random": lambda agents: IndependentTeam(RandomPolicy, agents),
     "nearest-frontier": lambda agents: IndependentTeam(NearestFrontierPolicy, agents),
     "cost-frontier": lambda agents: IndependentTeam(CostFrontierPolicy, agents),
     "coordinated-frontier": lambda agents: CoordinatedFrontierPolicy(agents),
+    "coordinated-frontier-size": lambda agents: CoordinatedFrontierPolicy(
+        agents, size_weight=SIZE_WEIGHT
+    ),
     "goal": lambda agents: IndependentTeam(GoalPolicy, agents),
 }
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -236,8 +237,14 @@ def teacher_weights(cfg: dict[str, Any]) -> dict[str, float]:
             raise ConfigError(
                 f"imitate: unknown teacher weight {key!r}; choose from {', '.join(weights)}"
             )
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
-            raise ConfigError(f"imitate: teacher weight {key} must be a number >= 0, got {value!r}")
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float))
+            or not 0 <= value < math.inf
+        ):
+            raise ConfigError(
+                f"imitate: teacher weight {key} must be a finite number >= 0, got {value!r}"
+            )
         weights[key] = float(value)
     return weights
 
@@ -272,9 +279,9 @@ def imitate(
             "chooses among candidate goals)"
         )
     worlds = [str(w) for w in cfg.get("worlds") or [env_opts.get("world", "")]]
+    weights = teacher_weights(cfg)
     out = check_out_dir(out, force=force, what="mrexplore imitate")
     gamma = float(cfg["hyperparams"].get("gamma", 0.99))
-    weights = teacher_weights(cfg)
 
     import torch
 

@@ -121,8 +121,9 @@ def _yaml(tmp_path: Path, env: dict[str, Any], **extra: Any) -> Path:
     ("teacher", "match"),
     [
         ({"gain": 1.0}, "unknown teacher weight 'gain'"),
-        ({"size_weight": -1.0}, "size_weight must be a number >= 0"),
-        ({"beta": "high"}, "beta must be a number >= 0"),
+        ({"size_weight": -1.0}, "size_weight must be a finite number >= 0"),
+        ({"size_weight": float("inf")}, "size_weight must be a finite number >= 0"),
+        ({"beta": "high"}, "beta must be a finite number >= 0"),
         ([1.0], "teacher section must be a mapping"),
     ],
 )

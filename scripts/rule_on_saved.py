@@ -3,7 +3,7 @@
 worlds, paired with its saved coordinated-frontier and learned-policy rows (issue 16).
 
 Usage: ``python scripts/rule_on_saved.py --saved docs/results/goal_policy_eval/office/eval.json
-[--seeds 50] [--check-seeds 5] [--size-weight W] [--json OUT] [--force]``
+[--seeds 50] [--check-seeds 5] [--size-weight W] [--planner NAME] [--json OUT] [--force]``
 
 Runs :class:`~mrexplore.policies.goal_rules.KeepOrBurgardTeam` (keep the current target while
 it is a valid row, else Burgard's pick) in the saved evaluation's goal-level env on its seeds,
@@ -14,6 +14,8 @@ coordinated-frontier on the first ``--check-seeds`` seeds and stops unless their
 the saved ones (the rows must belong to this code). Prints, per variant, the worlds that reached
 the saved target coverage, the mean time to 95 %, and paired differences (mean, 95 % interval)
 against coordinated-frontier and the saved learned policy (greedy), and turns minus no turns.
+``--planner NAME`` also runs a registered planner (e.g. ``coordinated-frontier-size``) on the
+same seeds and prints it minus coordinated-frontier and minus the rule with turns.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from typing import Any
 from mrexplore.environment.goal_actions import split_options
 from mrexplore.experiments.evaluate import PAIRED_BASELINE, evaluate_policies, paired
 from mrexplore.io_safety import check_outputs, write_text
-from mrexplore.policies import make_team_policy
+from mrexplore.policies import POLICIES, make_team_policy
 from mrexplore.policies.goal_rules import KeepOrBurgardTeam
 
 LEVEL = "0.95"
@@ -50,11 +52,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument(
         "--size-weight", type=float, default=0.0, help="the rule's frontier-length weight (>= 0)"
     )
+    p.add_argument("--planner", default=None, help="a registered planner to run beside the rule")
     p.add_argument("--json", default=None, help="write the per-seed times here")
     p.add_argument("--force", action="store_true", help="overwrite an existing --json")
     args = p.parse_args(argv)
     if not args.size_weight >= 0:
         p.error(f"--size-weight must be >= 0, got {args.size_weight}")
+    if args.planner is not None and args.planner not in POLICIES:
+        p.error(f"--planner {args.planner!r} is not one of {sorted(POLICIES)}")
     saved_path = Path(args.saved)
     if not saved_path.is_file():
         p.error(f"--saved {saved_path} is not a file")
@@ -111,6 +116,22 @@ def main(argv: list[str] | None = None) -> int:
             f"{world}: turns minus no turns {_fmt(paired(res['rule with turns'], res['rule']))}",
             flush=True,
         )
+        if args.planner is not None:
+            _, _, base = split_options(opts)
+            s = evaluate_policies(
+                {args.planner: lambda ag: make_team_policy(args.planner, ag)},
+                base,
+                seeds,
+                progress=False,
+            )[args.planner]
+            res[args.planner] = _times(s)
+            print(
+                f"{world}, {args.planner}: reached {s['time_to'][LEVEL]['reached']}/{len(seeds)}, "
+                f"time to 95 % {s['time_to'][LEVEL]['mean']:.1f} s; minus coordinated-frontier "
+                f"{_fmt(paired(res[args.planner], cf))}; minus the rule with turns "
+                f"{_fmt(paired(res[args.planner], res['rule with turns']))}",
+                flush=True,
+            )
         out["worlds"][world] = {**res, PAIRED_BASELINE: cf, LEARNED: learned}
     if args.json is not None:
         write_text(Path(args.json), json.dumps(out, indent=2))

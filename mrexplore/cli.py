@@ -144,8 +144,8 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument(
         "--policy",
         default="coordinated-frontier",
-        help="a policy name (random, nearest-frontier, cost-frontier, coordinated-frontier) "
-        "or a trained policy folder",
+        help="a policy name (random, nearest-frontier, cost-frontier, coordinated-frontier, "
+        "coordinated-frontier-size) or a trained policy folder",
     )
     t.add_argument("--out", default="results", help="output folder (default: results)")
     t.add_argument(

@@ -82,9 +82,9 @@ def main(argv: list[str] | None = None) -> int:
         opts = {**env, "world": world}
         cf = _times(rows["results"][PAIRED_BASELINE])[: args.seeds]
         learned = _times(rows["results"][LEARNED])[: args.seeds]
+        _, _, base = split_options(opts)  # the planners run on the low level
         check = seeds[: args.check_seeds]
         if check:
-            _, _, base = split_options(opts)  # the planner runs on the low level
             again = evaluate_policies(
                 {"cf": lambda ag: make_team_policy("coordinated-frontier", ag)},
                 base,
@@ -117,7 +117,6 @@ def main(argv: list[str] | None = None) -> int:
             flush=True,
         )
         if args.planner is not None:
-            _, _, base = split_options(opts)
             s = evaluate_policies(
                 {args.planner: lambda ag: make_team_policy(args.planner, ag)},
                 base,

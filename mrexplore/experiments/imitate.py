@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -35,7 +34,7 @@ from mrexplore.experiments.evaluate import EVAL_SEED_BASE
 from mrexplore.experiments.train import load_hyperparams, save_for_inference, versions
 from mrexplore.experiments.trained import algo_class
 from mrexplore.io_safety import atomic_path, check_out_dir, write_text
-from mrexplore.options import integer_argument
+from mrexplore.options import integer_argument, is_number
 from mrexplore.policies.goal_rules import KeepOrBurgardTeam
 
 ALGO = "maskable_ppo"
@@ -237,11 +236,7 @@ def teacher_weights(cfg: dict[str, Any]) -> dict[str, float]:
             raise ConfigError(
                 f"imitate: unknown teacher weight {key!r}; choose from {', '.join(weights)}"
             )
-        if (
-            isinstance(value, bool)
-            or not isinstance(value, (int, float))
-            or not 0 <= value < math.inf
-        ):
+        if not (is_number(value) and value >= 0):
             raise ConfigError(
                 f"imitate: teacher weight {key} must be a finite number >= 0, got {value!r}"
             )

@@ -15,7 +15,8 @@ from mrexplore.policies import (
     GoalPolicy,
     NearestFrontierPolicy,
 )
-from mrexplore.policies.explorers import FrontierCandidates
+from mrexplore.policies.candidates import FEATURE_SCALE_M
+from mrexplore.policies.explorers import SIZE_UNIT_M, FrontierCandidates
 from mrexplore.robot import Action
 from mrexplore.types import RobotView
 
@@ -157,6 +158,8 @@ def test_coordinated_size_weight_trades_frontier_length_against_path() -> None:
     assert sized.robots["robot_0"].choose(cands, view, None) == 1
     with pytest.raises(ConfigError, match="size_weight must be >= 0"):
         CoordinatedFrontierPolicy(size_weight=-1.0)
+    # the planner's length unit is the goal-level size_m feature's, so size_weight means the same
+    assert SIZE_UNIT_M == FEATURE_SCALE_M
 
 
 def test_coordinated_before_merge_is_independent() -> None:

@@ -145,7 +145,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--policy",
         default="coordinated-frontier",
         help="a policy name (random, nearest-frontier, cost-frontier, coordinated-frontier, "
-        "coordinated-frontier-size) or a trained policy folder",
+        "coordinated-frontier-size, coordinated-frontier-verify) or a trained policy folder",
     )
     t.add_argument("--out", default="results", help="output folder (default: results)")
     t.add_argument(

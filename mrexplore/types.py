@@ -69,6 +69,12 @@ class RobotView:
         goal_cell: (col, row) goal in this robot's map cells for the navigation task, else None.
         time_s: simulated time since reset, seconds.
         trail: (T, 2) float64 read-only: the robot's own estimated path, (col, row) map cells.
+        hypotheses: teammate name -> (candidate transforms, that teammate's map) for teammates
+            in range whose maps are *not* merged with this one yet: the merger's unconfirmed
+            candidates for where the teammate's map lies (3x3 float64, its cells into this
+            robot's, most likely first; the tracker's ``hypotheses``) and the teammate's own
+            map (int8, read-only), as exchanged for merging. The merger's knowledge, never the
+            truth: a policy may go where the candidates can be told apart.
     """
 
     agent: str
@@ -83,3 +89,6 @@ class RobotView:
     goal_cell: tuple[float, float] | None = None
     time_s: float = 0.0
     trail: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 2)))
+    hypotheses: dict[str, tuple[list[NDArray[np.float64]], NDArray[np.int8]]] = field(
+        default_factory=dict
+    )

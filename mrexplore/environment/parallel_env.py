@@ -320,6 +320,10 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
 
     def robot_view(self, agent: AgentID) -> RobotView:
         """What ``agent`` knows now: the documented accessor for policies (no ground truth)."""
+        return self._robot_view(agent, with_hypotheses=True)
+
+    def _robot_view(self, agent: AgentID, with_hypotheses: bool = False) -> RobotView:
+        """:meth:`robot_view`; the observation builder reads no merge ``hypotheses`` (skipped)."""
         self._check_agent(agent)
         ep = self._started("robot_view")
         i = self.possible_agents.index(agent)
@@ -339,7 +343,16 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
             goal_cell=self.task.goal_cell(i, ep.sim),
             time_s=float(ep.sim.time_s),
             trail=ep.sim.trail_cells(i),
+            hypotheses=self._hypotheses(agent) if with_hypotheses and not merged else {},
         )
+
+    def _hypotheses(
+        self, agent: AgentID
+    ) -> dict[str, tuple[list[NDArray[np.float64]], NDArray[np.int8]]]:
+        """The merger's candidates for teammates in ``agent``'s radio range (maps travel
+        only between robots that can talk)."""
+        reach = self.radio.in_range(agent)
+        return {b: h for b, h in self.fusion.hypotheses(agent).items() if b in reach}
 
     @property
     def coverage(self) -> float:
@@ -386,7 +399,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         ep = self._started("snapshot")
         sim, n = ep.sim, self.config.n_robots
         a0 = self.possible_agents[0]
-        fused = self.robot_view(a0) if n > 1 else None
+        fused = self._robot_view(a0) if n > 1 else None
         merged = fused is not None and fused.merged
         return FrameSnapshot(
             agents=tuple(self.possible_agents),
@@ -515,7 +528,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
     def _observe(self, ep: EpisodeState) -> Observations:
         out = {}
         for a in self.possible_agents:
-            out[a] = self._obs_format.apply(self._obs_builder.build(self.robot_view(a)))
+            out[a] = self._obs_format.apply(self._obs_builder.build(self._robot_view(a)))
         return out
 
     def _coverage_now(self, ep: EpisodeState) -> float:

@@ -22,7 +22,7 @@ __all__ = ["MERGER_VARIANTS", "against", "format_tables", "load_study", "summari
 
 #: The variants that merge with the env's named semantic merger: the study's ``--merge-options``
 #: apply to them (and the tables' heading says so).
-MERGER_VARIANTS: tuple[str, ...] = ("semantic", "sighting")
+MERGER_VARIANTS: tuple[str, ...] = ("semantic", "sighting", "verify")
 
 
 def _median(xs: Sequence[float]) -> float | None:
@@ -106,7 +106,7 @@ def summarize(
 
 #: Variants that are the semantic merger with one option or diagnostic: the study also prints
 #: each one's paired difference to ``semantic`` when both ran.
-SEMANTIC_OPTION_VARIANTS: tuple[str, ...] = ("seeded", "sighting")
+SEMANTIC_OPTION_VARIANTS: tuple[str, ...] = ("seeded", "sighting", "verify")
 
 
 def _compare_pairs(

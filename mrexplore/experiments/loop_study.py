@@ -20,6 +20,10 @@ odometry noise on (:data:`LOOP_ENV_OPTIONS`). Variants (same world, same seed, s
   (``sighting_range_m`` :data:`SIGHTING_RANGE_M`, the lidar's range): robots that see each
   other measure their relative pose, and the tracker looks near the guess that follows (a
   rendezvous; :mod:`mrexplore.environment.sighting`).
+- ``verify`` (asked for by name): 2 robots, the default merger, and the team policy
+  :data:`VERIFY_POLICY`: before a merge, a frontier whose surroundings the teammate has mapped
+  under one of the merger's candidate transforms is worth more (active disambiguation: the
+  robot goes where the candidates can be told apart).
 
 Per episode it records whether the maps were merged, the first merge, the task time, whether
 the target was reached, whether a transform >= 5 cells off the truth was held at any step, the
@@ -66,7 +70,7 @@ WORLDS: tuple[str, ...] = ("symmetric_office", "twin_wings", "tb3_office", "depo
 #: Variants: merger for two robots, or one robot (the default set of the study).
 VARIANTS: tuple[str, ...] = ("semantic", "oracle", "none", "single")
 #: Every variant the study can run (``seeded`` and ``sighting`` are asked for by name).
-ALL_VARIANTS: tuple[str, ...] = (*VARIANTS, "seeded", "sighting")
+ALL_VARIANTS: tuple[str, ...] = (*VARIANTS, "seeded", "sighting", "verify")
 #: ``sighting_range_m`` of the ``sighting`` variant: the lidar's default range (metres).
 SIGHTING_RANGE_M = 4.0
 #: Env options the study sets itself (its flags and its protocol): not for ``--env-options``.
@@ -88,6 +92,8 @@ STUDY_SET_KEYS: tuple[str, ...] = (
     "target_coverage",
 )
 POLICY = "coordinated-frontier"
+#: The ``verify`` variant's team policy.
+VERIFY_POLICY = "coordinated-frontier-verify"
 #: Env options of every episode: random start headings, range noise 2 cm (std), odometry
 #: translation noise 1 % of the distance, heading noise 0.005 rad per radian turned and
 #: 0.001 rad per metre driven (std): moderate drift, about 2 deg of heading after a 600 s run.
@@ -180,7 +186,7 @@ def run_loop_episode(
         oracle = OracleMerger() if variant == "oracle" else SeededMerger()
         opts["merger"] = oracle
     agents = [f"robot_{k}" for k in range(opts["n_robots"])]
-    team = make_team(POLICY, agents, task)
+    team = make_team(VERIFY_POLICY if variant == "verify" else POLICY, agents, task)
     r = run_episode(opts, team, seed, prepare=None if oracle is None else oracle.bind)
     s = r.summary()
     return {

@@ -243,6 +243,26 @@ class FusionStage:
                 out[other] = np.asarray(T, dtype=np.float64)
         return out
 
+    def hypotheses(self, agent: str) -> dict[str, tuple[list[Transform], NDArray[np.int8]]]:
+        """For each teammate not merged with ``agent``: the tracker's candidate transforms
+        (:meth:`~mrexplore.merge.MapMergeTracker.hypotheses`, the teammate's cells into
+        ``agent``'s, most likely first) and the teammate's map as last fed (read-only view);
+        teammates without candidates are left out."""
+        if self.tracker is None or not self._maps:
+            return {}
+        i = self.index[agent]
+        out: dict[str, tuple[list[Transform], NDArray[np.int8]]] = {}
+        for other in self.agents:
+            j = self.index[other]
+            if j == i:
+                continue
+            cands = self.tracker.hypotheses(i, j)
+            if cands:
+                m = self._maps[j].view()
+                m.flags.writeable = False
+                out[other] = (cands, m)
+        return out
+
     def score(self, agent: str) -> float | None:
         """Agreement score of the best accepted merge involving ``agent`` (None if none)."""
         if self.tracker is None:

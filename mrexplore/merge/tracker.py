@@ -387,6 +387,9 @@ class MapMergeTracker:
         self._pending: dict[tuple[int, int], tuple[Transform, int, int]] = {}
         # (i, j) -> rival poses T_ij (canvas cells) of earlier attempts, newest last
         self._rivals: dict[tuple[int, int], list[Transform]] = {}
+        # (i, j) -> the last attempt's best pose T_ij (canvas cells) when it passed the
+        # consistency test (a candidate a robot may go and check; never accepted from here)
+        self._best: dict[tuple[int, int], Transform] = {}
         # (i, j) -> known cells of both maps at the last merge attempt
         self._last_attempt_known: dict[tuple[int, int], int] = {}
         # (i, j) -> the latest sighting's guess of T_ij (canvas cells)
@@ -703,6 +706,13 @@ class MapMergeTracker:
             return  # connected meanwhile (through a chain of other pairs)
         pending = self._pending.get((i, j))
         standing = self._remember_rivals(i, j, out)
+        consistent = out.result is not None and (
+            out.T is not None or bool(out.result.info.get("consistent", False))
+        )
+        if consistent and out.best is not None:
+            self._best[(i, j)] = out.best
+        else:
+            self._best.pop((i, j), None)
         thin = out.result is not None and out.result.overlap_cells < self.min_accept_cells
         if out.result is None or out.T is None or standing or thin:
             # a refusal breaks the run of agreements; so does a pose a remembered rival, which
@@ -881,6 +891,24 @@ class MapMergeTracker:
             return np.eye(3)
         T = self._all_paths().get((i, j))
         return None if T is None else T.copy()
+
+    def hypotheses(self, i: int, j: int) -> list[Transform]:
+        """Where robot j's map may lie in robot i's, while the pair is not merged: ``T_ij``
+        candidates (3x3, canvas cells), most likely first. The last attempt's best pose when it
+        passed the consistency test (refused for uniqueness, pinning or shared space, or
+        waiting for confirmation), then the rivals the tracker remembers (``rival_memory``).
+        Empty once the pair is merged, or before any attempt found a candidate. The merger's
+        own knowledge, no ground truth: for a policy that goes to where the candidates can be
+        told apart (:class:`~mrexplore.policies.CoordinatedFrontierPolicy`'s ``verify_weight``).
+        """
+        if i == j or self.transform(i, j) is not None:
+            return []
+        a, b = min(i, j), max(i, j)
+        out = [T for T in (self._best.get((a, b)),) if T is not None]
+        out += self._rivals.get((a, b), [])
+        if i > j:  # stored as T_ab (b's cells into a's): invert for j's into i's
+            out = [invert_transform(T) for T in out]
+        return [np.array(T, dtype=np.float64, copy=True) for T in out]
 
     def merged(self, i: int) -> bool:
         """True once robot i's map is connected to at least one teammate's."""

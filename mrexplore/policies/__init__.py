@@ -8,13 +8,16 @@ and ``act(views: Mapping[agent, RobotView]) -> {agent: action}``. Views come fro
 >>> from mrexplore.policies import make_team_policy
 >>> team = make_team_policy("nearest-frontier", ["robot_0", "robot_1"])
 >>> sorted(POLICIES)  # doctest: +NORMALIZE_WHITESPACE
-['coordinated-frontier', 'coordinated-frontier-size', 'cost-frontier', 'goal',
- 'nearest-frontier', 'random']
+['coordinated-frontier', 'coordinated-frontier-size', 'coordinated-frontier-verify',
+ 'cost-frontier', 'goal', 'nearest-frontier', 'random']
 
 Names in :data:`POLICIES` map to a factory ``(agents) -> TeamPolicy``; per-robot policies are
 lifted with :class:`IndependentTeam`. ``coordinated-frontier-size`` is Burgard's coordination with
 a frontier-length term in the utility (``size_weight`` :data:`SIZE_WEIGHT`), the planner
 counterpart of the shipped goal chooser's rule (``docs/goal_policy.md``).
+``coordinated-frontier-verify`` adds, before a merge, utility for frontiers where the merger's
+candidate transforms put a teammate's map (``verify_weight`` :data:`VERIFY_WEIGHT`: active
+disambiguation, ``docs/merging.md`` item 25).
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ from mrexplore.policies.random_policy import RandomPolicy
 __all__ = [
     "POLICIES",
     "SIZE_WEIGHT",
+    "VERIFY_WEIGHT",
     "CoordinatedFrontierPolicy",
     "CostFrontierPolicy",
     "Frontier",
@@ -59,6 +63,10 @@ __all__ = [
 #: The frontier-length weight of ``coordinated-frontier-size`` (utility per 10 m of frontier).
 SIZE_WEIGHT = 2.0
 
+#: The verification weight of ``coordinated-frontier-verify`` (utility of a frontier whose
+#: surroundings a not-yet-merged teammate mapped under a merge candidate).
+VERIFY_WEIGHT = 1.0
+
 #: Policy name -> factory ``(agents) -> TeamPolicy``.
 POLICIES: dict[str, Callable[[Sequence[str]], TeamPolicy]] = {
     "random": lambda agents: IndependentTeam(RandomPolicy, agents),
@@ -67,6 +75,9 @@ POLICIES: dict[str, Callable[[Sequence[str]], TeamPolicy]] = {
     "coordinated-frontier": lambda agents: CoordinatedFrontierPolicy(agents),
     "coordinated-frontier-size": lambda agents: CoordinatedFrontierPolicy(
         agents, size_weight=SIZE_WEIGHT
+    ),
+    "coordinated-frontier-verify": lambda agents: CoordinatedFrontierPolicy(
+        agents, verify_weight=VERIFY_WEIGHT
     ),
     "goal": lambda agents: IndependentTeam(GoalPolicy, agents),
 }

@@ -59,7 +59,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.errors import ConfigError, GridError
-from mrexplore.grid import apply_transform
+from mrexplore.grid import apply_transform, invert_transform, map_points
 from mrexplore.options import (
     boolean,
     integer,
@@ -617,15 +617,69 @@ class CostFrontierPolicy(FrontierExplorer):
 SIZE_UNIT_M = 10.0
 
 
+#: Half-width (metres) of the window around a frontier, mapped into a teammate's map by a
+#: merge candidate, whose known share is the frontier's verification value (``verify_weight``).
+VERIFY_WINDOW_M = 1.0
+
+#: Window samples per side (an even grid: the known share is read at this many x this many
+#: cells, not the whole window; a frontier is scored in microseconds).
+VERIFY_SAMPLES = 9
+
+
+def verification_value(
+    targets: NDArray[np.floating] | NDArray[np.integer],
+    hypotheses: Mapping[str, tuple[Sequence[NDArray[np.float64]], NDArray[np.int8]]],
+    resolution_m: float,
+) -> NDArray[np.float64]:
+    """Per frontier target (K, 2) ``(col, row)`` in the robot's cells: the largest share, over
+    every teammate and every merge candidate (``RobotView.hypotheses``), of known cells of the
+    teammate's map in the window of +-:data:`VERIFY_WINDOW_M` around where the candidate puts
+    the target. Exploring there puts the robot's walls on the teammate's under that candidate,
+    which confirms it (shared space grows) or contradicts it: either way the merger can tell
+    its candidates apart. (K,) float64 in [0, 1]; zeros without candidates.
+
+    >>> import numpy as np
+    >>> mate = np.full((100, 100), -1, np.int8); mate[20:80, 20:80] = 0
+    >>> shift = np.array([[1.0, 0, -30], [0, 1, -30], [0, 0, 1]])  # mate's cells -> ours
+    >>> t = np.array([[20.0, 20.0], [80.0, 80.0]])
+    >>> verification_value(t, {"robot_1": ([shift], mate)}, 0.05).round(2).tolist()
+    [1.0, 0.0]
+    """
+    k = np.asarray(targets, dtype=np.float64).reshape(-1, 2)
+    best = np.zeros(k.shape[0])
+    if not hypotheses or k.shape[0] == 0:
+        return best
+    half = VERIFY_WINDOW_M / float(resolution_m)
+    offs = np.linspace(-half, half, VERIFY_SAMPLES)
+    dx, dy = (g.ravel() for g in np.meshgrid(offs, offs))
+    for cands, m in hypotheses.values():
+        h, w = m.shape
+        for T in cands:
+            cx, cy = map_points(k, invert_transform(T))  # elementwise: same bits on any CPU
+            cols = np.floor(cx[:, None] + dx[None, :] + 0.5).astype(np.int64)
+            rows = np.floor(cy[:, None] + dy[None, :] + 0.5).astype(np.int64)
+            inside = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
+            known = np.zeros(cols.shape, dtype=bool)
+            known[inside] = m[rows[inside], cols[inside]] != -1
+            np.maximum(best, known.mean(axis=1), out=best)
+    return best
+
+
 class _BurgardExplorer(FrontierExplorer):
     """One robot of :class:`CoordinatedFrontierPolicy`: utility minus normalised cost."""
 
     def __init__(
-        self, beta: float, sensor_range_m: float, size_weight: float = 0.0, **options: float
+        self,
+        beta: float,
+        sensor_range_m: float,
+        size_weight: float = 0.0,
+        verify_weight: float = 0.0,
+        **options: float,
     ) -> None:
         self.beta = float(beta)
         self.sensor_range_m = float(sensor_range_m)
         self.size_weight = float(size_weight)
+        self.verify_weight = float(verify_weight)
         super().__init__(**options)  # type: ignore[arg-type]
 
     def choose(
@@ -642,6 +696,10 @@ class _BurgardExplorer(FrontierExplorer):
             utility -= np.clip(1.0 - d / rng_cells, 0.0, None).sum(axis=1)
         if self.size_weight:
             utility += self.size_weight * cands.size_m / SIZE_UNIT_M
+        if self.verify_weight and view.hypotheses:
+            utility += self.verify_weight * verification_value(
+                cands.targets, view.hypotheses, view.resolution_m
+            )
         return int(np.argmax(utility - self.beta * cost))
 
 
@@ -655,6 +713,11 @@ class CoordinatedFrontierPolicy(TeamPolicy):
         size_weight: utility per :data:`SIZE_UNIT_M` of frontier length (0: Burgard's, every
             frontier worth 1). The goal-level rule :func:`~mrexplore.policies.goal_rules.
             keep_or_burgard` has the same term; ``docs/goal_policy.md`` measures both at 2.
+        verify_weight: before a robot's map is merged with a teammate's, utility for a
+            frontier whose surroundings the teammate has mapped under one of the merger's
+            candidate transforms (:func:`verification_value` x this; 0: off, the default).
+            Going there gives the merger the evidence that confirms or rules out a candidate
+            (active disambiguation; ``docs/merging.md``, item 25).
         **options: :class:`FrontierExplorer` options for every robot.
 
     Robots are handled in sorted name order ("in turn"); a robot that re-plans sees the current
@@ -669,22 +732,32 @@ class CoordinatedFrontierPolicy(TeamPolicy):
         beta: float = 1.0,
         sensor_range_m: float = 4.0,
         size_weight: float = 0.0,
+        verify_weight: float = 0.0,
         **options: float,
     ) -> None:
-        if not (beta >= 0 and sensor_range_m > 0 and size_weight >= 0):
+        for name, value in (
+            ("beta", beta),
+            ("size_weight", size_weight),
+            ("verify_weight", verify_weight),
+        ):
+            if not value >= 0:
+                raise ConfigError(f"CoordinatedFrontierPolicy: {name} must be >= 0, got {value}")
+        if not sensor_range_m > 0:
             raise ConfigError(
-                "beta and size_weight must be >= 0 and sensor_range_m > 0, got "
-                f"{beta}, {size_weight}, {sensor_range_m}"
+                f"CoordinatedFrontierPolicy: sensor_range_m must be > 0, got {sensor_range_m}"
             )
         self.beta = float(beta)
         self.sensor_range_m = float(sensor_range_m)
         self.size_weight = float(size_weight)
+        self.verify_weight = float(verify_weight)
         self.options = dict(options)
         self.robots: dict[str, _BurgardExplorer] = {a: self._make() for a in agents}
         self._was_merged: set[str] = set()
 
     def _make(self) -> _BurgardExplorer:
-        return _BurgardExplorer(self.beta, self.sensor_range_m, self.size_weight, **self.options)
+        return _BurgardExplorer(
+            self.beta, self.sensor_range_m, self.size_weight, self.verify_weight, **self.options
+        )
 
     def reset(self, rng: np.random.Generator) -> None:
         self._was_merged = set()

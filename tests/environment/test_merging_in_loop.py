@@ -39,3 +39,29 @@ def test_merge_happens_and_is_never_wrong(aligned: bool, seed: int) -> None:
             else:
                 assert info["merge_error_cells"] == -1.0  # unknown
     assert merged_steps > 0, "the robots never merged their maps"
+
+
+def test_views_carry_the_mergers_candidates_until_the_merge() -> None:
+    """``robot_view(...).hypotheses``: before the merge, the merger's candidates for the
+    teammate's map and that map as the teammate holds it (no ground truth); after, none. The
+    team that goes to check them (``coordinated-frontier-verify``) merges, and never wrongly."""
+    penv = mrexplore.parallel_env(world="symmetric_office", aligned_headings=False, max_time_s=400)
+    penv.reset(seed=4)
+    team = make_team_policy("coordinated-frontier-verify", penv.possible_agents)
+    team.reset(np.random.default_rng(0))
+    seen_candidates = merged_steps = 0
+    while penv.agents and merged_steps < 100:
+        views = {a: penv.robot_view(a) for a in penv.agents}
+        for a, view in views.items():
+            if view.merged:
+                assert view.hypotheses == {}
+            for mate, (cands, mate_map) in view.hypotheses.items():
+                assert mate != a and all(T.shape == (3, 3) for T in cands)
+                np.testing.assert_array_equal(mate_map, penv.local_map(mate))
+                seen_candidates += 1
+        _, _, _, _, infos = penv.step(team.act(views))
+        for info in infos.values():
+            if info["merged"]:
+                merged_steps += 1
+                assert info["merge_error_cells"] < 2.0 and info["merge_error_deg"] < 2.0
+    assert seen_candidates > 0 and merged_steps > 0

@@ -1,9 +1,11 @@
-"""FusionStage.fused_version: changes exactly when a fused map may have changed."""
+"""FusionStage: fused_version changes exactly when a fused map may have changed; hypotheses."""
 
 from __future__ import annotations
 
 import numpy as np
+from conftest import two_rooms
 
+from mrexplore.grid import UNKNOWN, invert_transform
 from mrexplore.merge.fusion import FusionStage
 
 
@@ -47,3 +49,25 @@ def test_the_loop_asks_for_a_room_and_no_perfect_rival_test_unless_told() -> Non
         ["robot_0", "robot_1"], merger="semantic", merge_options={"rival_perfect_cells": 250}
     )
     assert told.tracker._merge.options["rival_perfect_cells"] == 250
+
+
+def test_hypotheses_give_each_robot_the_candidates_and_the_teammates_map() -> None:
+    """Two identical rooms, robot_1 knows the left one: refused as ambiguous, each robot gets
+    the tracker's candidates for the other's map (in its own cells) and that map, read-only."""
+    a = two_rooms()
+    canvas_a = np.full((200, 400), UNKNOWN, dtype=np.int8)
+    canvas_a[40:160, 60:320] = a
+    canvas_b = np.full((200, 200), UNKNOWN, dtype=np.int8)
+    canvas_b[30:150, 20:151] = a[:, :131]
+    stage = FusionStage(["robot_0", "robot_1"], merger="semantic", resolution_m=0.05)
+    assert stage.hypotheses("robot_0") == {}
+    stage.update({"robot_0": canvas_a, "robot_1": canvas_b}, step=0)
+    assert not stage.merged("robot_0")
+    cands, mate = stage.hypotheses("robot_0")["robot_1"]
+    assert len(cands) >= 2 and all(T.shape == (3, 3) for T in cands)
+    np.testing.assert_array_equal(mate, canvas_b)
+    assert not mate.flags.writeable
+    back, mate0 = stage.hypotheses("robot_1")["robot_0"]
+    np.testing.assert_array_equal(mate0, canvas_a)
+    np.testing.assert_allclose(back[0], invert_transform(cands[0]), atol=1e-9)
+    assert FusionStage(["robot_0", "robot_1"], merger=None).hypotheses("robot_0") == {}

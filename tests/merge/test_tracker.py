@@ -573,6 +573,34 @@ def test_a_sighting_merges_look_alike_rooms_the_maps_alone_cannot_tell_apart(
         np.testing.assert_allclose(T[:2, 2], T_true[:2, 2], atol=1.0)
 
 
+def test_hypotheses_hold_both_look_alike_rooms_until_the_pair_merges() -> None:
+    """Refused as ambiguous between two identical rooms, the tracker offers both places as
+    candidates (``hypotheses``, for a policy that goes to tell them apart), the inverses for the
+    other robot; once merged (here by a sighting), none."""
+    from mrexplore.merge.semantic import _turn_about
+
+    a = two_rooms()
+    canvas_a = np.full((200, 400), UNKNOWN, dtype=np.int8)
+    canvas_a[40:160, 60:320] = a
+    canvas_b = np.full((200, 200), UNKNOWN, dtype=np.int8)
+    canvas_b[30:150, 20:151] = a[:, :131]
+    T_true = translation(40.0, 10.0)  # b's canvas cells -> a's (the left room)
+    tr = MapMergeTracker(2, merge_every=1, confirmations=1, resolution_m=0.05)
+    assert tr.hypotheses(0, 1) == []
+    tr.update([canvas_a, canvas_b], step=1)
+    assert not tr.merged(0)
+    cands = tr.hypotheses(0, 1)
+    shifts = sorted(round(float(T[0, 2]) - 40.0) for T in cands)
+    assert len(cands) >= 2 and abs(shifts[0]) <= 2  # the true room ...
+    assert any(abs(s - 129) <= 3 for s in shifts)  # ... and its twin, a room width away
+    back = tr.hypotheses(1, 0)
+    for T, B in zip(cands, back, strict=True):
+        np.testing.assert_allclose(B, invert_transform(T), atol=1e-9)
+    guess = chain(T_true, _turn_about(3.0, 85.0, 90.0), translation(5.0, -4.0))
+    tr.update([canvas_a, canvas_b], step=2, sightings={(0, 1): guess})
+    assert tr.merged(0) and tr.hypotheses(0, 1) == [] and tr.hypotheses(1, 0) == []
+
+
 def test_tracker_fed_map_changes_equals_the_scanning_tracker() -> None:
     """Fed the maps' own change records (no canvas scans), the tracker keeps the same boxes,
     versions and fused maps as when it compares canvases itself."""

@@ -162,6 +162,33 @@ def test_coordinated_size_weight_trades_frontier_length_against_path() -> None:
     assert SIZE_UNIT_M == FEATURE_SCALE_M
 
 
+def test_coordinated_verify_weight_goes_where_a_merge_candidate_puts_the_teammate() -> None:
+    """Before a merge: a near frontier against a farther one that lies, under the merger's
+    candidate transform, in the middle of what the unmerged teammate has mapped. Burgard's
+    utility takes the near one; with verify_weight 1 the candidate's region wins (going there
+    confirms or contradicts the candidate). Without candidates the choice is Burgard's."""
+    from dataclasses import replace
+
+    cands = FrontierCandidates(
+        targets=np.array([[20, 10], [80, 10]], dtype=np.int64),
+        size_m=np.array([1.0, 1.0]),
+        dist_m=np.array([1.0, 3.0]),
+        goals=np.zeros((2, 2), dtype=np.int64),
+    )
+    mate = np.full((60, 60), UNKNOWN, dtype=np.int8)
+    mate[0:40, 20:60] = FREE
+    T = np.array([[1.0, 0.0, 40.0], [0.0, 1.0, -10.0], [0.0, 0.0, 1.0]])  # mate cells -> ours
+    view = _view(np.full((40, 100), FREE, dtype=np.int8), (10.0, 10.0, 0.0))
+    with_candidate = replace(view, hypotheses={"robot_1": ([T], mate)})
+    burgard = CoordinatedFrontierPolicy(["robot_0"])
+    verify = CoordinatedFrontierPolicy(["robot_0"], verify_weight=1.0)
+    assert burgard.robots["robot_0"].choose(cands, with_candidate, None) == 0
+    assert verify.robots["robot_0"].choose(cands, with_candidate, None) == 1
+    assert verify.robots["robot_0"].choose(cands, view, None) == 0
+    with pytest.raises(ConfigError, match="verify_weight must be >= 0"):
+        CoordinatedFrontierPolicy(verify_weight=-1.0)
+
+
 def test_coordinated_before_merge_is_independent() -> None:
     m = _corridor(10, 110)
     views = {

@@ -65,7 +65,7 @@ SIZE_WEIGHT = 2.0
 
 #: The verification weight of ``coordinated-frontier-verify`` (utility of a frontier whose
 #: surroundings a not-yet-merged teammate mapped under a merge candidate).
-VERIFY_WEIGHT = 1.0
+VERIFY_WEIGHT = 0.5
 
 #: Policy name -> factory ``(agents) -> TeamPolicy``.
 POLICIES: dict[str, Callable[[Sequence[str]], TeamPolicy]] = {

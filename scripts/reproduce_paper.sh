@@ -45,7 +45,9 @@
 #      loop_sighting{,_heldout}.{json,md}: the semantic merger with sightings on (robots that
 #      see each other measure their relative pose: a rendezvous) beside it and the oracle, on
 #      seeds 1000-1019 and 2000-2019 (their semantic and oracle episodes taken from loop_study
-#      and loop_heldout: --reuse)
+#      and loop_heldout: --reuse); loop_verify{,_heldout}.{json,md}: the team that goes where
+#      the merger's candidate poses can be told apart (coordinated-frontier-verify) beside the
+#      semantic team, on the same seeds (--reuse)
 #   3. task_time.{json,csv,png}: single- vs multi-robot task time (the paper's 105 s -> 65 s and
 #      125 s -> 85 s); nav_teammate/: navigation to a place near robot_1's start (the paper's
 #      protocol: a robot goes where its teammate mapped)
@@ -148,6 +150,10 @@ other_steps() {
     --reuse "$out/loop_study.json" --out "$out/loop_sighting" --force
   mrexplore bench loop --variants semantic sighting oracle --seeds 20 --first-seed 2000 --jobs 2 \
     --reuse "$out/loop_heldout.json" --out "$out/loop_sighting_heldout" --force
+  mrexplore bench loop --variants semantic verify oracle --seeds 20 --jobs 2 \
+    --reuse "$out/loop_study.json" --out "$out/loop_verify" --force
+  mrexplore bench loop --variants semantic verify --seeds 20 --first-seed 2000 --jobs 2 \
+    --reuse "$out/loop_heldout.json" --out "$out/loop_verify_heldout" --force
   mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --out "$out" --force
   mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --tasks navigate \
     --nav-goal teammate --out "$out/nav_teammate" --force

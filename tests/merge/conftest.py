@@ -29,6 +29,19 @@ def two_rooms() -> np.ndarray:
     return a
 
 
+def look_alike_canvases() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Robot 0's canvas holds both rooms of :func:`two_rooms`, robot 1's only the left one:
+    ``(canvas_0, canvas_1, T_01)``, ``T_01`` the true transform (robot 1's cells -> robot 0's).
+    Alone, the maps cannot tell the left room from the right one."""
+    a = two_rooms()
+    canvas_0 = np.full((200, 400), UNKNOWN, dtype=np.int8)
+    canvas_0[40:160, 60:320] = a
+    canvas_1 = np.full((200, 200), UNKNOWN, dtype=np.int8)
+    canvas_1[30:150, 20:151] = a[:, :131]
+    T_01 = np.array([[1.0, 0.0, 40.0], [0.0, 1.0, 10.0], [0.0, 0.0, 1.0]])
+    return canvas_0, canvas_1, T_01
+
+
 def twin_world() -> tuple[np.ndarray, list[tuple[int, int, int, int]]]:
     """A fully known 110 x 190 floor: a corridor along the bottom with asymmetric clutter, and
     above it two cell-for-cell identical rooms (same size, door, furniture) plus a different

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
-from conftest import two_rooms
+from conftest import look_alike_canvases
 
-from mrexplore.grid import UNKNOWN, invert_transform
+from mrexplore.grid import invert_transform
 from mrexplore.merge.fusion import FusionStage
 
 
@@ -54,11 +54,7 @@ def test_the_loop_asks_for_a_room_and_no_perfect_rival_test_unless_told() -> Non
 def test_hypotheses_give_each_robot_the_candidates_and_the_teammates_map() -> None:
     """Two identical rooms, robot_1 knows the left one: refused as ambiguous, each robot gets
     the tracker's candidates for the other's map (in its own cells) and that map, read-only."""
-    a = two_rooms()
-    canvas_a = np.full((200, 400), UNKNOWN, dtype=np.int8)
-    canvas_a[40:160, 60:320] = a
-    canvas_b = np.full((200, 200), UNKNOWN, dtype=np.int8)
-    canvas_b[30:150, 20:151] = a[:, :131]
+    canvas_a, canvas_b, _ = look_alike_canvases()
     stage = FusionStage(["robot_0", "robot_1"], merger="semantic", resolution_m=0.05)
     assert stage.hypotheses("robot_0") == {}
     stage.update({"robot_0": canvas_a, "robot_1": canvas_b}, step=0)

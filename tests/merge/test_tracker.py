@@ -7,7 +7,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from conftest import two_rooms
+from conftest import look_alike_canvases
 
 from mrexplore.errors import ConfigError, GridError
 from mrexplore.experiments.merge_cases import rotate_map
@@ -552,12 +552,7 @@ def test_a_sighting_merges_look_alike_rooms_the_maps_alone_cannot_tell_apart(
     outside the region no longer standing against it."""
     from mrexplore.merge.semantic import _turn_about
 
-    a = two_rooms()
-    canvas_a = np.full((200, 400), UNKNOWN, dtype=np.int8)
-    canvas_a[40:160, 60:320] = a
-    canvas_b = np.full((200, 200), UNKNOWN, dtype=np.int8)
-    canvas_b[30:150, 20:151] = a[:, :131]
-    T_true = translation(40.0, 10.0)  # b's canvas cells -> a's (the left room)
+    canvas_a, canvas_b, T_true = look_alike_canvases()  # T_true: b's cells -> a's (left room)
     guess = chain(T_true, _turn_about(3.0, 85.0, 90.0), translation(5.0, -4.0))
     tr = MapMergeTracker(2, merge_every=1, confirmations=1, resolution_m=0.05)
     maps = [canvas_a, canvas_b]
@@ -579,12 +574,7 @@ def test_hypotheses_hold_both_look_alike_rooms_until_the_pair_merges() -> None:
     other robot; once merged (here by a sighting), none."""
     from mrexplore.merge.semantic import _turn_about
 
-    a = two_rooms()
-    canvas_a = np.full((200, 400), UNKNOWN, dtype=np.int8)
-    canvas_a[40:160, 60:320] = a
-    canvas_b = np.full((200, 200), UNKNOWN, dtype=np.int8)
-    canvas_b[30:150, 20:151] = a[:, :131]
-    T_true = translation(40.0, 10.0)  # b's canvas cells -> a's (the left room)
+    canvas_a, canvas_b, T_true = look_alike_canvases()  # T_true: b's cells -> a's (left room)
     tr = MapMergeTracker(2, merge_every=1, confirmations=1, resolution_m=0.05)
     assert tr.hypotheses(0, 1) == []
     tr.update([canvas_a, canvas_b], step=1)

@@ -75,7 +75,7 @@ def test_merge_options_reach_the_semantic_variants_only(tmp_path: Path) -> None:
     from mrexplore.experiments.loop_study import episode_options
 
     mo = {"min_common_m2": 10.0, "confirmations": 3}
-    for v in ("semantic", "sighting"):
+    for v in ("semantic", "sighting", "verify"):
         assert episode_options("depot", v, 60.0, merge_options=mo)["merge_options"] == mo
     for v in ("oracle", "seeded", "none", "single"):
         assert "merge_options" not in episode_options("depot", v, 60.0, merge_options=mo)
@@ -85,6 +85,30 @@ def test_merge_options_reach_the_semantic_variants_only(tmp_path: Path) -> None:
     assert main(argv) == 0
     assert json.loads(Path(f"{out}.json").read_text())["merge_options"] == {"confirmations": 3}
     assert "merger options confirmations=3" in Path(f"{out}.md").read_text()
+
+
+def test_the_verify_variant_is_the_semantic_team_that_checks_candidates(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``verify``: the env of the ``semantic`` variant, with the team policy
+    :data:`VERIFY_POLICY` (``coordinated-frontier-verify``) instead of the study's."""
+    from mrexplore.experiments import loop_study, task_time
+
+    assert loop_study.episode_options("depot", "verify", 60.0) == loop_study.episode_options(
+        "depot", "semantic", 60.0
+    )
+    asked: list[str] = []
+    make = task_time.make_team
+
+    def spy(policy: str, agents: list[str], task: str) -> object:
+        asked.append(policy)
+        return make(policy, agents, task)
+
+    monkeypatch.setattr(task_time, "make_team", spy)
+    for v in ("semantic", "verify"):
+        loop_study.run_loop_episode("small_office", v, 0, 1.0)
+    assert asked == [loop_study.POLICY, loop_study.VERIFY_POLICY]
+    assert loop_study.VERIFY_POLICY == "coordinated-frontier-verify"
 
 
 def test_outputs_are_not_overwritten_without_force(tmp_path: Path) -> None:

@@ -59,7 +59,7 @@
 # group in its given order; the merge group's output is printed when it ends. Measured
 # 2026-11-27 on 2 cores shared with other work, the groups run so: 4 h 20 min of wall time (merge
 # steps ~4.2 h, the others ~3.6 h), before the two loop_verify studies were added (measured alone:
-# 10.5 min for the 240 episodes of loop_verify, 8 min for loop_verify_heldout's 160; with --reuse
+# ~12 min for the 240 episodes of loop_verify, ~8.5 min for loop_verify_heldout's 160; with --reuse
 # only the verify episodes run).
 # Every figure but the timings (ms, steps/s) comes out the same on any machine with the pinned
 # versions (requirements/constraints.txt); timings depend on the machine and its load.

@@ -904,11 +904,10 @@ class MapMergeTracker:
         if i == j or self.transform(i, j) is not None:
             return []
         a, b = min(i, j), max(i, j)
-        out = [T for T in (self._best.get((a, b)),) if T is not None]
-        out += self._rivals.get((a, b), [])
-        if i > j:  # stored as T_ab (b's cells into a's): invert for j's into i's
-            out = [invert_transform(T) for T in out]
-        return [np.array(T, dtype=np.float64, copy=True) for T in out]
+        best = self._best.get((a, b))
+        stored = ([] if best is None else [best]) + self._rivals.get((a, b), [])
+        # stored as T_ab (b's cells into a's): inverted (new arrays) for j's into i's
+        return [invert_transform(T) if i > j else T.copy() for T in stored]
 
     def merged(self, i: int) -> bool:
         """True once robot i's map is connected to at least one teammate's."""

@@ -104,9 +104,10 @@ def summarize(
     return out
 
 
-#: Variants that are the semantic merger with one option or diagnostic: the study also prints
-#: each one's paired difference to ``semantic`` when both ran.
-SEMANTIC_OPTION_VARIANTS: tuple[str, ...] = ("seeded", "sighting", "verify")
+#: Variants the study pairs with ``semantic`` when both ran (it prints each one's paired
+#: difference): the semantic merger with one option or diagnostic, and the oracle held to a
+#: room's worth of evidence (``oracle_room``: what ours leaves of what such a merger could take).
+SEMANTIC_OPTION_VARIANTS: tuple[str, ...] = ("seeded", "sighting", "verify", "oracle_room")
 
 
 def _compare_pairs(

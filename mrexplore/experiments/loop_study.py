@@ -20,6 +20,11 @@ odometry noise on (:data:`LOOP_ENV_OPTIONS`). Variants (same world, same seed, s
   (``sighting_range_m`` :data:`SIGHTING_RANGE_M`, the lidar's range): robots that see each
   other measure their relative pose, and the tracker looks near the guess that follows (a
   rendezvous; :mod:`mrexplore.environment.sighting`).
+- ``oracle_room`` (asked for by name): 2 robots, the oracle held to a room's worth of evidence:
+  the true transform once the maps share :data:`ROOM_EVIDENCE_M2` (20 m^2, the in-loop
+  merger's own floor) of known space under it. What a merger could do that needs a room's
+  worth of overlap and never misses it: between it and ``oracle`` lies what no merger that must
+  tell a room from its twin can take; between ``semantic`` and it, what ours leaves;
 - ``verify`` (asked for by name): 2 robots, the default merger, and the team policy
   :data:`VERIFY_POLICY`: before a merge, a frontier whose surroundings the teammate has mapped
   under one of the merger's candidate transforms is worth more (active disambiguation: the
@@ -64,13 +69,17 @@ from mrexplore.experiments.loop_report import (
 from mrexplore.experiments.merge_bench import parse_options
 from mrexplore.experiments.oracle import OracleMerger, SeededMerger
 from mrexplore.experiments.task_time import NAV_WARMUP_S
+from mrexplore.merge.fusion import IN_LOOP_MIN_COMMON_M2
 
 #: The worlds of the study (two symmetric generated floors, two real maps).
 WORLDS: tuple[str, ...] = ("symmetric_office", "twin_wings", "tb3_office", "depot")
 #: Variants: merger for two robots, or one robot (the default set of the study).
 VARIANTS: tuple[str, ...] = ("semantic", "oracle", "none", "single")
 #: Every variant the study can run (``seeded`` and ``sighting`` are asked for by name).
-ALL_VARIANTS: tuple[str, ...] = (*VARIANTS, "seeded", "sighting", "verify")
+ALL_VARIANTS: tuple[str, ...] = (*VARIANTS, "seeded", "sighting", "verify", "oracle_room")
+#: Known space (m^2) the ``oracle_room`` variant's oracle waits for under the truth: the in-loop
+#: merger's own floor (a match the size of a room may be its twin).
+ROOM_EVIDENCE_M2 = IN_LOOP_MIN_COMMON_M2
 #: ``sighting_range_m`` of the ``sighting`` variant: the lidar's default range (metres).
 SIGHTING_RANGE_M = 4.0
 #: Env options the study sets itself (its flags and its protocol): not for ``--env-options``.
@@ -181,9 +190,14 @@ def run_loop_episode(
     opts = episode_options(
         world, variant, max_time_s, noise, task, nav_goal, merge_options, env_options
     )
-    oracle = None
-    if variant in ("oracle", "seeded"):
-        oracle = OracleMerger() if variant == "oracle" else SeededMerger()
+    oracle: OracleMerger | None = None
+    if variant == "oracle":
+        oracle = OracleMerger()
+    elif variant == "oracle_room":
+        oracle = OracleMerger(min_shared_m2=ROOM_EVIDENCE_M2)
+    elif variant == "seeded":
+        oracle = SeededMerger()
+    if oracle is not None:
         opts["merger"] = oracle
     agents = [f"robot_{k}" for k in range(opts["n_robots"])]
     team = make_team(VERIFY_POLICY if variant == "verify" else POLICY, agents, task)

@@ -111,6 +111,36 @@ def test_the_verify_variant_is_the_semantic_team_that_checks_candidates(
     assert loop_study.VERIFY_POLICY == "coordinated-frontier-verify"
 
 
+def test_the_room_oracle_is_the_oracle_held_to_the_mergers_floor(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``oracle_room``: the env of the ``oracle`` variant, its oracle waiting for
+    :data:`ROOM_EVIDENCE_M2` (the in-loop merger's own floor) of known space under the truth."""
+    from mrexplore.experiments import loop_study
+    from mrexplore.experiments.oracle import OracleMerger
+    from mrexplore.merge.fusion import IN_LOOP_MIN_COMMON_M2
+
+    assert loop_study.ROOM_EVIDENCE_M2 == IN_LOOP_MIN_COMMON_M2 == 20.0
+    assert "oracle_room" not in loop_study.VARIANTS  # asked for by name
+    made: list[float] = []
+    init = OracleMerger.__init__
+
+    def spy(self: OracleMerger, min_shared_m2: float = 0.0) -> None:
+        made.append(min_shared_m2)
+        init(self, min_shared_m2)
+
+    monkeypatch.setattr(OracleMerger, "__init__", spy)
+    rec = {
+        v: loop_study.run_loop_episode("small_office", v, 0, 10.0)
+        for v in ("oracle", "oracle_room")
+    }
+    assert made == [0.0, loop_study.ROOM_EVIDENCE_M2]
+    # the robots start 2 m apart: the oracle merges on its second attempt (7 s), while the maps
+    # do not share 20 m^2 yet (the threshold both ways: test_oracle.py)
+    assert rec["oracle"]["first_merge_time_s"] == pytest.approx(7.0)
+    assert not rec["oracle_room"]["merged"]
+
+
 def test_outputs_are_not_overwritten_without_force(tmp_path: Path) -> None:
     out = tmp_path / "study"
     Path(f"{out}.md").write_text("keep me")

@@ -29,6 +29,34 @@ def test_oracle_answers_the_truth_once_the_maps_share_a_cell() -> None:
     assert not oracle.merge_pair(0, 1, a, nothing, (0, 0), (0, 0)).matched
 
 
+def test_oracle_held_to_room_evidence_waits_for_that_much_shared_space() -> None:
+    """``min_shared_m2``: the truth only once the maps share that much known space under it
+    (the ``oracle_room`` reference of the loop study); the refusal says how much they share."""
+    oracle = OracleMerger()
+    penv = mrexplore.parallel_env(world="small_office", merger=oracle)
+    oracle.bind(penv)
+    penv.reset(seed=0)
+    a, b = penv.local_map("robot_0"), penv.local_map("robot_1")
+    shared_m2 = oracle.merge_pair(0, 1, a, b, (0, 0), (0, 0)).overlap_cells * 0.05**2
+    assert shared_m2 > 0
+    below = OracleMerger(min_shared_m2=shared_m2 + 0.01)
+    below.bind(penv)
+    res = below.merge_pair(0, 1, a, b, (0, 0), (0, 0))
+    assert not res.matched and res.transform is None
+    assert f"share {shared_m2:.1f} m^2 under the truth" in res.reason
+    at = OracleMerger(min_shared_m2=shared_m2 - 0.01)
+    at.bind(penv)
+    res = at.merge_pair(0, 1, a, b, (0, 0), (0, 0))
+    assert res.matched
+    np.testing.assert_allclose(res.transform, penv.sim.true_transform(0, 1))
+
+
+@pytest.mark.parametrize("bad", [-1.0, float("nan"), float("inf"), "20"])
+def test_oracle_rejects_a_bad_evidence_floor(bad: object) -> None:
+    with pytest.raises(ConfigError, match="min_shared_m2"):
+        OracleMerger(min_shared_m2=bad)  # type: ignore[arg-type]
+
+
 def test_oracle_needs_ids_and_a_bound_env() -> None:
     oracle = OracleMerger()
     m = np.zeros((4, 4), dtype=np.int8)

@@ -16,7 +16,7 @@ many attempts the best pose was the truth; then the evidence: in how many episod
 shared 10 and 20 m^2 under the truth before the merge (a merger that needs a room's worth of
 overlap cannot merge the others), and how long the merge waited once they shared 20 m^2.
 
-``--replay K=V,...`` replays the tracker's confirmation rule (``confirmations``,
+``--replay K=V,...`` (repeatable) replays the tracker's confirmation rule (``confirmations``,
 ``confirm_tol_cells``, ``confirm_growth``) over the logged attempts: the first merge it would
 have made, exactly, since nothing a robot sees before the first merge depends on that rule (the
 attempts, their answers and the remembered rivals are the same). It first replays the run's own
@@ -297,9 +297,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--truth-cells", type=float, default=15.0, help="best pose = truth within")
     ap.add_argument(
         "--replay",
-        default="",
+        action="append",
+        default=[],
         metavar="K=V,K=V",
-        help="replay the tracker's confirmation rule with these settings "
+        help="replay the tracker's confirmation rule with these settings (repeatable) "
         f"({', '.join(REPLAY_KEYS)})",
     )
     ap.add_argument("--json", default=None, help="write every attempt here")
@@ -322,7 +323,7 @@ def main(argv: list[str] | None = None) -> int:
             raise ConfigError(f"--noise is on or off, got {args.noise!r}")
         if not args.truth_cells > 0:
             raise ConfigError(f"--truth-cells must be positive, got {args.truth_cells}")
-        replayed = replay_settings(parse_options(args.replay, flag="--replay"), mo)
+        replays = [replay_settings(parse_options(r, flag="--replay"), mo) for r in args.replay]
         if args.json and Path(args.json).exists() and not args.force:
             raise ConfigError(f"{args.json} exists; pass --force to overwrite")
     except ConfigError as exc:
@@ -339,8 +340,9 @@ def main(argv: list[str] | None = None) -> int:
             )
             episodes.append(ep)
     print("\n".join(summarize(episodes, args.max_time_s, args.truth_cells)))
-    if replayed is not None:
-        print("\n".join(replay_lines(episodes, replayed, args.max_time_s)))
+    for replayed in replays:
+        if replayed is not None:
+            print("\n".join(replay_lines(episodes, replayed, args.max_time_s)))
     if args.json:
         Path(args.json).write_text(
             json.dumps({"merge_options": mo, "env_options": eo, "episodes": episodes})

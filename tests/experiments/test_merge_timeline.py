@@ -42,7 +42,7 @@ def test_logs_attempts_with_the_truth_and_keeps_an_existing_output(
     out.write_text("keep me")
     timeline = _script()
     argv = ["--worlds", "symmetric_office", "--seeds", "1", "--max-time-s", "40"]
-    argv += ["--replay", "confirmations=1"]
+    argv += ["--replay", "confirmations=1", "--replay", "confirm_tol_cells=4"]
     assert timeline.main([*argv, "--json", str(out)]) == 2
     assert out.read_text() == "keep me"
     assert timeline.main([*argv, "--json", str(out), "--force"]) == 0
@@ -51,6 +51,7 @@ def test_logs_attempts_with_the_truth_and_keeps_an_existing_output(
     assert "  evidence: the maps shared >= 10 m^2 under the truth in " in printed
     assert "replay of the run's own rule" in printed and "reproduces every first merge" in printed
     assert "symmetric_office, replayed {'confirmations': 1," in printed
+    assert "'confirm_tol_cells': 4" in printed
     ep = json.loads(out.read_text())["episodes"][0]
     assert ep["attempts"], "a 40 s episode makes merge attempts"
     times = [a["t_s"] for a in ep["attempts"]]

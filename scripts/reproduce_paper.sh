@@ -47,7 +47,9 @@
 #      seeds 1000-1019 and 2000-2019 (their semantic and oracle episodes taken from loop_study
 #      and loop_heldout: --reuse); loop_verify{,_heldout}.{json,md}: the team that goes where
 #      the merger's candidate poses can be told apart (coordinated-frontier-verify) beside the
-#      semantic team, on the same seeds (--reuse)
+#      semantic team, on the same seeds (--reuse); loop_oracle_room{,_heldout}.{json,md}: the
+#      oracle held to 20 m^2 of shared space (what a merger that needs a room's worth of evidence
+#      could do) beside semantic and the oracle, on the same seeds (--reuse)
 #   3. task_time.{json,csv,png}: single- vs multi-robot task time (the paper's 105 s -> 65 s and
 #      125 s -> 85 s); nav_teammate/: navigation to a place near robot_1's start (the paper's
 #      protocol: a robot goes where its teammate mapped)
@@ -60,7 +62,8 @@
 # 2026-11-27 on 2 cores shared with other work, the groups run so: 4 h 20 min of wall time (merge
 # steps ~4.2 h, the others ~3.6 h), before the two loop_verify studies were added (measured alone:
 # ~12 min for the 240 episodes of loop_verify, ~8.5 min for loop_verify_heldout's 160; with --reuse
-# only the verify episodes run).
+# only the verify episodes run; the two loop_oracle_room studies, 240 episodes each, took ~10-12 min
+# apiece without --reuse, 2026-11-28; with it only the room oracle's 80 run).
 # Every figure but the timings (ms, steps/s) comes out the same on any machine with the pinned
 # versions (requirements/constraints.txt); timings depend on the machine and its load.
 set -euo pipefail
@@ -156,6 +159,10 @@ other_steps() {
     --reuse "$out/loop_study.json" --out "$out/loop_verify" --force
   mrexplore bench loop --variants semantic verify --seeds 20 --first-seed 2000 --jobs 2 \
     --reuse "$out/loop_heldout.json" --out "$out/loop_verify_heldout" --force
+  mrexplore bench loop --variants semantic oracle oracle_room --seeds 20 --jobs 2 \
+    --reuse "$out/loop_study.json" --out "$out/loop_oracle_room" --force
+  mrexplore bench loop --variants semantic oracle oracle_room --seeds 20 --first-seed 2000 --jobs 2 \
+    --reuse "$out/loop_heldout.json" --out "$out/loop_oracle_room_heldout" --force
   mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --out "$out" --force
   mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --tasks navigate \
     --nav-goal teammate --out "$out/nav_teammate" --force

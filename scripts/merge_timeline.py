@@ -271,15 +271,12 @@ def replay_settings(asked: dict[str, Any], merge_options: dict[str, Any]) -> dic
         raise ConfigError(f"--replay can change {list(REPLAY_KEYS)} only, not {bad}")
     if merge_options.get("keep_run_on_refusal"):
         raise ConfigError("--replay follows the tracker with keep_run_on_refusal off")
-    run = {k: merge_options.get(k, _tracker_default(k)) for k in REPLAY_KEYS}
+    # the run's settings: the tracker's, built with the run's options (its defaults otherwise)
+    given = {k: merge_options[k] for k in REPLAY_KEYS if k in merge_options}
+    tracker = MapMergeTracker(2, **given)
+    run = {k: getattr(tracker, k) for k in REPLAY_KEYS}
     MapMergeTracker(2, **{**run, **asked})  # the tracker's own checks of the values
     return {"run": run, "replay": {**run, **asked}}
-
-
-def _tracker_default(key: str) -> Any:
-    import inspect
-
-    return inspect.signature(MapMergeTracker).parameters[key].default
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -38,11 +38,17 @@ IN_LOOP_RIVAL_PERFECT_CELLS = 0
 #: 299 or more (docs/merging.md, item 14). A floor on the accepted pose only: the merger still
 #: weighs smaller poses as rivals.
 IN_LOOP_MIN_ACCEPT_CELLS = 250
+#: ``place_test`` of the semantic merger in the loop: on. A match whose agreement lies in one
+#: room of either map waits until a second place (another room, the corridor's end, a thing in
+#: the corridor) pins the same pose: a repeated room agrees with its twin cell for cell, at any
+#: size (:mod:`~mrexplore.merge.places`).
+IN_LOOP_PLACE_TEST = True
 #: The semantic merger's options in the loop (the env's tracker and the loop study's seeded
 #: diagnostic); options the caller gives win.
 IN_LOOP_SEMANTIC_OPTIONS: dict[str, Any] = {
     "min_common_m2": IN_LOOP_MIN_COMMON_M2,
     "rival_perfect_cells": IN_LOOP_RIVAL_PERFECT_CELLS,
+    "place_test": IN_LOOP_PLACE_TEST,
 }
 
 

@@ -87,12 +87,16 @@ MergeFn = Callable[[Int8Grid, Int8Grid], MergeResult]
 #: ``min_common_m2`` of the semantic merger in an attempt guided by a sighting (m^2).
 GUIDED_MIN_COMMON_M2 = 5.0
 
-#: A remembered rival still stands against an accepted pose on the current maps as the
-#: semantic merger's defaults judge a rival: ``far_cells`` from it (here b's known box corners),
-#: explaining at least ``rival_support`` of its agreeing wall cells, and not beaten by
-#: ``min_margin`` in index and ``min_evidence_cells`` contradicting wall cells, nor ruled out
-#: by one object (``structure_test``).
-_RIVAL_RULE = SemanticOptions.from_kwargs()
+
+def rival_rule(merger: Any, merge_options: Mapping[str, Any]) -> SemanticOptions:
+    """How the tracker judges a remembered rival against an accepted pose on the current maps:
+    as the semantic merger of this run judges a rival (``far_cells`` from it, explaining at
+    least ``rival_support`` of its agreeing wall cells, not beaten by ``min_margin`` in index
+    and ``min_evidence_cells`` contradicting wall cells, nor ruled out by one object), with the
+    run's own options when the merger is the named semantic one, its defaults otherwise."""
+    if isinstance(merger, str) and merger.lower() == "semantic":
+        return SemanticOptions.from_kwargs(**merge_options)
+    return SemanticOptions.from_kwargs()
 
 
 @dataclass(frozen=True)
@@ -366,6 +370,7 @@ class MapMergeTracker:
         self._pool: Executor | None = executor
         self._jobs: list[_Job] = []
         self._merge = _resolve_merger(merger, dict(merge_options))
+        self._rival_rule = rival_rule(merger, merge_options)
         self._merger_obj = merger
         #: Called with an :class:`AttemptRecord` after every applied merge attempt (diagnostics;
         #: None: nothing). Not pickled with the tracker.
@@ -578,7 +583,7 @@ class MapMergeTracker:
         T_best = canvas(best)
         if not self._same(T_old, T_best, box_j, self.relocate_tol_cells):
             return None
-        margin = _RIVAL_RULE.min_margin
+        margin = self._rival_rule.min_margin
         for R, ag in zip(info.get("rivals", ()), info.get("rival_agreements", ()), strict=True):
             if self._same(T_old, canvas(R), box_j, self.relocate_tol_cells):
                 continue  # the same place, refitted otherwise: no rival
@@ -609,14 +614,14 @@ class MapMergeTracker:
         best = verify(T_crop)
 
         def stands(R: Transform) -> bool:
-            if self._same(R, T, box_j, _RIVAL_RULE.far_cells):
+            if self._same(R, T, box_j, self._rival_rule.far_cells):
                 return False  # the same place
             other = verify(crop(R))
-            if not stands_as_rival(best, other, verify.cells_per_sample, _RIVAL_RULE):
+            if not stands_as_rival(best, other, verify.cells_per_sample, self._rival_rule):
                 return False
             margin = best.score - other.score
-            ruled_out = rival_structure(verify, T_crop, crop(R), margin, _RIVAL_RULE)
-            return ruled_out < _RIVAL_RULE.min_evidence_cells
+            ruled_out = rival_structure(verify, T_crop, crop(R), margin, self._rival_rule)
+            return ruled_out < self._rival_rule.min_evidence_cells
 
         return [R for R in rivals if stands(R)]
 

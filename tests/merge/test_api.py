@@ -120,7 +120,8 @@ def test_resolution_is_explicit_validated_and_reported(office_pair) -> None:  # 
     assumed = merge_maps(a, b, min_common_m2=100.0)
     assert assumed.info["resolution_m"] == 0.05 and assumed.info["resolution_assumed"] is True
     assert not assumed.matched and "38" in assumed.reason  # 38 m^2 at the assumed 0.05
-    given = merge_maps(a, b, min_common_m2=100.0, resolution_m=0.1)
+    # (b's crop is one open office: the place test, which this test is not about, would wait)
+    given = merge_maps(a, b, min_common_m2=100.0, resolution_m=0.1, place_test=False)
     assert given.matched and given.info["resolution_m"] == 0.1
     assert merge_maps(a, b, method="orb", resolution_m=0.1).info["resolution_m"] == 0.1
     for bad in (0.0, -0.05, float("nan"), "0.05", True):

@@ -733,15 +733,13 @@ def test_a_remembered_rival_ruled_out_by_one_object_does_not_stand() -> None:
     """The sandbox crop pair the merger accepts through the structure test (tests/merge/
     test_semantic.py): its half-turned rival, remembered by the tracker, must not break the
     run of agreeing attempts either; judged by the margin alone it would."""
-    from unittest import mock
-
     from mrexplore.experiments.merge_cases import real_cases
     from mrexplore.grid import known_bbox
-    from mrexplore.merge import merge_maps, tracker
-    from mrexplore.merge.semantic import SemanticOptions
+    from mrexplore.merge import merge_maps
 
     case = real_cases(15, 7)[14]
-    res = merge_maps(case.a, case.b, resolution_m=case.resolution_m)
+    # (one office of the real map: the place test would wait for a second place to agree)
+    res = merge_maps(case.a, case.b, resolution_m=case.resolution_m, place_test=False)
     assert res.matched and res.transform is not None
     rival = res.info["rivals"][0]
     box = known_bbox(case.b)
@@ -749,5 +747,16 @@ def test_a_remembered_rival_ruled_out_by_one_object_does_not_stand() -> None:
     tr = MapMergeTracker(2)
     args = (case.a, case.b, ((0, 0), (0, 0)), res.transform, [rival], box)
     assert tr._standing(*args) == []
-    with mock.patch.object(tracker, "_RIVAL_RULE", SemanticOptions(structure_test=False)):
-        assert len(tr._standing(*args)) == 1
+    # the run's own options reach the tracker's rival checks: without the structure test the
+    # rival stands
+    assert len(MapMergeTracker(2, structure_test=False)._standing(*args)) == 1
+
+
+def test_the_tracker_judges_rivals_with_the_runs_own_options() -> None:
+    """A user's ``min_margin`` or ``far_cells`` reaches the tracker's rival checks as well as
+    the merger: one run holds one value of each setting."""
+    tr = MapMergeTracker(2, min_margin=0.11, far_cells=7.5)
+    assert tr._rival_rule.min_margin == 0.11 and tr._rival_rule.far_cells == 7.5
+    assert MapMergeTracker(2)._rival_rule.min_margin == 0.03
+    # a merger of another kind: the semantic defaults judge its rivals
+    assert MapMergeTracker(2, merger="orb")._rival_rule.min_margin == 0.03

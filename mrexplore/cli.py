@@ -112,9 +112,22 @@ def _evaluate(argv: Sequence[str]) -> int:
     return int(eval_main(list(argv)))
 
 
+def _version() -> str:
+    """The installed package's version (its metadata), else the source tree's ``__version__``."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("mrexplore")
+    except PackageNotFoundError:  # pragma: no cover - a source tree that was never installed
+        from mrexplore import __version__
+
+        return __version__
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The top-level parser (sub-commands with their own options)."""
     p = argparse.ArgumentParser(prog="mrexplore", description=__doc__)
+    p.add_argument("--version", action="version", version=f"mrexplore {_version()}")
     sub = p.add_subparsers(dest="command", required=True)
 
     d = sub.add_parser(

@@ -7,10 +7,22 @@
 (160, 200)
 >>> len(w.meta["twin_rooms"])
 2
+>>> load_world("family:paper_like/test/7").name
+'paper_like/test/0007'
 """
 
 from __future__ import annotations
 
+from mrexplore.world.family import (
+    FAMILIES,
+    FAMILY_GENERATORS,
+    PARTS,
+    family_seeds,
+    family_spec,
+    family_world,
+    office_row,
+    paper_like,
+)
 from mrexplore.world.generators import GENERATORS, symmetric_office, twin_wings
 from mrexplore.world.map_io import (
     OccupancyFile,
@@ -23,11 +35,19 @@ from mrexplore.world.registry import list_worlds, load_world
 from mrexplore.world.world import World
 
 __all__ = [
+    "FAMILIES",
+    "FAMILY_GENERATORS",
     "GENERATORS",
+    "PARTS",
     "OccupancyFile",
     "World",
+    "family_seeds",
+    "family_spec",
+    "family_world",
     "list_worlds",
     "load_world",
+    "office_row",
+    "paper_like",
     "read_map_yaml",
     "symmetric_office",
     "twin_wings",

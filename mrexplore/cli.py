@@ -149,7 +149,16 @@ def build_parser() -> argparse.ArgumentParser:
         help="single vs multi-robot task times (the paper's experiment)",
         description="For each seed, run the single-robot and the two-robot episode from the "
         "same start of robot_0, for exploration and navigation; write task_time.json/.csv/.png "
-        "and print a table like the paper's.",
+        "and print a table like the paper's. Each exploration episode gives two times: "
+        "'observed' (the team's sensors together saw the target share of the world: the "
+        "paper's measure, blind to wrong merges) and 'held' (some robot holds that share at "
+        "the true place in its own-or-fused map: a wrong merge costs time, as it would a real "
+        "team). Navigation ends at the goal, so it has the observed column only. Per team: "
+        "episodes merged, median first merge, episodes that held a wrong merge (a transform "
+        ">= 5 cells off the truth) and the seconds they held it, and the largest share of a "
+        "robot's map contradicting the truth; a warning line follows the table when any "
+        "episode held a wrong merge. The seed paper's figures are printed on symmetric_office "
+        "only, the shipped world built like the paper's.",
     )
     t.add_argument("--world", default="symmetric_office", help="world name or map YAML")
     t.add_argument("--seeds", type=int, default=20, help="number of seeds (default 20)")

@@ -18,7 +18,15 @@ from typing import Any
 
 from mrexplore.errors import ConfigError
 
-__all__ = ["MERGER_VARIANTS", "against", "format_tables", "load_study", "summarize"]
+__all__ = [
+    "MERGER_VARIANTS",
+    "against",
+    "aggregate",
+    "binomial_upper_bound",
+    "format_tables",
+    "load_study",
+    "summarize",
+]
 
 #: The variants that merge with the env's named semantic merger: the study's ``--merge-options``
 #: apply to them (and the tables' heading says so).
@@ -143,6 +151,156 @@ def _against_semantic(episodes: Sequence[Mapping[str, Any]], variant: str) -> di
     return _compare_pairs([(runs[(w, variant, s)], runs[(w, "semantic", s)]) for w, s in keys])
 
 
+def binomial_upper_bound(k: int, n: int, confidence: float = 0.95) -> float | None:
+    """One-sided upper ``confidence`` bound of a rate seen ``k`` times in ``n`` trials (exact,
+    Clopper-Pearson): the rate p at which ``k`` or fewer in ``n`` has probability
+    ``1 - confidence``; 1.0 when ``k == n``, None without trials. 0 in 20 gives 0.139 (about
+    the rule of three, 3 / n)."""
+    if n <= 0:
+        return None
+    if not 0 <= k <= n:
+        raise ValueError(f"binomial_upper_bound: need 0 <= k <= n, got k={k}, n={n}")
+    if k == n:
+        return 1.0
+    alpha = 1.0 - confidence
+
+    def cdf(p: float) -> float:  # P(X <= k) for X ~ Binomial(n, p), summed in log space
+        lp, lq = math.log(p), math.log1p(-p)
+        return sum(
+            math.exp(
+                math.lgamma(n + 1)
+                - math.lgamma(i + 1)
+                - math.lgamma(n - i + 1)
+                + i * lp
+                + (n - i) * lq
+            )
+            for i in range(k + 1)
+        )
+
+    lo, hi = k / n, 1.0  # cdf falls from >= 1/2-ish at k/n to 0 at 1: bisect for alpha
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        if mid <= 0.0 or cdf(mid) > alpha:
+            lo = mid
+        else:
+            hi = mid
+    return hi
+
+
+def aggregate(episodes: Sequence[Mapping[str, Any]], variants: Sequence[str]) -> dict[str, Any]:
+    """Over all worlds of a family run, per variant: episodes, merged, reached, episodes that
+    ever held a wrong merge with the upper 95 % bound of that rate
+    (:func:`binomial_upper_bound`), the mean task time (s); and ``semantic`` against
+    ``oracle_room`` and ``none`` (when they ran): its mean task time relative to theirs, the
+    paired difference (mean, 95 % CI, s), and the episodes one merged and the other did not."""
+    out: dict[str, Any] = {"variants": {}, "semantic_against": {}}
+    for v in variants:
+        eps = [e for e in episodes if e["variant"] == v]
+        wrong = sum(bool(e["wrong_merge"]) for e in eps)
+        times = [float(e["task_time_s"]) for e in eps]
+        out["variants"][v] = {
+            "episodes": len(eps),
+            "merged": sum(bool(e["merged"]) for e in eps),
+            "reached": sum(bool(e["reached"]) for e in eps),
+            "wrong_merge_episodes": wrong,
+            "wrong_merge_upper95": binomial_upper_bound(wrong, len(eps)),
+            "task_time_mean_s": float(statistics.fmean(times)) if times else None,
+        }
+    if "semantic" in variants:
+        runs = {(e["world"], e["variant"], e["seed"]): e for e in episodes}
+        sem = out["variants"]["semantic"]["task_time_mean_s"]
+        for base in ("oracle_room", "none"):
+            if base not in variants:
+                continue
+            keys = sorted((w, s) for (w, v, s) in runs if v == "semantic" and (w, base, s) in runs)
+            pairs = [(runs[(w, "semantic", s)], runs[(w, base, s)]) for w, s in keys]
+            b = out["variants"][base]["task_time_mean_s"]
+            out["semantic_against"][base] = {
+                **_compare_pairs(pairs),
+                "relative_task_time": float(sem / b - 1.0) if sem is not None and b else None,
+                "merged_only_semantic": sum(
+                    bool(a["merged"]) and not c["merged"] for a, c in pairs
+                ),
+                "merged_only_" + base: sum(not a["merged"] and bool(c["merged"]) for a, c in pairs),
+            }
+    return out
+
+
+def _where(doc: Mapping[str, Any]) -> str:
+    """Where a study was measured: the family, part and world seeds (a family run) or the
+    worlds, and the episode seeds."""
+    seeds = doc["seeds"]
+    ep = f"episode seeds {seeds[0]}-{seeds[-1]}" if seeds else "no episode seeds"
+    fam = doc.get("family")
+    if fam:
+        ws = fam["world_seeds"]
+        return (
+            f"family {fam['name']}, {fam['part']} part, worlds 0-{len(ws) - 1} "
+            f"(world seeds {ws[0]}-{ws[-1]}), {ep}"
+        )
+    return f"worlds {', '.join(doc['worlds'])}, {ep}"
+
+
+def _aggregate_lines(doc: Mapping[str, Any], markdown: bool) -> list[str]:
+    """The family run's aggregate table and the semantic merger against its bases."""
+    agg = doc["aggregate"]
+    cols = (
+        "variant",
+        "episodes",
+        "merged",
+        "reached",
+        "wrong",
+        "wrong rate <= (95 %)",
+        "task time mean",
+    )
+    body = []
+    for v, s in agg["variants"].items():
+        up = s["wrong_merge_upper95"]
+        mean = s["task_time_mean_s"]
+        merging = v not in ("none", "single")
+        body.append(
+            (
+                v,
+                str(s["episodes"]),
+                f"{s['merged']}/{s['episodes']}" if merging else "-",
+                f"{s['reached']}/{s['episodes']}",
+                str(s["wrong_merge_episodes"]) if merging else "-",
+                "-" if up is None or not merging else f"{up:.1%}",
+                "-" if mean is None else f"{mean:.1f} s",
+            )
+        )
+    title = f"All worlds ({_where(doc)}):"
+    lines = [f"### {title}" if markdown else title]
+    lines += _table(cols, body, markdown)
+    for base, d in agg["semantic_against"].items():
+        rel = d["relative_task_time"]
+        lines += [
+            "",
+            f"semantic against {base} ({_where(doc)}), paired over {d['episodes']} episodes: "
+            f"mean task time {'-' if rel is None else f'{rel:+.1%}'}, difference "
+            f"{_paired_text(d['task_time_s'])}; merged by semantic only in "
+            f"{d['merged_only_semantic']}, by {base} only in {d['merged_only_' + base]}; first "
+            f"merge earlier in {d['first_merge_earlier']}, later in {d['first_merge_later']}",
+        ]
+    lines.append(
+        "wrong rate <=: the one-sided upper 95 % bound (exact binomial, Clopper-Pearson) of the "
+        "share of episodes that ever held a wrong merge."
+    )
+    return lines
+
+
+def _table(cols: Sequence[str], body: Sequence[Sequence[str]], markdown: bool) -> list[str]:
+    if markdown:
+        return [
+            "",
+            "| " + " | ".join(cols) + " |",
+            "|" + "---|" * len(cols),
+            *("| " + " | ".join(r) + " |" for r in body),
+        ]
+    widths = [max(len(c), *(len(r[k]) for r in body)) for k, c in enumerate(cols)]
+    return ["  ".join(x.ljust(widths[k]) for k, x in enumerate(r)).rstrip() for r in (cols, *body)]
+
+
 def _paired_text(p: Mapping[str, Any] | None) -> str:
     if p is None:
         return "-"
@@ -221,7 +379,8 @@ def _against_text(a: Mapping[str, Any]) -> list[str]:
 
 
 def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
-    """One table per world (text as printed, or markdown)."""
+    """One table per world (text as printed, or markdown); a family run's tables name each
+    world's seed and end with the aggregate over all its worlds (:func:`aggregate`)."""
     n = len(doc["seeds"])
     o = doc["env_options"]
     if o.get("task") == "navigate":
@@ -246,6 +405,9 @@ def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
     if any(doc.get("reused", {}).values()):
         took = ", ".join(f"{n} from {f}" for f, n in doc["reused"].items() if n)
         head += f"; episodes taken from studies of the same settings: {took}"
+    fam = doc.get("family")
+    if fam:
+        head += f"; measured on {_where(doc)}"
     cols = (
         "variant",
         "merged",
@@ -261,7 +423,12 @@ def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
         "oracle's gain taken",
     )
     lines = [head, ""]
+    seeds = doc["seeds"]
     for w, rows in doc["summary"].items():
+        where = w
+        if fam:  # every table says where it was measured
+            ws = fam["world_seeds"][fam["specs"].index(w)] if w in fam["specs"] else "?"
+            where = f"{w} (world seed {ws}; episode seeds {seeds[0]}-{seeds[-1]})"
         body = []
         for v, s in rows.items():
             two = v != "single"
@@ -286,12 +453,12 @@ def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
                 )
             )
         if markdown:
-            lines += [f"### {w}", "", "| " + " | ".join(cols) + " |"]
+            lines += [f"### {where}", "", "| " + " | ".join(cols) + " |"]
             lines.append("|" + "---|" * len(cols))
             lines += ["| " + " | ".join(r) + " |" for r in body]
         else:
             widths = [max(len(c), *(len(r[k]) for r in body)) for k, c in enumerate(cols)]
-            lines.append(f"{w}:")
+            lines.append(f"{where}:")
             for r in (cols, *body):
                 lines.append("  ".join(x.ljust(widths[k]) for k, x in enumerate(r)).rstrip())
         for v, s in rows.items():
@@ -299,6 +466,8 @@ def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
             if d is not None:
                 lines += ["", _against_semantic_text(v, d)]
         lines.append("")
+    if doc.get("aggregate"):
+        lines += [*_aggregate_lines(doc, markdown), ""]
     if doc.get("against"):
         text = _against_text(doc["against"])
         lines += [text[0], "", *(f"- {x.strip()}" for x in text[1:])] if markdown else text

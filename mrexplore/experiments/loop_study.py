@@ -44,7 +44,18 @@ and seed, so the results equal a serial run.
 keeps exploring; the task time is the time after the warm-up, as in ``mrexplore task-time``):
 what the merger buys a robot that must reach a place, against the oracle's.
 
-Run: ``mrexplore bench loop --seeds 20 --jobs 2 --out results/loop_study``.
+``--family NAME --part {tune,test} --worlds N`` runs the study on worlds 0 .. N-1 of a world
+family's part (:mod:`mrexplore.world.family`: floors with 2 or more identical rooms, split into
+a tuning and a test part by world seed), by default with the variants :data:`FAMILY_VARIANTS`
+(the merger beside the oracle, the room oracle and never merging); the report adds the
+aggregate over all the part's worlds (wrong-merge episodes with the upper 95 % bound of their
+rate, merges, task times; :func:`~mrexplore.experiments.loop_report.aggregate`). Each world
+travels to the worker processes as its spec string (``family:paper_like/tune/3``) and is
+rebuilt there from its world seed. Tune rules on the ``tune`` part only.
+
+Run: ``mrexplore bench loop --seeds 20 --jobs 2 --out results/loop_study``;
+``mrexplore bench loop --family paper_like --part tune --worlds 20 --seeds 5 --jobs 2
+--out results/loop_paper_like_tune``.
 """
 
 from __future__ import annotations
@@ -62,6 +73,7 @@ from mrexplore.errors import ConfigError, MrexploreError
 from mrexplore.experiments.loop_report import (
     MERGER_VARIANTS,
     against,
+    aggregate,
     format_tables,
     load_study,
     summarize,
@@ -77,6 +89,11 @@ WORLDS: tuple[str, ...] = ("symmetric_office", "twin_wings", "tb3_office", "depo
 VARIANTS: tuple[str, ...] = ("semantic", "oracle", "none", "single")
 #: Every variant the study can run (``seeded`` and ``sighting`` are asked for by name).
 ALL_VARIANTS: tuple[str, ...] = (*VARIANTS, "seeded", "sighting", "verify", "oracle_room")
+#: The default variants of a family run (``--family``): the merger, the oracle, the oracle held
+#: to a room's worth of evidence, and never merging.
+FAMILY_VARIANTS: tuple[str, ...] = ("semantic", "oracle", "oracle_room", "none")
+#: Worlds of a family run when ``--worlds`` is not given.
+FAMILY_WORLDS = 10
 #: Known space (m^2) the ``oracle_room`` variant's oracle waits for under the truth: the in-loop
 #: merger's own floor (a match the size of a room may be its twin).
 ROOM_EVIDENCE_M2 = IN_LOOP_MIN_COMMON_M2
@@ -131,6 +148,34 @@ NOISE_OFF: dict[str, Any] = {
 TASKS: tuple[str, ...] = ("explore", "navigate")
 #: Where robot_0's navigation goal lies (the env's ``nav_goal``).
 NAV_GOALS: tuple[str, ...] = ("far", "teammate")
+
+
+def family_worlds(family: str, part: str, n: int) -> list[str]:
+    """The specs of worlds 0 .. n-1 of ``family``'s ``part`` (``family:<family>/<part>/<k>``);
+    a :class:`ConfigError` naming a bad family, part or count."""
+    from mrexplore.errors import WorldError
+    from mrexplore.world.family import family_seeds, family_spec
+
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise ConfigError(f"loop study: --worlds must be an integer >= 1 with --family, got {n!r}")
+    try:
+        family_seeds(family, part, n)
+        return [family_spec(family, part, k) for k in range(n)]
+    except WorldError as exc:
+        raise ConfigError(f"loop study: {exc}") from exc
+
+
+def family_block(family: str, part: str, n: int) -> dict[str, Any]:
+    """What a family run records of where it was measured: family, part, the worlds' specs
+    and world seeds."""
+    from mrexplore.world.family import family_seeds
+
+    return {
+        "name": family,
+        "part": part,
+        "specs": family_worlds(family, part, n),
+        "world_seeds": family_seeds(family, part, n),
+    }
 
 
 def study_env_options(
@@ -314,6 +359,7 @@ def run_study(
     merge_options: Mapping[str, Any] | None = None,
     env_options: Mapping[str, Any] | None = None,
     reuse: Mapping[str, Mapping[str, Any]] | None = None,
+    family: tuple[str, str] | None = None,
 ) -> dict[str, Any]:
     """Run every (world, variant, seed) episode of ``task``; returns the JSON document.
 
@@ -330,7 +376,16 @@ def run_study(
 
     With ``jobs > 1`` the episodes run in that many processes (spawned, so no state is shared);
     the records come back in the serial order, identical to a serial run.
+
+    ``family``: (family, part) when ``worlds`` are that part's worlds 0 .. N-1 (their specs,
+    :func:`family_worlds`): the document then records them (``family``: name, part, specs,
+    world seeds) and the aggregate over all of them (``aggregate``).
     """
+    if family is not None and list(worlds) != family_worlds(*family, len(worlds)):
+        raise ConfigError(
+            f"loop study: the worlds of a {family[0]} {family[1]} run must be its worlds 0 .. "
+            f"{len(worlds) - 1}, in order"
+        )
     validate(
         worlds,
         seeds,
@@ -393,6 +448,14 @@ def run_study(
         "units": "simulated seconds",
         "episodes": episodes,
         "summary": summarize(episodes, worlds, variants),
+        **(
+            {
+                "family": family_block(*family, len(worlds)),
+                "aggregate": aggregate(episodes, variants),
+            }
+            if family is not None
+            else {}
+        ),
     }
 
 
@@ -470,21 +533,68 @@ def reusable(
     return taken
 
 
+def _worlds_and_variants(
+    worlds: Sequence[str] | None,
+    variants: Sequence[str] | None,
+    family: str | None,
+    part: str | None,
+) -> tuple[list[str], list[str], tuple[str, str] | None]:
+    """The run's world specs, variants and (family, part) from the CLI's flags: the four fixed
+    worlds and :data:`VARIANTS` by default; with ``--family``, worlds 0 .. N-1 of ``--part``
+    (``--worlds N``) and :data:`FAMILY_VARIANTS`."""
+    if family is None:
+        if part is not None:
+            raise ConfigError("loop study: --part needs --family")
+        return list(worlds or WORLDS), list(variants or VARIANTS), None
+    if part is None:
+        raise ConfigError("loop study: --family needs --part tune or --part test")
+    if worlds is None:
+        n = FAMILY_WORLDS
+    elif len(worlds) == 1 and worlds[0].isascii() and worlds[0].isdigit():
+        n = int(worlds[0])
+    else:
+        raise ConfigError(
+            f"loop study: with --family, --worlds is how many worlds (one integer >= 1), got "
+            f"{' '.join(worlds)!r}"
+        )
+    return family_worlds(family, part, n), list(variants or FAMILY_VARIANTS), (family, part)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """CLI: ``mrexplore bench loop [--worlds ..] [--seeds N] [--first-seed S] [--variants ..]
+    """CLI: ``mrexplore bench loop [--worlds ..] [--family F --part P [--worlds N]] [--seeds N]
+    [--first-seed S] [--variants ..]
     [--max-time-s T] [--jobs N] [--task T] [--nav-goal G] [--out STEM] [--force]``; returns the
     exit code."""
     p = argparse.ArgumentParser(
         prog="mrexplore bench loop", description=__doc__.split("\n\n")[0] if __doc__ else None
     )
-    p.add_argument("--worlds", nargs="+", default=list(WORLDS), help="worlds (default: all four)")
+    p.add_argument(
+        "--worlds",
+        nargs="+",
+        default=None,
+        help="worlds (default: all four); with --family, how many of the part's worlds "
+        f"(default {FAMILY_WORLDS})",
+    )
+    p.add_argument(
+        "--family",
+        default=None,
+        help="run on a world family's worlds instead (paper_like, office_row): worlds 0 .. "
+        "N-1 of --part",
+    )
+    p.add_argument(
+        "--part",
+        default=None,
+        help="with --family: tune (world seeds 0, 1, ...) or test (100000, ...); tune rules "
+        "on tune only",
+    )
     p.add_argument("--seeds", type=int, default=20, help="seeds per world (default 20)")
     p.add_argument("--first-seed", type=int, default=1000, help="first seed (default 1000)")
     p.add_argument(
         "--variants",
         nargs="+",
-        default=list(VARIANTS),
-        help=f"of {list(ALL_VARIANTS)} (default: {list(VARIANTS)})",
+        default=None,
+        help=f"of {list(ALL_VARIANTS)} (default: {list(VARIANTS)}; with --family "
+        f"{list(FAMILY_VARIANTS)})",
     )
     p.add_argument("--max-time-s", type=float, default=600.0, help="truncation, simulated s")
     p.add_argument("--jobs", type=int, default=1, help="episodes in this many processes")
@@ -541,6 +651,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     stem = Path(args.out)
     outputs = [Path(f"{stem}.json"), Path(f"{stem}.md")]
     try:
+        worlds, variants, family = _worlds_and_variants(
+            args.worlds, args.variants, args.family, args.part
+        )
         merge_options = parse_options(args.merge_options, flag="--merge-options")
         env_options = parse_options(args.env_options, flag="--env-options")
         other = None if args.against is None else load_study(args.against)
@@ -548,10 +661,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise ConfigError("loop study: a --reuse file is given twice")
         reuse = {f: load_study(f, "--reuse") for f in args.reuse}
         validate(
-            args.worlds,
+            worlds,
             args.seeds,
             args.first_seed,
-            args.variants,
+            variants,
             args.max_time_s,
             args.jobs,
             args.task,
@@ -562,8 +675,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         if other is not None:
             planned = {
                 (w, v, s)
-                for w in args.worlds
-                for v in args.variants
+                for w in worlds
+                for v in variants
                 for s in range(args.first_seed, args.first_seed + args.seeds)
             }
             theirs = {(e.get("world"), e.get("variant"), e.get("seed")) for e in other["episodes"]}
@@ -576,10 +689,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         if existing and not args.force:
             raise ConfigError(f"loop study: {existing} exist; pass --force to overwrite")
         doc = run_study(
-            args.worlds,
+            worlds,
             args.seeds,
             args.first_seed,
-            args.variants,
+            variants,
             args.max_time_s,
             args.jobs,
             noise=args.noise == "on",
@@ -588,6 +701,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             merge_options=merge_options,
             env_options=env_options,
             reuse=reuse,
+            family=family,
         )
         if other is not None:
             doc["against"] = against(doc, other, str(args.against))

@@ -1,5 +1,6 @@
-"""Each RL client's README recipe trains or rolls out for a few hundred steps, and its own model
-reads our 8 channels as channels: with the wrong axis (64 "channels") these tests fail."""
+"""Each RL client's recipe (docs/guide/training.md) trains or rolls out for a few hundred steps,
+and its own model reads our 8 channels as channels: with the wrong axis (64 "channels") these
+tests fail."""
 
 from __future__ import annotations
 
@@ -45,7 +46,7 @@ def test_supersuit_sb3_recipe_trains_on_channels_first_with_distinct_copies(
 
 @_needs("supersuit")
 def test_supersuit_tutorial_order_makes_identical_copies() -> None:
-    # The pitfall the README warns about, kept as a test so the warning stays true.
+    # The pitfall the training guide warns about, kept as a test so the warning stays true.
     import supersuit as ss
 
     penv = mrexplore.parallel_env(world="random:symmetric_office?width_m=10&height_m=8")

@@ -33,3 +33,5 @@ def test_module_version_matches_pyproject() -> None:
 def test_citation_and_changelog_name_the_version() -> None:
     assert f'version: "{VERSION}"' in (ROOT / "CITATION.cff").read_text()
     assert (ROOT / "LICENSE").read_text().lstrip().startswith("Apache License")
+    changelog = (ROOT / "CHANGELOG.md").read_text()
+    assert "## [Unreleased]" in changelog and f"## [{VERSION}]" in changelog

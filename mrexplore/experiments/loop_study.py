@@ -246,8 +246,22 @@ def run_loop_episode(
         opts["merger"] = oracle
     agents = [f"robot_{k}" for k in range(opts["n_robots"])]
     team = make_team(VERIFY_POLICY if variant == "verify" else POLICY, agents, task)
-    r = run_episode(opts, team, seed, prepare=None if oracle is None else oracle.bind)
+    envs: list[Any] = []
+
+    def prepare(env: Any) -> None:
+        envs.append(env)  # its tracker's drops are read after the run
+        if oracle is not None:
+            oracle.bind(env)
+
+    r = run_episode(opts, team, seed, prepare=prepare)
     s = r.summary()
+    tracker = envs[0].unwrapped.fusion.tracker
+    dt_s = float(envs[0].unwrapped.config.dt_s)
+    drops = (
+        []
+        if tracker is None
+        else [[d.contradicted_step * dt_s, d.dropped_step * dt_s] for d in tracker.drops]
+    )
     return {
         "world": world,
         "variant": variant,
@@ -261,6 +275,9 @@ def run_loop_episode(
         "merged_wrongly_s": r.merged_wrongly_s,
         "max_fused_contradiction": s["max_fused_contradiction"],
         "merges_lost": r.merges_lost,
+        # every merge the grown maps contradicted and the tracker dropped: [first
+        # contradiction, drop] (simulated s)
+        "drops_s": drops,
     }
 
 

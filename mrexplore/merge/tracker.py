@@ -151,6 +151,24 @@ class AttemptRecord:
     merged: bool
 
 
+@dataclass(frozen=True)
+class DropRecord:
+    """A kept transform the grown maps contradicted, and when the tracker let it go
+    (:attr:`MapMergeTracker.drops`): how fast a merge the evidence turned against is undone.
+
+    Attributes:
+        i, j: the pair.
+        contradicted_step: the first re-check that found the kept transform's noise-aware
+            agreement under ``drop_below`` (kept then as drift, refitted or relocated).
+        dropped_step: the re-check that dropped it.
+    """
+
+    i: int
+    j: int
+    contradicted_step: int
+    dropped_step: int
+
+
 @dataclass
 class _Job:
     """A merge attempt (``kind`` "attempt") or re-check ("recheck") of pair (i, j): started on
@@ -403,6 +421,11 @@ class MapMergeTracker:
         self._paths: dict[tuple[int, int], Transform | None] | None = None
         self._groups: dict[int, set[int]] = {}  # robot -> its merged group, kept with _paths
         self._links: NDArray[np.bool_] | None = None
+        # (i, j) -> the first re-check that found the kept transform contradicted (cleared when
+        # a re-check finds it agreeing again)
+        self._contradicted: dict[tuple[int, int], int] = {}
+        #: Every transform dropped this episode, oldest first.
+        self.drops: list[DropRecord] = []
 
     # ------------------------------------------------------------------ step
     def update(
@@ -681,7 +704,7 @@ class MapMergeTracker:
                     )
                 )
         else:
-            self._decide_recheck(i, j, out, job.T_old, job.bbox_j)
+            self._decide_recheck(i, j, out, job.T_old, job.bbox_j, job.due)
 
     def _attempt_merges(self, step: int) -> None:
         busy = {(jb.i, jb.j) for jb in self._jobs} | {(q[1], q[2]) for q in self._queue}
@@ -799,7 +822,13 @@ class MapMergeTracker:
                 self._start("recheck", i, j, step)
 
     def _decide_recheck(
-        self, i: int, j: int, out: _Outcome, T_old: Transform | None, bbox_j: Box | None
+        self,
+        i: int,
+        j: int,
+        out: _Outcome,
+        T_old: Transform | None,
+        bbox_j: Box | None,
+        step: int = 0,
     ) -> None:
         """Drop the kept transform the maps now contradict (unless the merger found it again,
         refitted, on the same maps), or replace it by a clearly better one; otherwise keep it
@@ -809,6 +838,7 @@ class MapMergeTracker:
             return  # dropped or replaced since the re-check started
         assert out.old_now is not None and out.held_now is not None
         if out.held_now < self.drop_below:
+            first = self._contradicted.setdefault((i, j), step)
             if (
                 out.result is not None
                 and out.T is not None
@@ -828,11 +858,14 @@ class MapMergeTracker:
                 # stands (a look-alike place lays walls across open space)
                 return
             # The maps grew and now contradict the kept transform: un-merge this pair.
+            self.drops.append(DropRecord(i, j, first, step))
+            del self._contradicted[(i, j)]
             del self._edges[(i, j)]
             self._edge_score.pop((i, j), None)
             self._paths = None
             self._px.forget_pair(i, j)
             return
+        self._contradicted.pop((i, j), None)
         if out.result is None or out.T is None:
             return
         if out.result.score >= out.old_now + self.replace_margin:

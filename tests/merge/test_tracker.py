@@ -355,6 +355,12 @@ def test_recheck_drops_a_transform_the_grown_maps_contradict(
     moved = np.full_like(cb, UNKNOWN)
     moved[:, 15:] = cb[:, :-15]
     assert not _merged_after_rechecks(tr, ca, cb, moved) and tr.transform(0, 1) is None
+    # the drop is recorded: contradicted and dropped at the same re-check (nothing kept it)
+    assert len(tr.drops) == 1
+    drop = tr.drops[0]
+    assert (drop.i, drop.j) == (0, 1) and drop.contradicted_step == drop.dropped_step > 0
+    tr.reset()
+    assert tr.drops == []
 
 
 @pytest.mark.parametrize("noise_aware", [True, False])

@@ -198,12 +198,19 @@ def aggregate(episodes: Sequence[Mapping[str, Any]], variants: Sequence[str]) ->
         eps = [e for e in episodes if e["variant"] == v]
         wrong = sum(bool(e["wrong_merge"]) for e in eps)
         times = [float(e["task_time_s"]) for e in eps]
+        firsts = [float(e["first_merge_time_s"]) for e in eps if e["merged"]]
+        # how long a dropped merge stood contradicted (records without drops: none counted)
+        recovery = [d[1] - d[0] for e in eps for d in e.get("drops_s", ())]
         out["variants"][v] = {
             "episodes": len(eps),
             "merged": sum(bool(e["merged"]) for e in eps),
+            "first_merge_median_s": _median(firsts),
             "reached": sum(bool(e["reached"]) for e in eps),
             "wrong_merge_episodes": wrong,
             "wrong_merge_upper95": binomial_upper_bound(wrong, len(eps)),
+            "merged_wrongly_s": float(sum(float(e["merged_wrongly_s"]) for e in eps)),
+            "drops": len(recovery),
+            "contradiction_to_drop_max_s": max(recovery) if recovery else None,
             "task_time_mean_s": float(statistics.fmean(times)) if times else None,
         }
     if "semantic" in variants:
@@ -248,9 +255,13 @@ def _aggregate_lines(doc: Mapping[str, Any], markdown: bool) -> list[str]:
         "variant",
         "episodes",
         "merged",
+        "1st merge med",
         "reached",
         "wrong",
         "wrong rate <= (95 %)",
+        "wrong s",
+        "dropped",
+        "contradicted s (max)",
         "task time mean",
     )
     body = []
@@ -258,14 +269,20 @@ def _aggregate_lines(doc: Mapping[str, Any], markdown: bool) -> list[str]:
         up = s["wrong_merge_upper95"]
         mean = s["task_time_mean_s"]
         merging = v not in ("none", "single")
+        first = s.get("first_merge_median_s")
+        held = s.get("contradiction_to_drop_max_s")
         body.append(
             (
                 v,
                 str(s["episodes"]),
                 f"{s['merged']}/{s['episodes']}" if merging else "-",
+                "-" if first is None else f"{first:.1f} s",
                 f"{s['reached']}/{s['episodes']}",
                 str(s["wrong_merge_episodes"]) if merging else "-",
                 "-" if up is None or not merging else f"{up:.1%}",
+                f"{s.get('merged_wrongly_s', 0.0):.1f}" if merging else "-",
+                str(s.get("drops", 0)) if merging else "-",
+                "-" if held is None else f"{held:.1f}",
                 "-" if mean is None else f"{mean:.1f} s",
             )
         )
@@ -284,7 +301,9 @@ def _aggregate_lines(doc: Mapping[str, Any], markdown: bool) -> list[str]:
         ]
     lines.append(
         "wrong rate <=: the one-sided upper 95 % bound (exact binomial, Clopper-Pearson) of the "
-        "share of episodes that ever held a wrong merge."
+        "share of episodes that ever held a wrong merge; wrong s: seconds merged wrongly, "
+        "summed; dropped: merges a re-check dropped for the grown maps' contradiction; "
+        "contradicted s: the longest a dropped merge stood contradicted before the drop."
     )
     return lines
 

@@ -51,6 +51,9 @@ def test_aggregate_counts_over_worlds() -> None:
             "wrong_merge": wrong,
             "task_time_s": t,
             "reached": True,
+            "merged_wrongly_s": 12.5 if wrong else 0.0,
+            # a wrong merge is dropped 4 s after the maps first contradicted it
+            "drops_s": [[20.0, 24.0]] if wrong else [],
         }
 
     eps = [
@@ -65,6 +68,12 @@ def test_aggregate_counts_over_worlds() -> None:
     sem = agg["variants"]["semantic"]
     assert (sem["episodes"], sem["merged"], sem["wrong_merge_episodes"]) == (2, 1, 1)
     assert sem["wrong_merge_upper95"] == pytest.approx(binomial_upper_bound(1, 2))
+    assert (sem["merged_wrongly_s"], sem["drops"], sem["contradiction_to_drop_max_s"]) == (
+        12.5,
+        1,
+        4.0,
+    )
+    assert sem["first_merge_median_s"] == 10.0
     room = agg["semantic_against"]["oracle_room"]
     assert room["relative_task_time"] == pytest.approx(100.0 / 90.0 - 1.0)
     assert (room["merged_only_semantic"], room["merged_only_oracle_room"]) == (0, 1)

@@ -1,5 +1,5 @@
 """Moved to :mod:`mrexplore.merge.fusion`; this alias keeps old imports working."""
 
-from mrexplore.merge.fusion import IN_LOOP_MIN_COMMON_M2, FusionStage
+from mrexplore.merge.fusion import FusionStage
 
-__all__ = ["IN_LOOP_MIN_COMMON_M2", "FusionStage"]
+__all__ = ["FusionStage"]

@@ -81,7 +81,6 @@ from mrexplore.experiments.loop_report import (
 from mrexplore.experiments.merge_bench import parse_options
 from mrexplore.experiments.oracle import OracleMerger, SeededMerger
 from mrexplore.experiments.task_time import NAV_WARMUP_S
-from mrexplore.merge.fusion import IN_LOOP_MIN_COMMON_M2
 
 #: The worlds of the study (two symmetric generated floors, two real maps).
 WORLDS: tuple[str, ...] = ("symmetric_office", "twin_wings", "tb3_office", "depot")
@@ -94,9 +93,9 @@ ALL_VARIANTS: tuple[str, ...] = (*VARIANTS, "seeded", "sighting", "verify", "ora
 FAMILY_VARIANTS: tuple[str, ...] = ("semantic", "oracle", "oracle_room", "none")
 #: Worlds of a family run when ``--worlds`` is not given.
 FAMILY_WORLDS = 10
-#: Known space (m^2) the ``oracle_room`` variant's oracle waits for under the truth: the in-loop
-#: merger's own floor (a match the size of a room may be its twin).
-ROOM_EVIDENCE_M2 = IN_LOOP_MIN_COMMON_M2
+#: Known space (m^2) the ``oracle_room`` variant's oracle waits for under the truth: a room's
+#: worth (a match the size of a room may be its twin). A reference, not a rule of the merger.
+ROOM_EVIDENCE_M2 = 20.0
 #: ``sighting_range_m`` of the ``sighting`` variant: the lidar's default range (metres).
 SIGHTING_RANGE_M = 4.0
 #: Env options the study sets itself (its flags and its protocol): not for ``--env-options``.

@@ -21,10 +21,6 @@ from mrexplore.grid import MapChange, Transform, check_int8_map
 from mrexplore.options import MERGE_EVERY_DEFAULT, RECHECK_EVERY_DEFAULT
 from mrexplore.types import Box, Merger
 
-#: Known space (m^2) two maps must share before the every-step merger accepts a match: about a
-#: room, so a match confined to one room (which an identical room elsewhere would explain as
-#: well) waits for more; measurements in docs/merging.md.
-IN_LOOP_MIN_COMMON_M2 = 20.0
 #: ``rival_perfect_cells`` of the semantic merger in the loop: off. The perfect-rival test guards
 #: a one-shot merge against b's rest lying in a's unseen part; in the loop that part gets seen
 #: and the re-check drops a pose the grown maps contradict. There it only delayed merges
@@ -38,17 +34,17 @@ IN_LOOP_RIVAL_PERFECT_CELLS = 0
 #: 299 or more (docs/merging.md, item 14). A floor on the accepted pose only: the merger still
 #: weighs smaller poses as rivals.
 IN_LOOP_MIN_ACCEPT_CELLS = 250
-#: ``place_test`` of the semantic merger in the loop: on. A match whose agreement lies in one
-#: room of either map waits until a second place (another room, the corridor's end, a thing in
-#: the corridor) pins the same pose: a repeated room agrees with its twin cell for cell, at any
-#: size (:mod:`~mrexplore.merge.places`).
-IN_LOOP_PLACE_TEST = True
 #: The semantic merger's options in the loop (the env's tracker and the loop study's seeded
-#: diagnostic); options the caller gives win.
+#: diagnostic); options the caller gives win. The look-alike guard is the place test
+#: (:mod:`~mrexplore.merge.places`): a match waits until agreement beyond the places holding
+#: most of it pins the pose, whatever the rooms' size. It replaces the area floors a single
+#: call keeps (``min_common_m2``, ``room_match_m2``: sizes of rooms), which decided nothing
+#: more on the tuning part of the world families (docs/merging.md).
 IN_LOOP_SEMANTIC_OPTIONS: dict[str, Any] = {
-    "min_common_m2": IN_LOOP_MIN_COMMON_M2,
+    "place_test": True,
+    "min_common_m2": 0.0,
+    "room_match_m2": 0.0,
     "rival_perfect_cells": IN_LOOP_RIVAL_PERFECT_CELLS,
-    "place_test": IN_LOOP_PLACE_TEST,
 }
 
 

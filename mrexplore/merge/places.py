@@ -4,7 +4,9 @@ whether a merge's evidence reaches beyond one of them.
 Two maps that each hold one copy of a repeated room agree perfectly under the pose that lays
 one copy on the other; no figure computed on that room alone tells the copies apart. What
 does is agreement *outside* the room: another room, the corridor's ends, things in the
-corridor. :func:`beyond_one_place` asks for it.
+corridor. :func:`beyond_places` asks for it, beyond the :data:`PLACES_LEFT_OUT` places that
+hold most of the agreement (a repeated unit is often a room and the corridor stretch in front
+of its door).
 
 **Places.** A place is a region of known free space joined to the rest by passages narrower
 than :data:`PASSAGE_RATIO` of its own clearance (the largest distance from its floor to the
@@ -35,8 +37,9 @@ from mrexplore.merge.pinning import cross_support
 
 __all__ = [
     "PASSAGE_RATIO",
+    "PLACES_LEFT_OUT",
     "Places",
-    "beyond_one_place",
+    "beyond_places",
     "outside_cells",
     "segment_places",
 ]
@@ -45,6 +48,13 @@ __all__ = [
 #: into a 4 m wide room: 0.9 / 4 = 0.22; the floor between a table and a wall, entered along
 #: its length: ~1). A shape ratio, not a size.
 PASSAGE_RATIO = 0.5
+
+#: How many places, those holding most of the agreement, the evidence must reach beyond: a
+#: repeated unit is often two places in a map (a room and the corridor stretch in front of its
+#: door, a room its furniture cuts in two), so the agreement outside the two that hold most of
+#: it must pin the pose by itself. Chosen on the tuning part of the world families: with one,
+#: a row of identical offices was merged wrongly (docs/merging.md).
+PLACES_LEFT_OUT = 2
 
 #: The clearance levels of the sweep shrink by this factor from one to the next: the level
 #: where two places meet is known to this precision (a ratio, so any map size takes the
@@ -175,19 +185,21 @@ def outside_cells(
     cells: tuple[NDArray[np.intp], NDArray[np.intp]],
     agree: NDArray[np.bool_],
     places: Places,
+    skip: int = PLACES_LEFT_OUT,
     reach: int = 2,
 ) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-    """The agreeing wall cells that bound no floor of the place bounded by most of them.
+    """The agreeing wall cells that bound none of the ``skip`` places bounded by most of them.
 
     Args:
         cells: (rows, cols) of a map's wall cells.
         agree: (N,) bool, which of them agree under the pose.
         places: the map's places.
+        skip: how many places are left out, the most agreeing first.
         reach: a wall cell bounds the places whose floor lies within this many cells (a
             square window): a wall between a room and a corridor bounds both.
 
     Returns:
-        (rows, cols) of the agreeing cells outside that place. A wall no floor lies beside
+        (rows, cols) of the agreeing cells outside those places. A wall no floor lies beside
         (inside a thick wall) is not outside.
     """
     rows, cols = cells[0][agree], cells[1][agree]
@@ -196,24 +208,31 @@ def outside_cells(
     k = np.ones((2 * reach + 1, 2 * reach + 1), np.uint8)
     # the place each agreeing wall cell bounds, by the nearest label within reach (max wins)
     near = cv2.dilate(places.labels.astype(np.float32), k)[rows, cols].astype(np.int64)
-    main = int(np.argmax(np.bincount(near, minlength=places.count + 1)[1:])) + 1
-    bounds_main = cv2.dilate((places.labels == main).view(np.uint8), k)[rows, cols] > 0
-    out = (near > 0) & ~bounds_main
+    out = near > 0
+    counts = np.bincount(near, minlength=places.count + 1)
+    counts[0] = 0
+    for _ in range(skip):
+        main = int(np.argmax(counts))
+        if counts[main] == 0:
+            break
+        counts[main] = 0
+        out &= cv2.dilate((places.labels == main).view(np.uint8), k)[rows, cols] == 0
     return rows[out], cols[out]
 
 
-def beyond_one_place(
+def beyond_places(
     grid_a: Int8Grid,
     grid_b: Int8Grid,
     codes_a: MapCodes,
     codes_b: MapCodes,
     T: Transform,
+    skip: int = PLACES_LEFT_OUT,
 ) -> tuple[float, float]:
-    """How firmly the agreement outside one place pins a pose, in each map.
+    """How firmly the agreement beyond the places holding most of it pins a pose, in each map.
 
     In each map, the wall cells that agree under ``T`` (b cells -> a cells; the verifier's
-    agreement, a cell's tolerance) are split into those bounding the place most of them bound
-    and the rest (:func:`outside_cells`); the rest's
+    agreement, a cell's tolerance) are split into those bounding the ``skip`` places most of
+    them bound and the rest (:func:`outside_cells`); the rest's
     :func:`~mrexplore.merge.pinning.cross_support` says whether it pins the pose by itself.
     A repeated room laid on its twin agrees inside the room only, and the corridor seen
     through its door is straight: ~0 in both maps.
@@ -235,7 +254,7 @@ def beyond_one_place(
     ):
         cells = codes.wall_cells()
         agree, _, _ = agreeing_cells(cells, pose, other.codes(1))
-        out = outside_cells(cells, agree, segment_places(grid))
+        out = outside_cells(cells, agree, segment_places(grid), skip)
         if out[0].size == 0:
             supports.append(0.0)
             continue

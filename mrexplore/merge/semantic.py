@@ -82,7 +82,7 @@ from mrexplore.merge.pinning import (
     agreeing_area,
     slide_direction,
 )
-from mrexplore.merge.places import beyond_one_place
+from mrexplore.merge.places import PLACES_LEFT_OUT, beyond_places
 from mrexplore.merge.repeats import (
     OBJECT_CLUTTER_M,
     OBJECT_WIDTH_M,
@@ -602,11 +602,11 @@ def merge_semantic(
       strongest repeats (:func:`~mrexplore.merge.repeats.repeat_shifts`, at least 4 ``scale``
       cells long) and judge the moved poses as rivals: a copy the coarse search never tried;
     - ``place_test`` (False; the every-step tracker sets it): without a ``prior``, the
-      agreement outside one place of each map (a room, a hall, a stretch of corridor, cut at
-      passages narrower than half its clearance: :mod:`~mrexplore.merge.places`) must pin the
-      pose by itself (``min_cross_cells``). A match confined to one room of either map may lay
-      that room on its twin whatever its size; a single call cannot wait for the second place,
-      a tracker can;
+      agreement outside the two places of each map that hold most of it (rooms, halls,
+      stretches of corridor, cut at passages narrower than half their clearance:
+      :mod:`~mrexplore.merge.places`) must pin the pose by itself (``min_cross_cells``). A
+      match confined to one repeated unit of either map may lay it on its twin whatever its
+      size; a single call cannot wait for other places, a tracker can;
     - ``paper_candidates`` (False): add the seed paper's trusted-point matches as hypotheses
       (``detector``, default harris, picks their keypoints; 3-4x slower, one more correct merge
       in 166 bench pairs).
@@ -1165,23 +1165,25 @@ def _rule_pinned(j: _Judged) -> str | None:
     )
 
 
-def _rule_beyond_one_place(j: _Judged) -> str | None:
-    """Without a prior, the agreement outside one place of each map (a room, a hall, a stretch
-    of corridor: :mod:`~mrexplore.merge.places`) pins the pose by itself (``min_cross_cells``):
-    a pose whose evidence lies in one room of either map may lay that room on its twin,
-    whatever the room's size; it waits until another place agrees too (``place_test``)."""
+def _rule_beyond_places(j: _Judged) -> str | None:
+    """Without a prior, the agreement outside the places of each map that hold most of it (a
+    room, a hall, a stretch of corridor: :mod:`~mrexplore.merge.places`) pins the pose by
+    itself (``min_cross_cells``): a pose whose evidence lies in one repeated unit of either map
+    may lay it on its twin, whatever its size; it waits until other places agree too
+    (``place_test``)."""
     o, pair = j.o, j.pair
     if not o.place_test or j.prior_given or o.min_cross_cells <= 0:
         return None
-    support_a, support_b = beyond_one_place(pair.ac, pair.bc, pair.codes_a, pair.codes_b, j.best.T)
+    support_a, support_b = beyond_places(pair.ac, pair.bc, pair.codes_a, pair.codes_b, j.best.T)
     j.info["beyond_place_cells"] = (round(support_a, 2), round(support_b, 2))
     if min(support_a, support_b) >= o.min_cross_cells:
         return None
     which = "a" if support_a < support_b else "b"
     return (
-        f"the agreement outside one place of map {which} pins the pose by only "
-        f"{min(support_a, support_b):.1f} wall cells (need {o.min_cross_cells:g}): the match "
-        "may lay one room on its twin; waiting for another place to agree"
+        f"the agreement beyond the {PLACES_LEFT_OUT} places of map {which} that hold most of it "
+        f"pins the pose by only {min(support_a, support_b):.1f} wall cells (need "
+        f"{o.min_cross_cells:g}): the match may lay one room on its twin; waiting for other "
+        "places to agree"
     )
 
 
@@ -1289,7 +1291,7 @@ _RULES: tuple[Callable[[_Judged], str | None], ...] = (
     _rule_shared_space,
     _rule_room_match,
     _rule_pinned,
-    _rule_beyond_one_place,
+    _rule_beyond_places,
     _rule_wall_area,
     _rule_one_object,
     _rule_outside_object,

@@ -115,12 +115,11 @@ def test_the_room_oracle_is_the_oracle_held_to_the_mergers_floor(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """``oracle_room``: the env of the ``oracle`` variant, its oracle waiting for
-    :data:`ROOM_EVIDENCE_M2` (the in-loop merger's own floor) of known space under the truth."""
+    :data:`ROOM_EVIDENCE_M2` (a room's worth) of known space under the truth."""
     from mrexplore.experiments import loop_study
     from mrexplore.experiments.oracle import OracleMerger
-    from mrexplore.merge.fusion import IN_LOOP_MIN_COMMON_M2
 
-    assert loop_study.ROOM_EVIDENCE_M2 == IN_LOOP_MIN_COMMON_M2 == 20.0
+    assert loop_study.ROOM_EVIDENCE_M2 == 20.0
     assert "oracle_room" not in loop_study.VARIANTS  # asked for by name
     made: list[float] = []
     init = OracleMerger.__init__

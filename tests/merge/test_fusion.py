@@ -39,12 +39,13 @@ def test_version_changes_at_every_update_without_a_merger() -> None:
     assert stage.fused_version("a") != v
 
 
-def test_the_loop_asks_for_a_room_and_no_perfect_rival_test_unless_told() -> None:
-    """In the loop the semantic merger asks for 20 m^2 and runs without the perfect-rival test
-    (docs/merging.md, item 11); options the caller gives win."""
+def test_the_loop_asks_for_other_places_not_areas_and_no_perfect_rival_test_unless_told() -> None:
+    """In the loop the semantic merger runs the place test instead of the area floors, without
+    the perfect-rival test (docs/merging.md); options the caller gives win."""
     stage = FusionStage(["robot_0", "robot_1"], merger="semantic", resolution_m=0.05)
     opts = stage.tracker._merge.options
-    assert opts["min_common_m2"] == 20.0 and opts["rival_perfect_cells"] == 0
+    assert opts["place_test"] is True and opts["rival_perfect_cells"] == 0
+    assert opts["min_common_m2"] == 0.0 and opts["room_match_m2"] == 0.0
     told = FusionStage(
         ["robot_0", "robot_1"], merger="semantic", merge_options={"rival_perfect_cells": 250}
     )

@@ -8,7 +8,7 @@ import pytest
 from mrexplore.grid import FREE, OCCUPIED, UNKNOWN
 from mrexplore.merge import merge_maps
 from mrexplore.merge.common import MapCodes, translation
-from mrexplore.merge.places import beyond_one_place, segment_places
+from mrexplore.merge.places import beyond_places, segment_places
 
 #: Twin room boxes of :func:`paper_floor` (first and last column of each, walls included).
 TWIN_COLS = ((3, 130), (263, 390))
@@ -75,7 +75,7 @@ def test_a_twin_room_on_its_twin_is_not_pinned_beyond_the_room() -> None:
     a = seen(m, (0, 100, a0, a1), (97, 130, a0 + 10, a0 + 60))
     b = seen(m, (0, 100, b0, b1), (97, 130, b0 + 10, b0 + 60))
     wrong = translation(a0 - b0, 0)  # b's room laid on a's: they agree cell for cell
-    support_a, support_b = beyond_one_place(a, b, MapCodes(a), MapCodes(b), wrong)
+    support_a, support_b = beyond_places(a, b, MapCodes(a), MapCodes(b), wrong)
     assert max(support_a, support_b) < 10.0
 
 
@@ -83,7 +83,7 @@ def test_agreement_in_a_second_place_pins_the_pose() -> None:
     m = paper_floor()
     a = seen(m, (0, 158, 0, 200))  # room 1, the middle room's edge, the corridor's end
     b = seen(m, (40, 158, 0, 160))
-    support_a, support_b = beyond_one_place(a, b, MapCodes(a), MapCodes(b), translation(0, 0))
+    support_a, support_b = beyond_places(a, b, MapCodes(a), MapCodes(b), translation(0, 0))
     assert min(support_a, support_b) > 50.0
 
 

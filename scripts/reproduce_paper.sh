@@ -163,6 +163,18 @@ other_steps() {
     --reuse "$out/loop_study.json" --out "$out/loop_oracle_room" --force
   mrexplore bench loop --variants semantic oracle oracle_room --seeds 20 --first-seed 2000 --jobs 2 \
     --reuse "$out/loop_heldout.json" --out "$out/loop_oracle_room_heldout" --force
+  # the world families' test part (never tuned on): the merger, the room oracle and never
+  # merging; and the merger with the settings before the place test, on the same episodes
+  mrexplore bench loop --family paper_like --part test --worlds 20 --seeds 5 \
+    --variants semantic oracle_room none --jobs 2 --out "$out/loop_paper_like_test" --force
+  mrexplore bench loop --family paper_like --part test --worlds 20 --seeds 5 --variants semantic \
+    --merge-options place_test=false,min_common_m2=20,room_match_m2=20 --jobs 2 \
+    --out "$out/loop_paper_like_test_before" --force
+  mrexplore bench loop --family office_row --part test --worlds 20 --seeds 5 \
+    --variants semantic oracle_room none --jobs 2 --out "$out/loop_office_row_test" --force
+  mrexplore bench loop --family office_row --part test --worlds 20 --seeds 5 --variants semantic \
+    --merge-options place_test=false,min_common_m2=20,room_match_m2=20 --jobs 2 \
+    --out "$out/loop_office_row_test_before" --force
   mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --out "$out" --force
   mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --tasks navigate \
     --nav-goal teammate --out "$out/nav_teammate" --force

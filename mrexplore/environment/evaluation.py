@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore import kernels
+from mrexplore.errors import ConfigError
 from mrexplore.merge.fusion import FusionStage
 from mrexplore.sim import Simulation
 from mrexplore.truth import (
@@ -63,8 +64,8 @@ class TruthMonitor:
         agents: agent names in robot order.
         sim: the episode's simulator (reset).
         fusion: the env's fusion stage (whose fused maps are scored).
-        held: also count the reachable free cells each map holds at their true place (the
-            ``coverage_mode="held"`` coverage).
+        held: also count the reachable free cells each robot holds at their true place (the
+            ``coverage_mode="held"`` coverage, :meth:`held_free`).
     """
 
     def __init__(
@@ -84,6 +85,8 @@ class TruthMonitor:
         self.incremental: dict[int, IncrementalScore | None] = {}
         self._inc_seen: dict[int, tuple[str, int]] = {}
         self._errors: dict[tuple[int, int], tuple[int, NDArray[np.float64], MergeError]] = {}
+        # per robot: (own-map version, held free cells of the own map alone)
+        self._own_held: dict[int, tuple[int, int]] = {}
         # per agent: (step, the transforms asked about, their worst error)
         self._worst_memo: dict[
             str, tuple[int, dict[str, NDArray[np.float64]], MergeError | None]
@@ -130,13 +133,18 @@ class TruthMonitor:
         self._worst_memo[agent] = (int(self.sim.steps), dict(transforms), worst)
         return worst
 
+    def holds_wrong(self, agent: str, transforms: Mapping[str, NDArray[np.float64]]) -> bool:
+        """Whether ``agent`` holds a wrong transform among ``transforms``: its worst merge error
+        (:meth:`merge_error`) is a wrong merge (:func:`is_wrong_merge`)."""
+        err = self.merge_error(agent, transforms)
+        return err is not None and is_wrong_merge(err)
+
     def count_wrong(
         self, transforms: Mapping[str, Mapping[str, NDArray[np.float64]]], dt_s: float
     ) -> None:
-        """Add ``dt_s`` to each robot that holds a wrong transform (:func:`is_wrong_merge`)."""
+        """Add ``dt_s`` to each robot that holds a wrong transform (:meth:`holds_wrong`)."""
         for i, agent in enumerate(self.agents):
-            err = self.merge_error(agent, transforms[agent])
-            if err is not None and is_wrong_merge(err):
+            if self.holds_wrong(agent, transforms[agent]):
                 self.wrong_s[i] += dt_s
 
     def _refresh_phase(self, i: int, j: int) -> int:
@@ -189,10 +197,39 @@ class TruthMonitor:
         return err
 
     # ------------------------------------------------------------------ maps
+    def held_free(self, i: int, transforms: Mapping[str, NDArray[np.float64]]) -> int:
+        """The reachable free cells robot i is credited with (``coverage_mode="held"``): those
+        its map marks free at their true place (the map warped into the world with the true
+        transform). The map is its own-or-fused map while all its ``transforms`` (teammate ->
+        3x3, as :meth:`merge_errors` takes them) are right; its own map alone while it holds a
+        wrong one (:meth:`holds_wrong`): it cannot tell which of its teammates' knowledge is
+        right, and a wrongly placed teammate map's free cells often land on true free space
+        (a twin room on its twin, a corridor along itself), where they would count.
+
+        Correct path: :meth:`map_accuracy`'s incremental count. Wrong path (rare): a whole warp
+        of the own map, cached on its version."""
+        if not self.held:
+            raise ConfigError("TruthMonitor.held_free needs held=True (coverage_mode='held')")
+        if not self.holds_wrong(self.agents[i], transforms):
+            n = self.map_accuracy(i)[1]
+            assert n is not None  # held
+            return n
+        own = self.sim.maps[i]
+        cached = self._own_held.get(i)
+        if cached is not None and cached[0] == own.version:
+            return cached[1]
+        warped = self.scorer.warp(own.to_int8(), self.sim.world_from_map(i))
+        n_own = self.scorer.scores(warped, held=True)[1]
+        assert n_own is not None  # held=True
+        self._own_held[i] = (own.version, n_own)
+        return n_own
+
     def map_accuracy(self, i: int) -> tuple[float, int | None]:
         """Robot i's own-or-fused map against the truth: (contradiction share, NaN when the
         map claims nothing inside the world; reachable free cells it marks free at the true
-        place when ``held``, else None). Cached on the fused-map version."""
+        place when ``held``, else None). Cached on the fused-map version. The held coverage
+        credits a robot that holds a wrong transform with its own map only: see
+        :meth:`held_free`."""
         agent = self.agents[i]
         version = self.fusion.fused_version(agent)
         cached = self._accuracy.get(i)

@@ -537,7 +537,9 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         if self.config.coverage_mode == "observed" or sim.reachable_cells == 0:
             return sim.coverage()
         assert ep.truth is not None, "coverage_mode='held' needs evaluate=True (EnvConfig)"
-        held = max(ep.truth.map_accuracy(i)[1] or 0 for i in range(self.config.n_robots))
+        # a robot holding a wrong transform is credited with its own map only (held_free)
+        truth = ep.truth
+        held = max(truth.held_free(i, ep.transforms[a]) for i, a in enumerate(self.possible_agents))
         return held / sim.reachable_cells
 
     def _info(self, ep: EpisodeState, agent: AgentID, truncated: bool) -> dict[str, Any]:

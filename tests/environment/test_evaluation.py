@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from typing import Any
+
+import numpy as np
 import pytest
 
 from mrexplore.environment.evaluation import ERROR_REFRESH_STEPS, TruthMonitor
@@ -61,3 +64,97 @@ def test_compiled_merge_errors_equal_the_numpy_path(monkeypatch: pytest.MonkeyPa
                     assert figures[0] is not None
                     checked += 1
     assert checked == 6 * 6 * 2
+
+
+# ---------------------------------------------------------------- held coverage, wrong merges
+# Two identical rooms side by side above a hall, each with its door at the same place: a map
+# of the right room moved 50 columns to the left lies on the left room's true free space.
+TWIN_OFFSET_COLS = 50
+
+
+def _twin_rooms() -> Any:
+    from mrexplore.world.world import World
+
+    walls = np.ones((50, 100), dtype=bool)
+    walls[3:11, 3:97] = False  # the hall
+    for c0 in (5, 5 + TWIN_OFFSET_COLS):
+        walls[14:44, c0 : c0 + 40] = False  # a room, 2 m x 1.5 m
+        walls[11:14, c0 + 15 : c0 + 25] = False  # its door onto the hall
+    return World(walls=walls, resolution_m=0.05, name="twin_rooms")
+
+
+class _FakeFusion:
+    """The fusion stage as TruthMonitor reads it: robot 0's fused map is set by the test
+    (its own map with robot 1's placed by a chosen transform); robot 1 is not merged."""
+
+    def __init__(self, sim: Any) -> None:
+        self.sim = sim
+        self.maps = {"robot_0": sim.maps[0].to_int8(), "robot_1": sim.maps[1].to_int8()}
+        self.version = 0
+
+    def fuse(self, T_01: Any) -> None:
+        from mrexplore.grid import UNKNOWN
+        from mrexplore.truth import map_in_world
+
+        own = self.sim.maps[0].to_int8()
+        placed = map_in_world(self.sim.maps[1].to_int8(), T_01, own.shape)
+        self.maps["robot_0"] = np.where(own == UNKNOWN, placed, own).astype(np.int8)
+        self.version += 1
+
+    def fused(self, agent: str) -> Any:
+        return self.maps[agent]
+
+    def fused_version(self, agent: str) -> int:
+        return self.version
+
+    def fused_change(self, agent: str) -> tuple[int, None]:
+        return self.version, None  # changed anywhere: score it whole
+
+
+def test_held_credits_a_wrongly_merged_robot_with_its_own_map_only() -> None:
+    """Robot 1's map of the right room, merged into robot 0's one room to the left, lands on
+    the left room's free space: its cells would count at their true place. Holding that wrong
+    transform, robot 0 is credited with its own map's free cells only; with the correct
+    transform, with the fused map's (the teammate's room included)."""
+    from typing import cast
+
+    from mrexplore.grid import chain, make_transform
+    from mrexplore.merge.fusion import FusionStage
+    from mrexplore.sensors import LidarConfig
+    from mrexplore.sim import SimConfig, Simulation
+
+    # one short-range scan each, noiseless: robot 0 sees the left part of the left room,
+    # robot 1 the right part of the right room
+    sim = Simulation(_twin_rooms(), 2, SimConfig(lidar=LidarConfig(max_range_m=1.0)))
+    starts = np.array([[0.625, 1.475, 0.0], [(88 + 0.5) * 0.05, 1.475, 0.0]])
+    sim.reset(np.random.default_rng(0), starts=starts)
+    fusion = _FakeFusion(sim)
+    agents = ["robot_0", "robot_1"]
+    monitor = TruthMonitor(agents, sim, cast(FusionStage, fusion), held=True)
+    scorer = monitor.scorer
+
+    def held_of(grid: Any) -> int:
+        return scorer.held_free(scorer.warp(grid, sim.world_from_map(0)))
+
+    own = held_of(sim.maps[0].to_int8())
+    T_true = sim.true_transform(0, 1)
+    T_wrong = chain(make_transform(0.0, -float(TWIN_OFFSET_COLS), 0.0), T_true)
+
+    fusion.fuse(T_wrong)
+    wrong = {"robot_1": T_wrong}
+    assert monitor.holds_wrong("robot_0", wrong)
+    fused_wrong = held_of(fusion.fused("robot_0"))
+    assert fused_wrong > own + 50  # the misplaced cells land on true free space ...
+    assert monitor.map_accuracy(0)[1] == fused_wrong  # ... and the fused map's figure has them
+    assert monitor.held_free(0, wrong) == own  # ... but the held coverage does not
+
+    fusion.fuse(T_true)
+    right = {"robot_1": T_true}
+    assert not monitor.holds_wrong("robot_0", right)
+    fused_right = held_of(fusion.fused("robot_0"))
+    assert fused_right > own + 50  # the teammate's room, at its true place
+    assert monitor.held_free(0, right) == fused_right
+    # unmerged robot 1: its own map, as always
+    assert monitor.held_free(1, {}) == scorer.held_free(
+        scorer.warp(sim.maps[1].to_int8(), sim.world_from_map(1))
+    )

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import mrexplore
+from mrexplore.environment.evaluation import is_wrong_merge
 from mrexplore.experiments.oracle import OracleMerger
 from mrexplore.grid import make_transform
 from mrexplore.merge.common import MergeResult
@@ -94,11 +95,12 @@ def test_a_wrong_transform_is_seen_and_lowers_held_coverage() -> None:
     assert end_r["merge_error_cells"] < 1.0
     assert end_w["merged_wrongly_s"] > 0.0 and end_r["merged_wrongly_s"] == 0.0
     assert end_w["fused_contradiction"] > end_r["fused_contradiction"] + 0.02
-    # Same motion, same own maps: the wrong merge costs held coverage. Not on every step:
-    # misplaced free cells that land on true free space still count, and while one robot
-    # enters a new room a shifted teammate map can by chance cover cells the true union lacks.
+    # Same motion, same own maps: the wrong merge costs held coverage on every merged step
+    # (holding it, each robot is credited with its own map only; the right team with its
+    # fused maps), where misplaced free cells landing on true free space once made up for it.
     held_r = np.array([right[k]["robot_0"]["coverage"] for k in merged])
     held_w = np.array([wrong[k]["robot_0"]["coverage"] for k in merged])
+    assert (held_w < held_r).all()
     assert held_w.mean() < held_r.mean() - 0.01
     assert end_w["coverage"] < end_r["coverage"] - 0.01
 
@@ -128,6 +130,39 @@ def test_held_coverage_is_the_best_robots_correctly_placed_free_space() -> None:
         assert infos["robot_0"]["coverage"] <= penv.sim.coverage() + 1e-9
         done = terms["robot_0"] or truncs["robot_0"]
     assert terms["robot_0"] and infos["robot_0"]["coverage"] >= 0.3
+
+
+def test_held_coverage_credits_a_robot_holding_a_wrong_transform_with_its_own_map() -> None:
+    """Under a wrong merge the held coverage is the best robot's own map (each holds a wrong
+    transform), not its fused map, whose shifted teammate cells partly land on free space."""
+    merger = ShiftedOracle()
+    penv = mrexplore.parallel_env(
+        **{**SMALL, "merger": merger, "coverage_mode": "held", "recheck_every": 10_000}
+    )
+    merger.bind(penv)
+    penv.reset(seed=0)
+    assert penv.episode is not None and penv.episode.truth is not None and penv.sim is not None
+    truth, sim = penv.episode.truth, penv.sim
+    scorer = MapScorer(penv.world.walls, sim.reachable)
+    rng = np.random.default_rng(5)
+    wrong_steps = fused_more = 0
+    for _ in range(60):
+        acts = {a: int(rng.choice(4, p=[0.7, 0.15, 0.15, 0.0])) for a in penv.agents}
+        _, _, _, _, infos = penv.step(acts)
+        expect, fused_held = 0, 0
+        for k, a in enumerate(penv.possible_agents):
+            T = sim.world_from_map(k)
+            err = truth.merge_error(a, penv.episode.transforms[a])
+            wrong = err is not None and is_wrong_merge(err)
+            fused = scorer.held_free(scorer.warp(penv.fusion.fused(a), T))
+            own = scorer.held_free(scorer.warp(sim.maps[k].to_int8(), T))
+            expect = max(expect, own if wrong else fused)
+            fused_held = max(fused_held, fused)
+            wrong_steps += wrong
+        assert infos["robot_0"]["coverage"] == pytest.approx(expect / sim.reachable_cells)
+        fused_more += fused_held > expect
+    assert wrong_steps > 50  # the oracle merges (wrongly) at once
+    assert fused_more > 10  # steps on which the fused maps' misplaced cells would have counted
 
 
 @pytest.mark.parametrize("coverage_mode", ["observed", "held"])

@@ -1,4 +1,5 @@
-"""The ``mrexplore`` command: ``demo | merge | task-time | bench | train | evaluate | imitate``."""
+"""The ``mrexplore`` command: ``demo | merge | task-time | world | bench | train | evaluate |
+imitate``."""
 
 from __future__ import annotations
 
@@ -40,6 +41,14 @@ def _task_time(args: argparse.Namespace) -> int:
         address=args.address,
     )
     return 0
+
+
+def _world_check(args: argparse.Namespace) -> int:
+    from mrexplore.world.check import check_map
+
+    found = check_map(args.map, radius_m=args.radius_m, max_range_m=args.max_range_m)
+    print(found.report())
+    return 0 if found.ok else 1
 
 
 def _merge(argv: Sequence[str]) -> int:
@@ -207,6 +216,29 @@ def build_parser() -> argparse.ArgumentParser:
         "--head`) and run the episodes there",
     )
 
+    w = sub.add_parser(
+        "world",
+        help="check a map before running on it: mrexplore world check MAP.yaml",
+        description="Tools for worlds (map_server YAML + PGM/PNG).",
+    )
+    wsub = w.add_subparsers(dest="world_command", required=True)
+    wc = wsub.add_parser(
+        "check",
+        help="report size, reachable area, disconnected parts, walls, resolution",
+        description="Report a map's size (cells and metres), resolution, the free area the "
+        "robots reach from the largest free component, the free parts they never reach, "
+        "whether it has walls, and whether the resolution is too coarse for the robot and its "
+        "lidar (the env's defaults unless given). Exit code 0 when usable, 1 with the "
+        "problems named otherwise.",
+    )
+    wc.add_argument("map", help="the map_server YAML")
+    wc.add_argument(
+        "--radius-m", type=float, default=None, help="robot radius (default: the env's, 0.15)"
+    )
+    wc.add_argument(
+        "--max-range-m", type=float, default=None, help="lidar range (default: the env's, 4.0)"
+    )
+
     for name, helptext in (
         ("merge", "merge two map_server maps: mrexplore merge a.yaml b.yaml -o merged.yaml"),
         ("bench", "benchmarks: mrexplore bench {merge,loop,env,sensor,policies,wrappers}"),
@@ -236,6 +268,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _demo(args)
         if args.command == "task-time":
             return _task_time(args)
+        if args.command == "world":
+            return _world_check(args)
     except (MrexploreError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
         print(f"mrexplore: error: {exc}", file=sys.stderr)
         return 2

@@ -359,6 +359,18 @@ def _ray_results(
             ray.shutdown()
 
 
+def _warn_map(world: Any, options: Mapping[str, Any]) -> None:
+    """Print ``mrexplore world check``'s problems and notes when ``world`` is a map file."""
+    if not isinstance(world, (str, Path)) or Path(world).suffix.lower() not in (".yaml", ".yml"):
+        return
+    if not Path(world).is_file():
+        return  # the env names the missing file
+    from mrexplore.world.check import warn_map
+
+    for line in warn_map(world, options.get("radius_m"), options.get("max_range_m")):
+        print(f"task-time: {world}: {line}")
+
+
 def run_task_time(
     world: str = "symmetric_office",
     seeds: int = 20,
@@ -417,6 +429,7 @@ def run_task_time(
             "1 and 2, the tasks of --tasks, exploration timed under both coverage modes)"
         )
     base = {"world": world, **dict(env_options or {})}
+    _warn_map(world, base)
     if Path(policy).is_dir():
         from mrexplore.experiments.trained import observation_options
 

@@ -1,6 +1,6 @@
 """Occupancy-grid cell values, checks and 2-D homogeneous transforms: the one place for them.
 
-Conventions (see README, "Conventions"):
+Conventions (``docs/guide/environment.md``, "Conventions"):
 
 * Public maps are ``int8`` arrays in the ROS ``nav_msgs/OccupancyGrid`` convention:
   ``UNKNOWN = -1``, ``FREE = 0``, ``OCCUPIED = 100``; values in between are occupancy

@@ -4,8 +4,6 @@ GIF/MP4 writing.
 The viewer reads a snapshot the env hands it (as jumanji's ``Viewer.render(state)``), never
 the env itself, so it cannot change the episode. A snapshot shares the env's arrays: draw it
 before the next step (or copy its maps to keep it).
-
-Size: frame geometry, panels, the legend and the window; one viewer, read top to bottom.
 """
 
 from __future__ import annotations

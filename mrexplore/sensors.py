@@ -8,9 +8,6 @@ while :func:`mrexplore.kernels.enabled`, the default) and the vectorised numpy t
 path with the kernels off, and an oracle of the tests). They evaluate the same float64
 formulas, so they agree to the bit with ``Lidar.dtype = numpy.float64``;
 :func:`cast_ray_reference` (one ray, cell by cell) is the slow, obvious oracle of both.
-
-Size: the lidar's two paths (compiled and numpy) and the one-ray reference stay side by
-side, since the tests hold each to the others.
 """
 
 from __future__ import annotations

@@ -13,9 +13,6 @@ Two families:
 
 Every case carries ``T_ab`` (b's cells -> a's cells, truth) and ``overlap``: the share of b's
 known cells that land on a's known cells under the truth.
-
-Size: the case families share their crop, rotation and noise helpers, and the tests build
-their inputs from the same functions.
 """
 
 from __future__ import annotations

@@ -17,9 +17,6 @@ Until the observed target is reached the episode is the one an ``observed`` env 
 coverage mode is evaluation only: nothing of it reaches a robot). Wrong merges (a transform
 >= 5 cells off the truth beyond drift, :mod:`mrexplore.environment.evaluation`) are counted over
 the whole episode and shown in the table, CSV, JSON and plot.
-
-Size: the experiment (serial or on Ray), its table, CSV, JSON and plot in one place, so the
-paper's figure regenerates from one command.
 """
 
 from __future__ import annotations

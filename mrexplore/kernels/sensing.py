@@ -21,8 +21,8 @@ All kernels are ``cache=True`` (compiled once per machine into ``__pycache__``) 
 The first call in a fresh environment compiles them (a few seconds); :func:`warm_up` does it on
 tiny inputs.
 
-Size: the cast, the map update and the motion share ``_family`` and its float formulas,
-which numba inlines only within one module.
+One module for the cast, the map update and the motion: they share ``_family`` and its float
+formulas, which numba inlines only within one module.
 """
 
 from __future__ import annotations

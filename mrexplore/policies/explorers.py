@@ -44,9 +44,6 @@ The machine (per robot, every step):
 4. Follow the path with :func:`~mrexplore.policies.base.follow_path`; after a FORWARD that
    did not move the robot, turn towards the waypoint's side rather than push again
    (``slide_on_bump``).
-
-Size: one per-robot machine (plan, follow, re-plan, recover) and the three choosers that
-share it; the candidate extraction is in :mod:`~mrexplore.policies.frontier_cells`.
 """
 
 from __future__ import annotations
@@ -717,7 +714,8 @@ class CoordinatedFrontierPolicy(TeamPolicy):
             frontier whose surroundings the teammate has mapped under one of the merger's
             candidate transforms (:func:`verification_value` x this; 0: off, the default).
             Going there gives the merger the evidence that confirms or rules out a candidate
-            (active disambiguation; ``docs/merging.md``, item 25).
+            (active disambiguation; ``docs/merging.md``, "Going where the merger's candidates can
+            be told apart").
         **options: :class:`FrontierExplorer` options for every robot.
 
     Robots are handled in sorted name order ("in turn"); a robot that re-plans sees the current

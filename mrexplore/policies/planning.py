@@ -22,9 +22,6 @@ Pipeline (all vectorised numpy/OpenCV):
 5. **Paths** by descending the field from the goal (:meth:`PlanningGrid.path_to`).
 
 Distances returned by :class:`PlanningGrid` are in metres; cells are ``(col, row)`` in the map.
-
-Size: the planning grid and its two distance fields (the compiled Dijkstra and the numpy
-scan it is tested against) stay together.
 """
 
 from __future__ import annotations

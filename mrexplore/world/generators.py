@@ -24,9 +24,6 @@ floor is then checked (:func:`unreachable_free_cells`); a failed floor is redraw
 
 All sizes are metres; grids are ``walls[row, col]`` with row 0 the lowest y. Room boxes in
 ``World.meta`` are ``(col, row, w, h)`` in cells *including* the room's walls.
-
-Size: two generators that share one toolkit (room templates, corridors, doors, furniture,
-reachability checks); split, each would import the other's half.
 """
 
 from __future__ import annotations

@@ -29,11 +29,12 @@ SB3's ``VecEnv`` contract, as implemented here:
   ``multiprocessing.Pipe``, like SB3's ``SubprocVecEnv``; the factories are cloudpickled).
 
 Why not SuperSuit: it is the usual PettingZoo -> SB3 bridge and it works with our env (3.11,
-``num_cpus`` 0 and 2 tried here; the README has a tested recipe), but it calls itself
-semi-maintained, its SB3 wrapper cannot be seeded the SB3 way (``seed()`` and ``reset(seed=)``
-raise ``AttributeError``), and its tutorial's order (seed, then ``concat_vec_envs_v1``) gives
-every copy the same random stream. This adapter is small, has no dependency beyond SB3, seeds
-copy ``k`` with ``seed + k``, and is tested against SB3's ``VecEnv`` contract here.
+``num_cpus`` 0 and 2 tried here; ``docs/guide/training.md`` has a tested recipe), but it calls
+itself semi-maintained, its SB3 wrapper cannot be seeded the SB3 way (``seed()`` and
+``reset(seed=)`` raise ``AttributeError``), and its tutorial's order (seed, then
+``concat_vec_envs_v1``) gives every copy the same random stream. This adapter is small, has no
+dependency beyond SB3, seeds copy ``k`` with ``seed + k``, and is tested against SB3's ``VecEnv``
+contract here.
 
 Bad input: agents with different observation or action spaces (one policy cannot serve them), or
 copies whose spaces differ, raise :class:`~mrexplore.errors.ConfigError` at construction.

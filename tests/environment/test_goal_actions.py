@@ -257,7 +257,7 @@ def test_a_robot_on_turn_sees_the_targets_chosen_before_it() -> None:
     """Once merged, robot_1's claim features at its turn hold robot_0's new target (Burgard's
     turn-taking), not the one robot_0 had before the decision."""
     env = _goal_env(goal_turns=1, max_time_s=120.0)
-    obs, _ = env.reset(seed=5)  # merged from 12 s on (seeds 1-3 never merge in small_office)
+    obs, _ = env.reset(seed=11)  # merges in small_office (not every seed does)
     seen = 0
     while env.agents and seen < 3:
         before = env.executors["robot_0"].target

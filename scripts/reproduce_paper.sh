@@ -175,6 +175,14 @@ other_steps() {
   mrexplore bench loop --family office_row --part test --worlds 20 --seeds 5 --variants semantic \
     --merge-options place_test=false,min_common_m2=20,room_match_m2=20 --jobs 2 \
     --out "$out/loop_office_row_test_before" --force
+  # what else the robots know: sightings (a rendezvous) beside the merger, on the same episodes
+  mrexplore bench loop --family paper_like --part test --worlds 20 --seeds 5 \
+    --variants semantic sighting --jobs 2 --out "$out/loop_paper_like_test_sighting" --force
+  mrexplore bench loop --family office_row --part test --worlds 20 --seeds 5 \
+    --variants semantic sighting --jobs 2 --out "$out/loop_office_row_test_sighting" --force
+  # the four fixed worlds with the place test, beside the room oracle
+  mrexplore bench loop --seeds 20 --variants semantic oracle_room --jobs 2 \
+    --out "$out/loop_fixed_worlds" --force
   mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --out "$out" --force
   mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --tasks navigate \
     --nav-goal teammate --out "$out/nav_teammate" --force

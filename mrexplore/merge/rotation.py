@@ -133,7 +133,7 @@ def hough_pool(shape_a: tuple[int, int], shape_b: tuple[int, int], max_cells: in
     """The pooling factor of :func:`segment_histogram` for two maps: 2 when the larger one has
     more than ``max_cells`` cells, else 1 (``max_cells`` 0: always 1). Never more than 2: walls
     pooled 3 x 3 put a 1000-cell floor's candidate 0.2 degrees off, and its merge was lost
-    (docs/merging.md, item 13).
+    (docs/merging.md, "Speed, and large maps").
 
     >>> hough_pool((500, 500), (400, 600), 409_600), hough_pool((1000, 1000), (10, 10), 409_600)
     (1, 2)

@@ -1060,7 +1060,7 @@ def _rule_unique(j: _Judged) -> str | None:
     is beaten by ``min_margin`` in index and ``min_evidence_cells`` more contradicting wall
     cells, or ruled out by one object the maps show (a notch, a post:
     ``min_evidence_cells`` wall cells in one group), while noise contradicts in scattered
-    cells (docs/merging.md, item 24)."""
+    cells (docs/merging.md, "A rival ruled out by one object")."""
     o, best = j.o, j.best
     if not j.rivals:
         return None

@@ -248,7 +248,8 @@ class MapMergeTracker:
         recheck_min_run_cells: in that agreement, contradicting cells count only in 8-connected
             groups of at least this many (default 5: the semantic merger's ``min_run_cells``;
             a wall laid across open space, not speckle). Slack 0 and runs of 1: a drop judges
-            the raw acceptance index (why not: ``docs/merging.md``, item 12).
+            the raw acceptance index (why not: ``docs/merging.md``, "The re-check judges a
+            kept transform as acceptance judged it").
         relocate_tol_cells: a re-check that finds the kept transform contradicted keeps the
             pair merged, with the merger's new transform, when the merger accepts one whose
             placement of b's known box is within this many cells of the kept one's (default
@@ -265,7 +266,8 @@ class MapMergeTracker:
             ``drift_slack_cells`` (default 6, 0.3 m at 0.05 m) beyond the tolerance taken as one
             wall, is at least ``drift_keep_above`` (default 0.9): odometry drift displaces
             walls by that much over a long episode, while a look-alike place lays walls across
-            open space (measurements: ``docs/merging.md``, item 18). 0 cells = off.
+            open space (measurements: ``docs/merging.md``, "A merge that drift has bent is
+            kept"). 0 cells = off.
         prior_radius_cells, prior_turn_deg: the region around a sighting's guess (``update``'s
             ``sightings``) in which a guided attempt looks: poses that put the centre of j's
             walls within this many cells of where the guess puts it, turned by at most this
@@ -291,8 +293,8 @@ class MapMergeTracker:
             instead of breaking it (it does not extend the run). A rival it reported is
             remembered and must be ruled out before the run can end in a merge
             (``rival_memory``). Default False: every refusal breaks the run (measured in
-            ``docs/merging.md``, item 20). Semantic merger only (it reports whether its best
-            pose was consistent).
+            ``docs/merging.md``, "Where the first merge waits"). Semantic merger only (it
+            reports whether its best pose was consistent).
         merge_latency_steps: an attempt or re-check started at step t is applied at step
             t + this, computed meanwhile in a worker thread on copies of the maps, so no step
             waits for the merger (default 0: computed and applied in the step that starts it).

@@ -126,15 +126,15 @@ def guide(case: MergeCase) -> Any:
 
 def _refused_best_error(case: MergeCase, res: Any) -> float | None:
     """For a refusal: how far (cells, as :func:`classify` measures) the pose the merger judged
-    and refused (``info["best_transform"]``) lies from the truth; None when it judged none.
+    and refused (``evidence.best``) lies from the truth; None when it judged none.
 
     A refusal whose judged pose was the truth is one where the search found the truth and a
     rule held it back (rightly, when a rival explains the maps as well); one whose judged pose
     lay elsewhere refused a wrong pose. Evaluation only: the truth never reaches the merger."""
-    best = res.info.get("best_transform") if isinstance(res.info, dict) else None
-    if best is None:
+    ev = getattr(res, "evidence", None)
+    if ev is None or ev.best is None:
         return None
-    _, err = classify(case, True, np.asarray(best, dtype=np.float64))
+    _, err = classify(case, True, np.asarray(ev.best.transform, dtype=np.float64))
     return round(err, 2) if np.isfinite(err) else None
 
 

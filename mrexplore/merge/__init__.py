@@ -1,15 +1,25 @@
 """Map merging: fuse two robots' occupancy grids whose relative pose is unknown.
 
-- :func:`merge_maps` (``method="semantic" | "paper" | "orb"``) -> :class:`MergeResult`;
+- :func:`merge_maps` (``method="semantic" | "paper" | "orb"``) -> :class:`MergeResult`, whose
+  :class:`MergeEvidence` (semantic) holds the poses the merger weighed;
 - :class:`MapMergeTracker`: every-step use for N robots (attempts, keeps, re-checks, fuses);
 - :func:`window_size`: the seed paper's Eq. (5);
 - :class:`PosePrior`: a rough guess of the relative pose, for maps of look-alike places.
 """
 
 from mrexplore.merge.api import METHODS, merge_maps
-from mrexplore.merge.common import MergeResult
+from mrexplore.merge.common import MergeEvidence, MergeResult, WeighedPose
 from mrexplore.merge.paper import window_size
 from mrexplore.merge.semantic import PosePrior
 from mrexplore.merge.tracker import MapMergeTracker
 
-__all__ = ["METHODS", "MapMergeTracker", "MergeResult", "PosePrior", "merge_maps", "window_size"]
+__all__ = [
+    "METHODS",
+    "MapMergeTracker",
+    "MergeEvidence",
+    "MergeResult",
+    "PosePrior",
+    "WeighedPose",
+    "merge_maps",
+    "window_size",
+]

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import cv2
 import numpy as np
@@ -77,7 +77,11 @@ class MergeResult:
         matches: (K, 4) float64 point pairs ``(col_a, row_a, col_b, row_b)`` that support the
             result (keypoint matches, or wall points for the semantic method), for figures.
         overlap_cells: number of cells known in both maps under the transform.
-        info: method-specific extras (e.g. the candidate rotations), for debugging.
+        info: method-specific extras (e.g. the candidate rotations), for debugging: free-form,
+            for people and figures; code that decides reads :attr:`evidence`.
+        evidence: what the semantic merger weighed, accepted or refused (its best pose, whether
+            that pose was consistent with the maps, its rivals): the typed facts the every-step
+            tracker decides on (:class:`MergeEvidence`). None for the other methods.
     """
 
     matched: bool
@@ -94,6 +98,7 @@ class MergeResult:
     matches: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 4)))
     overlap_cells: int = 0
     info: dict[str, Any] = field(default_factory=dict)
+    evidence: MergeEvidence | None = None
 
     @classmethod
     def refused(
@@ -316,6 +321,44 @@ class Agreement:
         """Acceptance index in [0, 1]; 0 when nothing overlaps."""
         n = self.agree + self.disagree
         return self.agree / n if n else 0.0
+
+
+class WeighedPose(NamedTuple):
+    """A pose the merger judged: ``transform`` (3x3 float64 ``T_ab``, b's cells -> a's, full
+    maps) and its :class:`Agreement` (the verifier's counts, sampled wall cells)."""
+
+    transform: Transform
+    agreement: Agreement
+
+
+@dataclass(frozen=True, eq=False)
+class MergeEvidence:
+    """What the semantic merger weighed in one call, accepted or refused: the facts a caller
+    that merges over time (:class:`~mrexplore.merge.MapMergeTracker`) decides on, typed.
+
+    A call refused before it judged any pose (a map all unknown, too few walls, no hypothesis)
+    carries ``best=None``, ``consistency=None``, ``consistent=False`` and no rivals.
+
+    Attributes:
+        best: the best pose and its raw agreement (the pose the rules judged; also when
+            refused), or None.
+        consistency: the best pose's noise-aware agreement (walls within the merger's
+            ``slack_cells`` agree, contradictions in runs under ``min_run_cells`` do not count),
+            in [0, 1]; None when no pose was judged.
+        consistent: ``consistency`` reached the merger's ``min_score``: the maps do not
+            contradict the best pose beyond their noise (a refusal with it True was refused for
+            uniqueness, pinning, shared space or a look-alike rule, not for contradiction).
+        rivals: poses far from the best that explain a comparable part of the maps, with their
+            agreements, in the order the merger judged them (a repeat's moved pose last).
+        hypotheses: every ranked hypothesis with its agreement, most evidence first (before a
+            consistency polish moved the best).
+    """
+
+    best: WeighedPose | None = None
+    consistency: float | None = None
+    consistent: bool = False
+    rivals: tuple[WeighedPose, ...] = ()
+    hypotheses: tuple[WeighedPose, ...] = ()
 
 
 def _sample(

@@ -47,7 +47,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import cv2
@@ -66,8 +66,10 @@ from mrexplore.merge.coarse import CoarseMatcher
 from mrexplore.merge.common import (
     Agreement,
     MapCodes,
+    MergeEvidence,
     MergeResult,
     Verifier,
+    WeighedPose,
     chain,
     detector_check,
     known_bbox,
@@ -623,6 +625,7 @@ def merge_semantic(
     o = SemanticOptions.from_kwargs(**options)
     info: dict[str, Any] = {}
     detector = (o.detector or "harris") if o.paper_candidates else None
+    judged: _Judged | None = None
     try:
         pair = _Pair.of(a, b, o)
         found = _search(pair, o, info, [*extra_hypotheses], prior)
@@ -639,6 +642,7 @@ def merge_semantic(
             detector=detector,
             score=refusal.score,
             info=info,
+            evidence=MergeEvidence() if judged is None else judged.evidence(),
             **refusal.fields,
         )
     return _accepted(a, b, pair, judged, detector, t0)
@@ -907,8 +911,22 @@ class _Judged:
     consistency: float
     rivals: list[_Hypothesis]
     common: dict[str, Any]  # the figures every refusal from here on carries
+    # what the result's evidence reports (full-map poses): every ranked hypothesis, and the
+    # rivals (the rules may add one: a repeat's moved pose)
+    hypotheses: tuple[WeighedPose, ...] = ()
+    rival_poses: list[WeighedPose] = field(default_factory=list)
     _structures_b: Structures | None = None
     _by_structure: ByStructure | None = None
+
+    def evidence(self) -> MergeEvidence:
+        """The typed facts of this judgement (:attr:`MergeResult.evidence`)."""
+        return MergeEvidence(
+            best=WeighedPose(self.T_full, self.agreement),
+            consistency=self.consistency,
+            consistent=bool(self.consistency >= self.o.min_score),
+            rivals=tuple(self.rival_poses),
+            hypotheses=self.hypotheses,
+        )
 
     @property
     def agreement(self) -> Agreement:
@@ -969,7 +987,11 @@ def _judge(pair: _Pair, found: _Found, o: SemanticOptions, info: dict[str, Any])
     chosen = found.chosen
     _credit_shared_space(chosen, pair, o)  # their poses moved in the refinement: count again
     chosen.sort(key=lambda h: -h.evidence)
-    info["hypotheses"] = [(pair.to_full(h.T), h.agreement) for h in chosen]
+    hypotheses = []
+    for h in chosen:
+        assert h.agreement is not None
+        hypotheses.append(WeighedPose(pair.to_full(h.T), h.agreement))
+    info["hypotheses"] = [tuple(p) for p in hypotheses]
     best = chosen[0]
     assert best.agreement is not None
     verify = pair.verify
@@ -1025,8 +1047,12 @@ def _judge(pair: _Pair, found: _Found, o: SemanticOptions, info: dict[str, Any])
     ]
     rivals.sort(key=lambda h: not _perfect(h, verify, o))  # a perfect rival is judged (stable)
     # every rival's pose (b's cells -> a's), for a caller that weighs them over time (the tracker)
-    info["rivals"] = [pair.to_full(h.T) for h in rivals]
-    info["rival_agreements"] = [h.agreement for h in rivals]
+    rival_poses = []
+    for h in rivals:
+        assert h.agreement is not None
+        rival_poses.append(WeighedPose(pair.to_full(h.T), h.agreement))
+    info["rivals"] = [p.transform for p in rival_poses]
+    info["rival_agreements"] = [p.agreement for p in rival_poses]
     info["best_agreement"] = best.agreement
     info["runner_up_agreement"] = rivals[0].agreement if rivals else None
     T_full = pair.to_full(best.T)
@@ -1039,7 +1065,19 @@ def _judge(pair: _Pair, found: _Found, o: SemanticOptions, info: dict[str, Any])
         runner_up_score=rivals[0].score if rivals else None,
         overlap_cells=int(best.agreement.overlap * verify.cells_per_sample),
     )
-    return _Judged(pair, found, o, info, best, T_full, best_consistency, rivals, common)
+    return _Judged(
+        pair,
+        found,
+        o,
+        info,
+        best,
+        T_full,
+        best_consistency,
+        rivals,
+        common,
+        hypotheses=tuple(hypotheses),
+        rival_poses=rival_poses,
+    )
 
 
 # --- 5. the decision: each rule returns the reason to refuse, or None; run in this order ---
@@ -1272,8 +1310,10 @@ def _rule_repeats(j: _Judged) -> str | None:
             )
         ):
             continue
-        j.info["rivals"].append(pair.to_full(h.T))
-        j.info["rival_agreements"].append(h.agreement)
+        moved = WeighedPose(pair.to_full(h.T), h.agreement)
+        j.rival_poses.append(moved)
+        j.info["rivals"].append(moved.transform)
+        j.info["rival_agreements"].append(moved.agreement)
         return (
             f"ambiguous: the maps repeat: best {best.score:.3f} vs {h.score:.3f} for a pose "
             f"{away:.0f} cells away, moved by a repeat of a map "
@@ -1324,5 +1364,6 @@ def _accepted(
         detector=detector,
         matches=matches,
         info=j.info,
+        evidence=j.evidence(),
         **j.common,
     )

@@ -99,6 +99,12 @@ def rival_rule(merger: Any, merge_options: Mapping[str, Any]) -> SemanticOptions
     return SemanticOptions.from_kwargs()
 
 
+def _consistent(res: MergeResult) -> bool:
+    """The merger found its best pose consistent with the maps (refused, if at all, for
+    uniqueness, pinning, shared space or a look-alike rule); False without evidence."""
+    return res.evidence is not None and res.evidence.consistent
+
+
 @dataclass(frozen=True)
 class _Outcome:
     """What a merge attempt or re-check computed (on copies of the maps; applied later)."""
@@ -559,18 +565,24 @@ class MapMergeTracker:
             if T is None and T_old is not None and self.refit_refused and contradicted:
                 refit = self._drift_refit(res, T_old, (ca, ra), (cb, rb), box_j)
             return _Outcome(res, T, old_now, held_now, drift_held, refit=refit)
+        ev = res.evidence
         found = tuple(
-            chain(translation(ca, ra), np.asarray(R, dtype=np.float64), translation(-cb, -rb))
-            for R in res.info.get("rivals", ())
+            chain(
+                translation(ca, ra),
+                np.asarray(R.transform, dtype=np.float64),
+                translation(-cb, -rb),
+            )
+            for R in (() if ev is None else ev.rivals)
         )
         standing = None
         if T is not None and rivals:
             standing = tuple(self._standing(a, b, offsets, T, rivals, box_j))
-        best = res.info.get("best_transform")
         best_T = None
-        if best is not None:
+        if ev is not None and ev.best is not None:
             best_T = chain(
-                translation(ca, ra), np.asarray(best, dtype=np.float64), translation(-cb, -rb)
+                translation(ca, ra),
+                np.asarray(ev.best.transform, dtype=np.float64),
+                translation(-cb, -rb),
             )
         return _Outcome(res, T, old_now, held_now, rivals=found, standing=standing, best=best_T)
 
@@ -586,17 +598,16 @@ class MapMergeTracker:
 
         Odometry drift bends the maps as they grow, so late in an episode no rigid pose of the
         right place reaches the acceptance bar. The place still stands when the merger's best pose
-        (``info["best_transform"]``) lies within ``relocate_tol_cells`` of the kept one, agrees
+        (``evidence.best``) lies within ``relocate_tol_cells`` of the kept one, agrees
         within the maps' noise at least ``drop_below`` (the bar a kept pose is judged by) and
         beats every rival farther than that from the kept pose by the merger's margin in raw
         index. Pure (canvas cells in and out)."""
-        info = res.info
-        best, consistency = info.get("best_transform"), info.get("consistency")
-        agreement = info.get("best_agreement")
-        if best is None or consistency is None or agreement is None:
+        ev = res.evidence
+        if ev is None or ev.best is None or ev.consistency is None:
             return None  # not the semantic merger, or refused before it judged a pose
-        if float(consistency) < self.drop_below:
+        if float(ev.consistency) < self.drop_below:
             return None
+        agreement = ev.best.agreement
 
         def canvas(X: Any) -> Transform:
             return chain(
@@ -605,11 +616,11 @@ class MapMergeTracker:
                 translation(-off_b[0], -off_b[1]),
             )
 
-        T_best = canvas(best)
+        T_best = canvas(ev.best.transform)
         if not self._same(T_old, T_best, box_j, self.relocate_tol_cells):
             return None
         margin = self._rival_rule.min_margin
-        for R, ag in zip(info.get("rivals", ()), info.get("rival_agreements", ()), strict=True):
+        for R, ag in ev.rivals:
             if self._same(T_old, canvas(R), box_j, self.relocate_tol_cells):
                 continue  # the same place, refitted otherwise: no rival
             if agreement.score - ag.score < margin:
@@ -736,9 +747,7 @@ class MapMergeTracker:
             return  # connected meanwhile (through a chain of other pairs)
         pending = self._pending.get((i, j))
         standing = self._remember_rivals(i, j, out)
-        consistent = out.result is not None and (
-            out.T is not None or bool(out.result.info.get("consistent", False))
-        )
+        consistent = out.result is not None and (out.T is not None or _consistent(out.result))
         if consistent and out.best is not None:
             self._best[(i, j)] = out.best
         else:
@@ -755,7 +764,7 @@ class MapMergeTracker:
                 and out.T is None
                 and out.best is not None
                 and out.result is not None
-                and out.result.info.get("consistent", False)  # refused after the consistency test
+                and _consistent(out.result)  # refused after the consistency test
                 and self._same(pending[0], out.best, bbox_j)
             ):
                 # ... but not a refusal that found the pending pose best and consistent again:

@@ -12,7 +12,7 @@ from conftest import two_rooms
 from mrexplore.errors import ConfigError
 from mrexplore.experiments.merge_cases import rotate_map
 from mrexplore.grid import FREE, OCCUPIED, UNKNOWN, invert_transform, transform_angle
-from mrexplore.merge import merge_maps
+from mrexplore.merge import MergeEvidence, merge_maps
 from mrexplore.merge.common import chain, translation
 from mrexplore.merge.rotation import rotation_candidates
 from mrexplore.truth import merge_error
@@ -47,6 +47,45 @@ def test_refuses_look_alike_room(
     assert not res.matched
     assert "ambiguous" in res.reason
     assert res.runner_up_score is not None and res.runner_up_score > 0.9
+
+
+def test_a_refusal_carries_its_evidence(
+    twins: tuple[np.ndarray, list[tuple[int, int, int, int]]], cut: Callable[..., np.ndarray]
+) -> None:
+    """A look-alike refusal reports, typed, the pose it judged, that the pose was consistent
+    (refused for uniqueness, not contradiction) and the rival that made it ambiguous: the
+    facts the tracker weighs over time. ``info`` keeps the same poses for diagnostics."""
+    world, boxes = twins
+    r0, r1, c0, c1 = boxes[1]
+    res = merge_maps(world, cut(world, r0, r1, c0, c1))
+    assert not res.matched and "ambiguous" in res.reason
+    ev = res.evidence
+    assert isinstance(ev, MergeEvidence)
+    assert ev.best is not None and ev.consistency is not None
+    assert ev.consistent and ev.consistency >= 0.97
+    assert ev.rivals and ev.hypotheses
+    assert ev.rivals[0].agreement.score == pytest.approx(res.runner_up_score)
+    np.testing.assert_array_equal(ev.best.transform, res.info["best_transform"])
+    assert [R.transform for R in ev.rivals] == res.info["rivals"]
+    assert ev.best.agreement is res.info["best_agreement"]
+
+
+def test_an_acceptance_carries_its_evidence_and_an_early_refusal_an_empty_one(
+    office_pair: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    """An accepted merge's evidence holds the accepted pose as its best, consistent; a call
+    refused before any pose was judged holds none; the other methods report no evidence."""
+    a, b, _ = office_pair
+    res = merge_maps(a, b)
+    assert res.matched and res.transform is not None and res.evidence is not None
+    assert res.evidence.best is not None and res.evidence.consistent
+    np.testing.assert_array_equal(res.evidence.best.transform, res.transform)
+    assert res.evidence.best.agreement.score == pytest.approx(res.score)
+    empty = merge_maps(a, np.full_like(b, UNKNOWN))
+    assert not empty.matched and empty.evidence is not None
+    assert empty.evidence.best is None and empty.evidence.consistency is None
+    assert not empty.evidence.consistent and empty.evidence.rivals == ()
+    assert merge_maps(a, b, method="orb").evidence is None
 
 
 @pytest.mark.parametrize("angle_deg", [0.0, 90.0, 33.0])

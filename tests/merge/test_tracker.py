@@ -14,7 +14,7 @@ from mrexplore.experiments.merge_cases import rotate_map
 from mrexplore.grid import OCCUPIED as OCC
 from mrexplore.grid import UNKNOWN, chain, invert_transform
 from mrexplore.merge import MapMergeTracker, MergeResult
-from mrexplore.merge.common import Agreement, known_bbox, translation
+from mrexplore.merge.common import Agreement, MergeEvidence, WeighedPose, known_bbox, translation
 from mrexplore.truth import merge_error
 
 
@@ -247,8 +247,8 @@ class _Seq:
         if T is None:
             return MergeResult(matched=False, transform=None, score=0.5, reason="scripted refusal")
         if isinstance(T, tuple):
-            info = {"best_transform": T[0], "consistent": T[1]}
-            return MergeResult(False, None, 0.9, reason="scripted refusal", info=info)
+            ev = MergeEvidence(best=WeighedPose(T[0], Agreement(90, 10)), consistent=T[1])
+            return MergeResult(False, None, 0.9, reason="scripted refusal", evidence=ev)
         return MergeResult(matched=True, transform=T, score=0.99)
 
 
@@ -428,9 +428,48 @@ def test_recheck_refits_a_contradicted_transform_the_merger_finds_again_nearby(
         np.testing.assert_allclose(T, T_true @ translation(-6, 0), atol=1e-6)
 
 
+def test_a_callable_merger_without_evidence_merges_and_drops(
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    """A plain function that reports no :class:`MergeEvidence` (a user's own merger): it
+    merges after two agreeing attempts (no best pose kept as a hypothesis, no rival
+    remembered), and a refused re-check of a contradicted transform drops it (no refit:
+    nothing says where the merger's best pose was)."""
+    ca, cb, T_true = robots
+    T_crop = _in_crops(ca, cb, T_true)
+    answers = [T_crop, None, T_crop, T_crop]
+
+    def merge(a: np.ndarray, b: np.ndarray) -> MergeResult:
+        T = answers.pop(0) if answers else None
+        if T is None:
+            return MergeResult(False, None, 0.5, reason="scripted refusal")
+        return MergeResult(True, T, 0.99, overlap_cells=500)
+
+    tr = MapMergeTracker(
+        2,
+        merger=merge,
+        merge_every=1,
+        recheck_every=5,
+        confirmations=2,
+        retry_growth=0.0,
+        drift_slack_cells=0,  # a 6-cell shift is not kept as drift here
+    )
+    for step in range(3):  # accept, refuse (breaks the run), accept: one pending
+        tr.update([ca, cb], step=step)
+        assert not tr.merged(0)
+        assert tr.hypotheses(0, 1) == []
+    tr.update([ca, cb], step=3)
+    assert tr.merged(0)
+    moved = np.full_like(cb, UNKNOWN)
+    moved[:, 6:] = cb[:, :-6]  # contradicts the kept transform; the merger now refuses
+    for step in range(4, 11):
+        tr.update([ca, moved], step=step)
+    assert not tr.merged(0) and len(tr.drops) == 1
+
+
 class _RefusesWithBest:
     """A first answer accepting ``T0``; then refusals that report a best pose, its noise-aware
-    consistency and rivals, as the semantic merger's ``info`` does (crop cells)."""
+    consistency and rivals, as the semantic merger's ``evidence`` does (crop cells)."""
 
     def __init__(
         self,
@@ -446,17 +485,17 @@ class _RefusesWithBest:
         self.calls += 1
         if self.calls == 1:
             return MergeResult(matched=True, transform=self.T0, score=0.99)
-        info = {
-            "best_transform": self.best,
-            "consistency": self.consistency,
-            "best_agreement": Agreement(80, 20),  # raw index 0.80
-            "rivals": [R for R, _ in self.rivals],
-            "rival_agreements": [
-                Agreement(round(100 * s), 100 - round(100 * s)) for _, s in self.rivals
-            ],
-        }
+        ev = MergeEvidence(
+            best=WeighedPose(self.best, Agreement(80, 20)),  # raw index 0.80
+            consistency=self.consistency,
+            consistent=self.consistency >= 0.95,
+            rivals=tuple(
+                WeighedPose(R, Agreement(round(100 * s), 100 - round(100 * s)))
+                for R, s in self.rivals
+            ),
+        )
         return MergeResult(
-            matched=False, transform=None, score=0.8, reason="scripted refusal", info=info
+            matched=False, transform=None, score=0.8, reason="scripted refusal", evidence=ev
         )
 
 
@@ -675,10 +714,10 @@ class _WithRivals:
     def merge(self, a: np.ndarray, b: np.ndarray) -> MergeResult:
         T, rivals = self.answers[min(self.calls, len(self.answers) - 1)]
         self.calls += 1
-        info = {"rivals": rivals}
+        ev = MergeEvidence(rivals=tuple(WeighedPose(R, Agreement(90, 10)) for R in rivals))
         if T is None:
-            return MergeResult(False, None, 0.9, reason="scripted: ambiguous", info=info)
-        return MergeResult(True, T, 0.99, overlap_cells=500, info=info)
+            return MergeResult(False, None, 0.9, reason="scripted: ambiguous", evidence=ev)
+        return MergeResult(True, T, 0.99, overlap_cells=500, evidence=ev)
 
 
 @pytest.mark.parametrize(("memory", "merged"), [(8, False), (0, True)])
@@ -747,7 +786,8 @@ def test_a_remembered_rival_ruled_out_by_one_object_does_not_stand() -> None:
     # (one office of the real map: the place test would wait for a second place to agree)
     res = merge_maps(case.a, case.b, resolution_m=case.resolution_m, place_test=False)
     assert res.matched and res.transform is not None
-    rival = res.info["rivals"][0]
+    assert res.evidence is not None
+    rival = res.evidence.rivals[0].transform
     box = known_bbox(case.b)
     assert box is not None
     tr = MapMergeTracker(2)

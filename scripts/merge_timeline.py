@@ -274,7 +274,7 @@ def replay_settings(asked: dict[str, Any], merge_options: dict[str, Any]) -> dic
     # the run's settings: the tracker's, built with the run's options (its defaults otherwise)
     given = {k: merge_options[k] for k in REPLAY_KEYS if k in merge_options}
     tracker = MapMergeTracker(2, **given)
-    run = {k: getattr(tracker, k) for k in REPLAY_KEYS}
+    run = {k: getattr(tracker.options, k) for k in REPLAY_KEYS}
     MapMergeTracker(2, **{**run, **asked})  # the tracker's own checks of the values
     return {"run": run, "replay": {**run, **asked}}
 

@@ -2,7 +2,8 @@
 
 - :func:`merge_maps` (``method="semantic" | "paper" | "orb"``) -> :class:`MergeResult`, whose
   :class:`MergeEvidence` (semantic) holds the poses the merger weighed;
-- :class:`MapMergeTracker`: every-step use for N robots (attempts, keeps, re-checks, fuses);
+- :class:`MapMergeTracker`: every-step use for N robots (attempts, keeps, re-checks, fuses),
+  tuned by :class:`TrackerOptions`;
 - :func:`window_size`: the seed paper's Eq. (5);
 - :class:`PosePrior`: a rough guess of the relative pose, for maps of look-alike places.
 """
@@ -11,7 +12,7 @@ from mrexplore.merge.api import METHODS, merge_maps
 from mrexplore.merge.common import MergeEvidence, MergeResult, WeighedPose
 from mrexplore.merge.paper import window_size
 from mrexplore.merge.semantic import PosePrior
-from mrexplore.merge.tracker import MapMergeTracker
+from mrexplore.merge.tracker import MapMergeTracker, TrackerOptions
 
 __all__ = [
     "METHODS",
@@ -19,6 +20,7 @@ __all__ = [
     "MergeEvidence",
     "MergeResult",
     "PosePrior",
+    "TrackerOptions",
     "WeighedPose",
     "merge_maps",
     "window_size",

@@ -49,6 +49,11 @@ IN_LOOP_SEMANTIC_OPTIONS: dict[str, Any] = {
 }
 
 
+def semantic_named(merger: Any) -> bool:
+    """Is ``merger`` the named semantic method (whose in-loop settings apply)?"""
+    return isinstance(merger, str) and merger.lower() == "semantic"
+
+
 class FusionStage:
     """Runs a :class:`~mrexplore.merge.MapMergeTracker` over named agents.
 
@@ -92,25 +97,28 @@ class FusionStage:
         self._seen: dict[str, tuple[tuple[str, Any], int]] = {}
         self.tracker: Any = None
         if self.enabled:
-            from mrexplore.merge.tracker import MapMergeTracker
+            from mrexplore.merge.tracker import TRACKER_KEYS, MapMergeTracker, TrackerOptions
 
+            # merge_options (the env's one dict) holds the merger's options and the tracker's
+            # knobs: the knobs, over the stage's schedule, become the tracker's options (taken
+            # out of ``options``), the rest goes to the merger
             options = dict(merge_options or {})
+            schedule = {
+                "min_accept_cells": IN_LOOP_MIN_ACCEPT_CELLS if semantic_named(merger) else 0,
+                "merge_every": merge_every,
+                "recheck_every": recheck_every,
+                "merge_latency_steps": merge_latency_steps,
+            }
+            knobs = {k: options.pop(k) for k in sorted(TRACKER_KEYS & set(options))}
+            tuning = TrackerOptions.from_kwargs(**{**schedule, **knobs})
             if isinstance(merger, str) and merger.lower() == "semantic":
                 # In the loop the maps grow, so asking for a room's worth of shared knowledge
                 # costs seconds, while a one-shot merge has no "later".
                 options = {**IN_LOOP_SEMANTIC_OPTIONS, **options}
                 if resolution_m is not None:
                     options.setdefault("resolution_m", float(resolution_m))
-            semantic = isinstance(merger, str) and merger.lower() == "semantic"
             self.tracker = MapMergeTracker(
-                len(self.agents),
-                merger=merger,
-                min_accept_cells=IN_LOOP_MIN_ACCEPT_CELLS if semantic else 0,
-                merge_every=merge_every,
-                recheck_every=recheck_every,
-                merge_latency_steps=merge_latency_steps,
-                executor=executor,
-                **options,
+                len(self.agents), merger=merger, options=tuning, executor=executor, **options
             )
 
     def reset(self) -> None:

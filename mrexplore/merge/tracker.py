@@ -42,8 +42,8 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor, Future, ThreadPoolExecutor
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, fields
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -73,9 +73,11 @@ from mrexplore.options import (
     MERGE_LATENCY_CHECK,
     RECHECK_EVERY_CHECK,
     RECHECK_EVERY_DEFAULT,
+    Options,
     boolean,
     integer,
     number,
+    option,
     positive,
     validate,
 )
@@ -189,55 +191,13 @@ class _Job:
     outcome: Future[_Outcome] | _Outcome
 
 
-class NamedMerger:
-    """``merge_maps`` with a fixed method and options, as a plain (picklable) callable."""
+@dataclass(frozen=True)
+class TrackerOptions(Options):
+    """The tuning of :class:`MapMergeTracker`: one default and one range each, validated (a
+    bad value is a :class:`~mrexplore.errors.ConfigError` naming it). The in-loop decision
+    rules read these; the rival rule reads the merger's own options (:func:`rival_rule`).
 
-    def __init__(self, method: str, options: dict[str, Any]) -> None:
-        self.method = method
-        self.options = dict(options)
-
-    def __call__(self, a: Int8Grid, b: Int8Grid, **extra: Any) -> MergeResult:
-        return merge_maps(a, b, method=self.method, **{**self.options, **extra})
-
-
-def _resolve_merger(merger: Any, options: dict[str, Any]) -> MergeFn:
-    if isinstance(merger, str):
-        if merger.lower() not in METHODS:
-            raise ConfigError(
-                f"MapMergeTracker: unknown merger {merger!r}; choose one of "
-                f"{tuple(METHODS)} or pass a callable"
-            )
-        method = merger.lower()
-        # Validate the options now (a typo should fail at construction, not 10 steps later):
-        # every method reads all its options before it looks at the maps.
-        probe = np.full((4, 4), -1, dtype=np.int8)
-        merge_maps(probe, probe, method=method, **options)
-
-        return NamedMerger(method, options)
-    if options:
-        raise ConfigError(
-            f"MapMergeTracker: options {sorted(options)} only apply to a named merger, "
-            f"not {merger!r}"
-        )
-    if hasattr(merger, "merge") and callable(merger.merge):
-        return merger.merge  # type: ignore[no-any-return,unused-ignore]
-    if callable(merger):
-        return merger  # type: ignore[no-any-return,unused-ignore]
-    raise ConfigError(
-        "MapMergeTracker: merger must be a method name, a callable or have .merge(), "
-        f"got {merger!r}"
-    )
-
-
-class MapMergeTracker:
-    """Holds N robots' maps, merges pairs over time, and fuses maps every step.
-
-    Args:
-        n_robots: number of robots (>= 1).
-        merger: a method name for :func:`~mrexplore.merge.merge_maps` (default "semantic"), a
-            callable ``(a, b) -> MergeResult`` or an object with ``.merge(a, b)``; an object
-            that also has ``merge_pair(i, j, a, b, offset_a, offset_b)`` (crop offsets
-            ``(col, row)``) is called through that instead (a benchmark oracle needs the ids).
+    Attributes:
         merge_every: try to merge unconnected pairs every this many steps (>= 1).
         recheck_every: re-check accepted transforms every this many steps (0 = never).
         replace_margin: a re-check replaces the kept transform only if its score beats the kept
@@ -306,14 +266,113 @@ class MapMergeTracker:
             waits for the merger (default 0: computed and applied in the step that starts it).
             A fixed delay, not "when ready": the same seed gives the same run on any machine.
             With a delay, at most one attempt or re-check starts per step.
+    """
+
+    owner: ClassVar[str] = "MapMergeTracker"
+    merge_every: int = option(MERGE_EVERY_DEFAULT, MERGE_EVERY_CHECK)
+    recheck_every: int = option(RECHECK_EVERY_DEFAULT, RECHECK_EVERY_CHECK)
+    replace_margin: float = option(0.05, number(0.0, 1.0))
+    confirmations: int = option(2, integer(1))
+    confirm_tol_cells: float = option(2.0, positive)
+    drop_below: float = option(0.85, number(0.0, 1.0))
+    recheck_slack_cells: int = option(2, integer(0, 10))
+    recheck_min_run_cells: int = option(5, integer(1, 1000))
+    relocate_tol_cells: float = option(10.0, number(0.0, 1000.0))
+    refit_refused: bool = option(True, boolean)
+    drift_slack_cells: int = option(6, integer(0, 50))
+    drift_keep_above: float = option(0.9, number(0.0, 1.0))
+    prior_radius_cells: float = option(40.0, positive)
+    prior_turn_deg: float = option(10.0, number(0.0, 180.0, low_open=True))
+    rival_memory: int = option(8, integer(0, 1000))
+    min_accept_cells: int = option(0, integer(0))
+    retry_growth: float = option(0.02, number(0.0, 10.0))
+    confirm_growth: float = option(0.0, number(0.0, 10.0))
+    keep_run_on_refusal: bool = option(False, boolean)
+    merge_latency_steps: int = option(0, MERGE_LATENCY_CHECK)
+
+
+#: The tracker's option names (:class:`TrackerOptions`' fields).
+TRACKER_KEYS: frozenset[str] = frozenset(f.name for f in fields(TrackerOptions))
+
+
+def tracker_options(options: TrackerOptions | None, kwargs: dict[str, Any]) -> TrackerOptions:
+    """The tracker's options: ``options``, or the tracker's knobs among ``kwargs`` (removed
+    from it; the old keyword form, kept for one release); both at once is a ``ConfigError``."""
+    given = {k: kwargs.pop(k) for k in sorted(TRACKER_KEYS & set(kwargs))}
+    if options is None:
+        return TrackerOptions.from_kwargs(**given)
+    if not isinstance(options, TrackerOptions):
+        raise ConfigError(
+            f"MapMergeTracker: options must be a TrackerOptions or None, got {options!r}"
+        )
+    if given:
+        raise ConfigError(
+            f"MapMergeTracker: tracker knobs {sorted(given)} given both as keywords and in "
+            "options=TrackerOptions(...): give them in options only"
+        )
+    return options
+
+
+class NamedMerger:
+    """``merge_maps`` with a fixed method and options, as a plain (picklable) callable."""
+
+    def __init__(self, method: str, options: dict[str, Any]) -> None:
+        self.method = method
+        self.options = dict(options)
+
+    def __call__(self, a: Int8Grid, b: Int8Grid, **extra: Any) -> MergeResult:
+        return merge_maps(a, b, method=self.method, **{**self.options, **extra})
+
+
+def _resolve_merger(merger: Any, options: dict[str, Any]) -> MergeFn:
+    if isinstance(merger, str):
+        if merger.lower() not in METHODS:
+            raise ConfigError(
+                f"MapMergeTracker: unknown merger {merger!r}; choose one of "
+                f"{tuple(METHODS)} or pass a callable"
+            )
+        method = merger.lower()
+        # Validate the options now (a typo should fail at construction, not 10 steps later):
+        # every method reads all its options before it looks at the maps.
+        probe = np.full((4, 4), -1, dtype=np.int8)
+        merge_maps(probe, probe, method=method, **options)
+
+        return NamedMerger(method, options)
+    if options:
+        raise ConfigError(
+            f"MapMergeTracker: options {sorted(options)} only apply to a named merger, "
+            f"not {merger!r}"
+        )
+    if hasattr(merger, "merge") and callable(merger.merge):
+        return merger.merge  # type: ignore[no-any-return,unused-ignore]
+    if callable(merger):
+        return merger  # type: ignore[no-any-return,unused-ignore]
+    raise ConfigError(
+        "MapMergeTracker: merger must be a method name, a callable or have .merge(), "
+        f"got {merger!r}"
+    )
+
+
+class MapMergeTracker:
+    """Holds N robots' maps, merges pairs over time, and fuses maps every step.
+
+    Args:
+        n_robots: number of robots (>= 1).
+        merger: a method name for :func:`~mrexplore.merge.merge_maps` (default "semantic"), a
+            callable ``(a, b) -> MergeResult`` or an object with ``.merge(a, b)``; an object
+            that also has ``merge_pair(i, j, a, b, offset_a, offset_b)`` (crop offsets
+            ``(col, row)``) is called through that instead (a benchmark oracle needs the ids).
+        options: the tracker's tuning (:class:`TrackerOptions`; None: its defaults).
         executor: the worker for delayed attempts (e.g. one single-thread executor shared by
             the trackers of many env copies, :mod:`mrexplore.environment.batched`); the caller
             owns it. Default None: a private single-thread worker made on first use. The
             schedule stays fixed either way, so the run does not depend on the worker.
-        **merge_options: options for the named merger (validated at construction).
+        **merge_options: options for the named merger (validated at construction). For one
+            release, the tracker's own knobs are accepted here too (``merge_every=5``, ...) and
+            routed into :class:`TrackerOptions`; pass ``options=TrackerOptions(...)`` instead.
 
     >>> import numpy as np
-    >>> tr = MapMergeTracker(2)
+    >>> tr = MapMergeTracker(2, options=TrackerOptions(merge_every=5))
     >>> m = np.full((50, 50), -1, dtype=np.int8); m[10:20, 10:20] = 0
     >>> tr.update([m, m], step=0)
     >>> tr.merged(0), tr.fused(0).shape
@@ -324,74 +383,13 @@ class MapMergeTracker:
         self,
         n_robots: int,
         merger: str | Merger | MergeFn | Any = "semantic",
-        merge_every: int = MERGE_EVERY_DEFAULT,
-        recheck_every: int = RECHECK_EVERY_DEFAULT,
-        replace_margin: float = 0.05,
-        confirmations: int = 2,
-        confirm_tol_cells: float = 2.0,
-        drop_below: float = 0.85,
-        recheck_slack_cells: int = 2,
-        recheck_min_run_cells: int = 5,
-        relocate_tol_cells: float = 10.0,
-        refit_refused: bool = True,
-        drift_slack_cells: int = 6,
-        drift_keep_above: float = 0.9,
-        prior_radius_cells: float = 40.0,
-        prior_turn_deg: float = 10.0,
-        rival_memory: int = 8,
-        min_accept_cells: int = 0,
-        retry_growth: float = 0.02,
-        confirm_growth: float = 0.0,
-        keep_run_on_refusal: bool = False,
-        merge_latency_steps: int = 0,
+        options: TrackerOptions | None = None,
         executor: Executor | None = None,
         **merge_options: Any,
     ) -> None:
-        for name, value, check in (
-            ("n_robots", n_robots, integer(1)),
-            ("merge_every", merge_every, MERGE_EVERY_CHECK),
-            ("recheck_every", recheck_every, RECHECK_EVERY_CHECK),
-            ("replace_margin", replace_margin, number(0.0, 1.0)),
-            ("confirmations", confirmations, integer(1)),
-            ("confirm_tol_cells", confirm_tol_cells, positive),
-            ("drop_below", drop_below, number(0.0, 1.0)),
-            ("recheck_slack_cells", recheck_slack_cells, integer(0, 10)),
-            ("recheck_min_run_cells", recheck_min_run_cells, integer(1, 1000)),
-            ("relocate_tol_cells", relocate_tol_cells, number(0.0, 1000.0)),
-            ("refit_refused", refit_refused, boolean),
-            ("drift_slack_cells", drift_slack_cells, integer(0, 50)),
-            ("drift_keep_above", drift_keep_above, number(0.0, 1.0)),
-            ("prior_radius_cells", prior_radius_cells, positive),
-            ("prior_turn_deg", prior_turn_deg, number(0.0, 180.0, low_open=True)),
-            ("rival_memory", rival_memory, integer(0, 1000)),
-            ("min_accept_cells", min_accept_cells, integer(0)),
-            ("retry_growth", retry_growth, number(0.0, 10.0)),
-            ("confirm_growth", confirm_growth, number(0.0, 10.0)),
-            ("keep_run_on_refusal", keep_run_on_refusal, boolean),
-            ("merge_latency_steps", merge_latency_steps, MERGE_LATENCY_CHECK),
-        ):
-            validate("MapMergeTracker", name, value, check)
+        validate("MapMergeTracker", "n_robots", n_robots, integer(1))
         self.n = int(n_robots)
-        self.merge_every = int(merge_every)
-        self.recheck_every = int(recheck_every)
-        self.replace_margin = float(replace_margin)
-        self.confirmations = int(confirmations)
-        self.confirm_tol_cells = float(confirm_tol_cells)
-        self.drop_below = float(drop_below)
-        self.recheck_slack_cells = int(recheck_slack_cells)
-        self.recheck_min_run_cells = int(recheck_min_run_cells)
-        self.relocate_tol_cells = float(relocate_tol_cells)
-        self.refit_refused = bool(refit_refused)
-        self.drift_slack_cells = int(drift_slack_cells)
-        self.drift_keep_above = float(drift_keep_above)
-        self.prior_radius_cells = float(prior_radius_cells)
-        self.prior_turn_deg = float(prior_turn_deg)
-        self.rival_memory = int(rival_memory)
-        self.min_accept_cells = int(min_accept_cells)
-        self.retry_growth = float(retry_growth)
-        self.confirm_growth = float(confirm_growth)
-        self.keep_run_on_refusal = bool(keep_run_on_refusal)
-        self.merge_latency_steps = int(merge_latency_steps)
+        self.options = tracker_options(options, merge_options)
         # made on first use unless given (not pickled: an unpickled tracker makes its own)
         self._pool: Executor | None = executor
         self._jobs: list[_Job] = []
@@ -492,11 +490,11 @@ class MapMergeTracker:
                 if (i, j) not in self._sighted:
                     self._last_attempt_known.pop((i, j), None)
                 self._sighted[(i, j)] = np.asarray(T, dtype=np.float64).copy()
-        if step % self.merge_every == 0:
+        if step % self.options.merge_every == 0:
             self._attempt_merges(step)
-        if self.recheck_every and step % self.recheck_every == 0 and step > 0:
+        if self.options.recheck_every and step % self.options.recheck_every == 0 and step > 0:
             self._recheck(step)
-        if self.merge_latency_steps and self._queue:
+        if self.options.merge_latency_steps and self._queue:
             self._start(*self._queue.pop(0), step)  # at most one per step
 
     def _linked(self, i: int, j: int) -> bool:
@@ -527,14 +525,14 @@ class MapMergeTracker:
             codes_a, codes_b = MapCodes(a), MapCodes(b)  # shared by both verifiers
             old_now = Verifier(codes_a, codes_b)(T_crop).score
             held_now = old_now
-            if self.recheck_slack_cells > 0 or self.recheck_min_run_cells > 1:
-                noisy = Verifier(codes_a, codes_b, slack=self.recheck_slack_cells)
-                held_now = noisy.structured(T_crop, self.recheck_min_run_cells).score
+            if self.options.recheck_slack_cells > 0 or self.options.recheck_min_run_cells > 1:
+                noisy = Verifier(codes_a, codes_b, slack=self.options.recheck_slack_cells)
+                held_now = noisy.structured(T_crop, self.options.recheck_min_run_cells).score
             drift_held = None
-            if held_now < self.drop_below and self.drift_slack_cells > 0:
-                drifted = Verifier(codes_a, codes_b, slack=self.drift_slack_cells)
-                drift_held = drifted.structured(T_crop, self.recheck_min_run_cells).score
-            if held_now < self.drop_below and self.relocate_tol_cells <= 0:
+            if held_now < self.options.drop_below and self.options.drift_slack_cells > 0:
+                drifted = Verifier(codes_a, codes_b, slack=self.options.drift_slack_cells)
+                drift_held = drifted.structured(T_crop, self.options.recheck_min_run_cells).score
+            if held_now < self.options.drop_below and self.options.relocate_tol_cells <= 0:
                 return _Outcome(None, None, old_now, held_now, drift_held)
         # A merger that needs the robots' ids and crop offsets (the benchmark's oracle) says so.
         pair = getattr(self._merger_obj, "merge_pair", None)
@@ -544,13 +542,13 @@ class MapMergeTracker:
             res = pair(i, j, a, b, (ca, ra), (cb, rb))
         elif guess is not None and prior_merge is not None and prior_merge.method == "semantic":
             T_guess = chain(translation(-ca, -ra), guess, translation(cb, rb))
-            prior = PosePrior(T_guess, self.prior_radius_cells, self.prior_turn_deg)
+            prior = PosePrior(T_guess, self.options.prior_radius_cells, self.options.prior_turn_deg)
             # The shared-space floor guards against a look-alike room elsewhere, which the
             # sighting's region already excludes: a guided attempt asks a few square metres.
             res = prior_merge(a, b, prior=prior, min_common_m2=GUIDED_MIN_COMMON_M2)
             # the sighting rules out every place outside its region, remembered rivals too
             # (the region about the centre of j's known box, in canvas cells)
-            region = PosePrior(guess, self.prior_radius_cells, self.prior_turn_deg)
+            region = PosePrior(guess, self.options.prior_radius_cells, self.options.prior_turn_deg)
             centre = np.array([(cb + cb + b.shape[1]) / 2.0, (rb + rb + b.shape[0]) / 2.0])
             rivals = [R for R in rivals if region.admits(R, centre, guess)]
         else:
@@ -561,8 +559,8 @@ class MapMergeTracker:
             T = chain(translation(ca, ra), res.transform, translation(-cb, -rb))
         if kind != "attempt":
             refit = None
-            contradicted = held_now is not None and held_now < self.drop_below
-            if T is None and T_old is not None and self.refit_refused and contradicted:
+            contradicted = held_now is not None and held_now < self.options.drop_below
+            if T is None and T_old is not None and self.options.refit_refused and contradicted:
                 refit = self._drift_refit(res, T_old, (ca, ra), (cb, rb), box_j)
             return _Outcome(res, T, old_now, held_now, drift_held, refit=refit)
         ev = res.evidence
@@ -605,7 +603,7 @@ class MapMergeTracker:
         ev = res.evidence
         if ev is None or ev.best is None or ev.consistency is None:
             return None  # not the semantic merger, or refused before it judged a pose
-        if float(ev.consistency) < self.drop_below:
+        if float(ev.consistency) < self.options.drop_below:
             return None
         agreement = ev.best.agreement
 
@@ -617,11 +615,11 @@ class MapMergeTracker:
             )
 
         T_best = canvas(ev.best.transform)
-        if not self._same(T_old, T_best, box_j, self.relocate_tol_cells):
+        if not self._same(T_old, T_best, box_j, self.options.relocate_tol_cells):
             return None
         margin = self._rival_rule.min_margin
         for R, ag in ev.rivals:
-            if self._same(T_old, canvas(R), box_j, self.relocate_tol_cells):
+            if self._same(T_old, canvas(R), box_j, self.options.relocate_tol_cells):
                 continue  # the same place, refitted otherwise: no rival
             if agreement.score - ag.score < margin:
                 return None  # another place explains the maps about as well
@@ -673,7 +671,7 @@ class MapMergeTracker:
         (a, oa), (b, ob) = ci, cj
         rivals = [R.copy() for R in self._rivals.get((i, j), [])] if kind == "attempt" else []
         guess = self._sighted.get((i, j)) if kind == "attempt" else None
-        if self.merge_latency_steps == 0:
+        if self.options.merge_latency_steps == 0:
             out = self._compute(kind, i, j, a, b, (oa, ob), T_old, rivals, guess)
             self._apply(_Job(kind, i, j, step, self._px.bbox(j), T_old, out))
             return
@@ -683,7 +681,7 @@ class MapMergeTracker:
         fut = self._pool.submit(
             self._compute, kind, i, j, a.copy(), b.copy(), (oa, ob), T_old, rivals, guess
         )
-        due = step + self.merge_latency_steps
+        due = step + self.options.merge_latency_steps
         self._jobs.append(_Job(kind, i, j, due, self._px.bbox(j), T_old, fut))
 
     def _apply_due(self, step: int) -> None:
@@ -700,7 +698,7 @@ class MapMergeTracker:
         if job.kind == "attempt":
             self._decide_attempt(i, j, out, job.bbox_j)
             if self.attempt_observer is not None and out.result is not None:
-                thin = out.result.overlap_cells < self.min_accept_cells
+                thin = out.result.overlap_cells < self.options.min_accept_cells
                 pending = self._pending.get((i, j))
                 self.attempt_observer(
                     AttemptRecord(
@@ -729,13 +727,13 @@ class MapMergeTracker:
                     continue  # its last attempt is still under way
                 known = self._px.known_cells(i) + self._px.known_cells(j)
                 last = self._last_attempt_known.get((i, j))
-                if last is not None and known < last * (1.0 + self.retry_growth):
+                if last is not None and known < last * (1.0 + self.options.retry_growth):
                     # Too little new knowledge since the last attempt: the answer would be the
                     # same (profiled: with random actions, repeated attempts on barely grown
                     # maps were 2/3 of the env's step time).
                     continue
                 self._last_attempt_known[(i, j)] = known
-                if self.merge_latency_steps:
+                if self.options.merge_latency_steps:
                     self._queue.append(("attempt", i, j))
                 else:
                     self._start("attempt", i, j, step)
@@ -752,13 +750,13 @@ class MapMergeTracker:
             self._best[(i, j)] = out.best
         else:
             self._best.pop((i, j), None)
-        thin = out.result is not None and out.result.overlap_cells < self.min_accept_cells
+        thin = out.result is not None and out.result.overlap_cells < self.options.min_accept_cells
         if out.result is None or out.T is None or standing or thin:
             # a refusal breaks the run of agreements; so does a pose a remembered rival, which
             # the maps do not rule out yet, explains as well (an aisle like another aisle), or
             # one resting on too little wall to tell a place from a look-alike
             if (
-                self.keep_run_on_refusal
+                self.options.keep_run_on_refusal
                 and pending is not None
                 and not thin
                 and out.T is None
@@ -780,11 +778,11 @@ class MapMergeTracker:
             # clearly more shared evidence (wall cells both maps see under it): a look-alike
             # match stays confined to the look-alike part, the truth spreads as the maps grow.
             # Without new evidence the run is kept, not extended.
-            grown = evidence >= pending[2] * (1.0 + self.confirm_growth)
+            grown = evidence >= pending[2] * (1.0 + self.options.confirm_growth)
             if not grown:
                 return
             count = pending[1] + 1
-        if count >= self.confirmations:
+        if count >= self.options.confirmations:
             self._pending.pop((i, j), None)
             self._edges[(i, j)] = T
             self._edge_score[(i, j)] = out.result.score
@@ -796,12 +794,12 @@ class MapMergeTracker:
         """Update pair (i, j)'s remembered rivals with one attempt's outcome (the checked ones
         that no longer stand are forgotten, the merger's new ones added, the newest
         ``rival_memory`` kept); True when a remembered rival stands against its pose."""
-        if self.rival_memory == 0:
+        if self.options.rival_memory == 0:
             return False
         mem = self._rivals.get((i, j), [])
         if out.standing is not None:
             mem = list(out.standing)
-        mem = (mem + list(out.rivals))[-self.rival_memory :]
+        mem = (mem + list(out.rivals))[-self.options.rival_memory :]
         if mem:
             self._rivals[(i, j)] = mem
         else:
@@ -819,14 +817,14 @@ class MapMergeTracker:
         # elementwise, not T @ corners (BLAS): a decision on the threshold, the same on every CPU
         (x1, y1), (x2, y2) = map_points(corners, T1), map_points(corners, T2)
         dx, dy = x1 - x2, y1 - y2
-        limit = self.confirm_tol_cells if tol is None else tol
+        limit = self.options.confirm_tol_cells if tol is None else tol
         return bool(np.sqrt(dx**2 + dy**2).max() <= limit)
 
     def _recheck(self, step: int) -> None:
         for i, j in list(self._edges):
             if not self._linked(i, j):
                 continue
-            if self.merge_latency_steps:
+            if self.options.merge_latency_steps:
                 if ("recheck", i, j) not in self._queue:
                     self._queue.append(("recheck", i, j))
             else:
@@ -848,13 +846,13 @@ class MapMergeTracker:
         if kept is None or T_old is None or not np.array_equal(kept, T_old):
             return  # dropped or replaced since the re-check started
         assert out.old_now is not None and out.held_now is not None
-        if out.held_now < self.drop_below:
+        if out.held_now < self.options.drop_below:
             first = self._contradicted.setdefault((i, j), step)
             if (
                 out.result is not None
                 and out.T is not None
-                and self.relocate_tol_cells > 0
-                and self._same(T_old, out.T, bbox_j, self.relocate_tol_cells)
+                and self.options.relocate_tol_cells > 0
+                and self._same(T_old, out.T, bbox_j, self.options.relocate_tol_cells)
             ):
                 # The same place, refitted to maps that odometry drift has bent: keep the pair
                 # merged with the merger's new pose (it passed every rule on these maps).
@@ -864,7 +862,7 @@ class MapMergeTracker:
                 # Refused, but the best pose is still the kept place (drift, not a wrong place)
                 self._replace_edge(i, j, out.refit, out.result.score)
                 return
-            if out.drift_held is not None and out.drift_held >= self.drift_keep_above:
+            if out.drift_held is not None and out.drift_held >= self.options.drift_keep_above:
                 # Contradicted only by walls a drift's width apart: the maps bent, the place
                 # stands (a look-alike place lays walls across open space)
                 return
@@ -879,7 +877,7 @@ class MapMergeTracker:
         self._contradicted.pop((i, j), None)
         if out.result is None or out.T is None:
             return
-        if out.result.score >= out.old_now + self.replace_margin:
+        if out.result.score >= out.old_now + self.options.replace_margin:
             self._replace_edge(i, j, out.T, out.result.score)
 
     def _replace_edge(self, i: int, j: int, T: Transform, score: float) -> None:

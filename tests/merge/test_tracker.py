@@ -13,7 +13,7 @@ from mrexplore.errors import ConfigError, GridError
 from mrexplore.experiments.merge_cases import rotate_map
 from mrexplore.grid import OCCUPIED as OCC
 from mrexplore.grid import UNKNOWN, chain, invert_transform
-from mrexplore.merge import MapMergeTracker, MergeResult
+from mrexplore.merge import MapMergeTracker, MergeResult, TrackerOptions
 from mrexplore.merge.common import Agreement, MergeEvidence, WeighedPose, known_bbox, translation
 from mrexplore.truth import merge_error
 
@@ -796,6 +796,25 @@ def test_a_remembered_rival_ruled_out_by_one_object_does_not_stand() -> None:
     # the run's own options reach the tracker's rival checks: without the structure test the
     # rival stands
     assert len(MapMergeTracker(2, structure_test=False)._standing(*args)) == 1
+
+
+def test_tracker_options_are_typed_validated_and_the_old_keywords_still_reach_them() -> None:
+    """One default and one range each; the old keyword form routes into the same options;
+    both forms at once, or a bad value, is a ConfigError naming the knob."""
+    opts = TrackerOptions(confirmations=3, merge_every=5)
+    tr = MapMergeTracker(2, options=opts)
+    assert tr.options is opts
+    old = MapMergeTracker(2, confirmations=3, merge_every=5)
+    assert old.options == opts
+    assert TrackerOptions(drop_below=1).drop_below == 1.0  # a float where a float is due
+    with pytest.raises(ConfigError, match="MapMergeTracker: option drop_below must be in"):
+        TrackerOptions(drop_below=1.5)
+    with pytest.raises(ConfigError, match=r"\['confirmations'\] given both"):
+        MapMergeTracker(2, options=opts, confirmations=2)
+    with pytest.raises(ConfigError, match="must be a TrackerOptions"):
+        MapMergeTracker(2, options={"confirmations": 2})  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="unknown option"):
+        TrackerOptions.from_kwargs(confirmation=2)
 
 
 def test_the_tracker_judges_rivals_with_the_runs_own_options() -> None:

@@ -81,46 +81,46 @@ bench_merge() { mrexplore bench merge --case-cache "$cache" "$@"; }
 merge_steps() {
   bench_merge --n 30 --families symmetric,real,noisy,lidar --out "$out/merge_table" --force
   bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
-    --semantic-variant slack_cells=0,min_run_cells=1 \
-    --semantic-variant max_rotation_peaks=3,peaks_per_rotation=6,n_polish=12,n_refine=5 \
+    --semantic-variant SLACK_CELLS=0,MIN_RUN_CELLS=1 \
+    --semantic-variant MAX_ROTATION_PEAKS=3,PEAKS_PER_ROTATION=6,N_POLISH=12,N_REFINE=5 \
     --semantic-variant paper_candidates=true \
-    --semantic-variant shared_weight=0 --semantic-variant consistency_polish=false \
+    --semantic-variant SHARED_WEIGHT=0 --semantic-variant CONSISTENCY_POLISH=false \
     --semantic-variant min_cross_cells=0 --semantic-variant min_wall_area_m2=0 \
-    --semantic-variant polish_margin=0 --semantic-variant min_object_m2=0 \
-    --semantic-variant repeat_rivals=0 --semantic-variant object_hull_free=0 \
-    --semantic-variant lone_pin_test=false --semantic-variant room_match_m2=0 \
-    --semantic-variant structure_test=false \
+    --semantic-variant POLISH_MARGIN=0 --semantic-variant min_object_m2=0 \
+    --semantic-variant REPEAT_RIVALS=0 --semantic-variant OBJECT_HULL_FREE=0 \
+    --semantic-variant LONE_PIN_TEST=false --semantic-variant room_match_m2=0 \
+    --semantic-variant STRUCTURE_TEST=false \
     --out "$out/merge_ablation" --force
   bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
     --seeds 0-9,12 --out "$out/merge_seeds" --force
   bench_merge --methods semantic,orb --n 30 --families large --seeds 0-9 \
-    --semantic-variant hough_max_cells=0 --out "$out/merge_large" --force
+    --semantic-variant HOUGH_MAX_CELLS=0 --out "$out/merge_large" --force
   bench_merge --methods semantic,orb --n 30 --families aliased --seeds 0-9 \
     --semantic-variant min_wall_area_m2=0 --semantic-variant min_wall_area_m2=10 \
     --out "$out/merge_aliased" --force
   bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
-    --seeds 13-22 --semantic-variant min_wall_area_m2=0 --semantic-variant polish_margin=0 \
+    --seeds 13-22 --semantic-variant min_wall_area_m2=0 --semantic-variant POLISH_MARGIN=0 \
     --out "$out/merge_heldout" --force
   bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
-    --seeds 23-32 --semantic-variant polish_margin=0 --out "$out/merge_heldout2" --force
+    --seeds 23-32 --semantic-variant POLISH_MARGIN=0 --out "$out/merge_heldout2" --force
   bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
     --seeds 33-42 --semantic-variant slide_test=true --out "$out/merge_heldout3" --force
   bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
-    --seeds 53-62 --semantic-variant repeat_rivals=0,min_object_m2=0 \
+    --seeds 53-62 --semantic-variant REPEAT_RIVALS=0,min_object_m2=0 \
     --out "$out/merge_heldout4" --force
   bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
-    --seeds 73-82 --semantic-variant object_hull_free=0 --semantic-variant lone_pin_test=false \
-    --semantic-variant object_hull_free=0,lone_pin_test=false --out "$out/merge_heldout5" --force
+    --seeds 73-82 --semantic-variant OBJECT_HULL_FREE=0 --semantic-variant LONE_PIN_TEST=false \
+    --semantic-variant OBJECT_HULL_FREE=0,LONE_PIN_TEST=false --out "$out/merge_heldout5" --force
   bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
-    --seeds 83-92 --semantic-variant lone_pin_test=false \
-    --semantic-variant object_hull_free=0,lone_pin_test=false --out "$out/merge_heldout6" --force
+    --seeds 83-92 --semantic-variant LONE_PIN_TEST=false \
+    --semantic-variant OBJECT_HULL_FREE=0,LONE_PIN_TEST=false --out "$out/merge_heldout6" --force
   bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
     --seeds 113-122 --semantic-variant room_match_m2=0 --out "$out/merge_heldout7" --force
   bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
-    --seeds 123-132 --semantic-variant structure_test=false --out "$out/merge_heldout8" --force
+    --seeds 123-132 --semantic-variant STRUCTURE_TEST=false --out "$out/merge_heldout8" --force
   bench_merge --methods semantic --n 30 --families aliased --seeds 83-142 \
-    --semantic-variant object_hull_free=0 --semantic-variant lone_pin_test=false \
-    --semantic-variant object_hull_free=0,lone_pin_test=false \
+    --semantic-variant OBJECT_HULL_FREE=0 --semantic-variant LONE_PIN_TEST=false \
+    --semantic-variant OBJECT_HULL_FREE=0,LONE_PIN_TEST=false \
     --out "$out/merge_aliased_heldout" --force
   bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
     --seeds 0-9,12 --semantic-variant slide_test=true --out "$out/merge_slide" --force

@@ -46,6 +46,7 @@ from mrexplore.experiments.merge_cases import (
 )
 from mrexplore.io_safety import check_outputs, write_text
 from mrexplore.merge import MapMergeTracker, merge_maps
+from mrexplore.merge.semantic import DEMOTED_OPTIONS
 from mrexplore.truth import merge_error
 
 #: (method, detector, options) run by default; detector None = the method has none to choose.
@@ -138,10 +139,33 @@ def _refused_best_error(case: MergeCase, res: Any) -> float | None:
     return round(err, 2) if np.isfinite(err) else None
 
 
+#: The semantic merger's rule constants a ``--semantic-variant`` may set (upper case).
+_CONSTANTS = frozenset(DEMOTED_OPTIONS.values())
+
+
 def evaluate(
     cases: Sequence[MergeCase], method: str, detector: str | None, **options: Any
 ) -> dict[str, Any]:
-    """Run one method x detector over ``cases``; returns one table row (plus per-case records)."""
+    """Run one method x detector over ``cases``; returns one table row (plus per-case records).
+
+    Upper-case ``options`` (``SLACK_CELLS=0``) are constants of the semantic merger's rules
+    (:data:`mrexplore.merge.semantic.DEMOTED_OPTIONS`), set for this row only: an ablation."""
+    constants = {k: v for k, v in options.items() if k in _CONSTANTS}
+    if constants:
+        from mrexplore.merge import semantic
+
+        saved = {k: getattr(semantic, k) for k in constants}
+        try:
+            for k, v in constants.items():
+                setattr(semantic, k, v)
+            row = evaluate(
+                cases, method, detector, **{k: v for k, v in options.items() if k not in constants}
+            )
+        finally:
+            for k, v in saved.items():
+                setattr(semantic, k, v)
+        row["options"] = ",".join(f"{k}={v}" for k, v in options.items())
+        return row
     kw = dict(options)
     if detector is not None:
         kw["detector"] = detector
@@ -558,7 +582,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         action="append",
         default=[],
         metavar="K=V,K=V",
-        help="also run the semantic merger with these options (repeatable; an ablation row)",
+        help="also run the semantic merger with these options (repeatable; an ablation row); "
+        "upper-case names set the merger's rule constants for the row (SLACK_CELLS=0)",
     )
     p.add_argument(
         "--lidar-options",
@@ -594,7 +619,18 @@ def main(argv: Sequence[str] | None = None) -> int:
             variants = [parse_options(v) for v in args.semantic_variant]
             probe = np.full((4, 4), -1, dtype=np.int8)
             for opts in variants:  # a misspelt option fails now, not after the cases are made
-                merge_maps(probe, probe, method="semantic", **opts)
+                bad = sorted(k for k in opts if k.isupper() and k not in _CONSTANTS)
+                if bad:
+                    raise ConfigError(
+                        f"--semantic-variant: {bad} are not constants of the semantic merger; "
+                        f"known: {sorted(_CONSTANTS)}"
+                    )
+                merge_maps(
+                    probe,
+                    probe,
+                    method="semantic",
+                    **{k: v for k, v in opts.items() if k not in _CONSTANTS},
+                )
             configs = (
                 [
                     (m, d, o)

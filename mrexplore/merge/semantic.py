@@ -6,31 +6,31 @@ Pipeline (all on the maps cropped to their known bounding boxes):
 1. **Rotation candidates** from two rotation spectra (modulo 90 degrees, half-degree bins): the
    directions of straight wall segments (probabilistic Hough, length-weighted; unbiased by the
    staircase of walls drawn at an angle) and of blurred wall gradients. The peaks of each
-   pair's circular cross-correlation give theta0 + k 90; ``rotation_step_deg`` adds a sweep.
+   pair's circular cross-correlation give theta0 + k 90; ``ROTATION_STEP_DEG`` adds a sweep.
 2. **Translation candidates**, coarse: per rotation, FFT cross-correlations of the maps pooled
-   to 1/``scale`` give every translation's wall agreement and disagreement; the
-   ``peaks_per_rotation`` best of ``agree * (agree / (agree + disagree))^2`` become hypotheses
+   to 1/``SCALE`` give every translation's wall agreement and disagreement; the
+   ``PEAKS_PER_ROTATION`` best of ``agree * (agree / (agree + disagree))^2`` become hypotheses
    (``paper_candidates=True`` adds the seed paper's trusted-point matches).
 3. **Local alignment**: point-to-line ICP of b's wall cells on a's, then a small rotation sweep
    (+-0.5, +-1 degree) of the two best, re-polished.
 4. **Verification**: Birk & Carpin's acceptance index ``agree / (agree + disagree)`` on the
    wall cells of both maps with a one-cell tolerance (:class:`~mrexplore.merge.common.Verifier`;
    lone occupied cells, the speckle of real maps, take no part). The best pose is also slid
-   along a's wall directions (``slide_step``), so ridges of repetitive layouts are examined.
+   along a's wall directions (``SLIDE_STEP``), so ridges of repetitive layouts are examined.
 5. **Decision** (the rules of :data:`_RULES`, in order). *Consistent*: under the best pose
    (most agreeing minus 10 x disagreeing wall cells) the maps contradict each other no more
    than their noise explains: a wall within ``1 + slack_cells`` cells of the other map's wall (a
    wall seen from its two sides, eroded by grazing beams) and lone contradictions (groups under
-   ``min_run_cells``) are noise, and what remains must leave an index >= ``min_score``.
-   *Unique*: the strongest far pose (``far_cells`` mean displacement) that explains at least
-   ``rival_support`` as much is beaten by ``min_margin`` in index and ``min_evidence_cells``
+   ``MIN_RUN_CELLS``) are noise, and what remains must leave an index >= ``min_score``.
+   *Unique*: the strongest far pose (``FAR_CELLS`` mean displacement) that explains at least
+   ``RIVAL_SUPPORT`` as much is beaten by ``min_margin`` in index and ``MIN_EVIDENCE_CELLS``
    disagreeing cells. Two look-alike rooms pass the first and fail the second: refused, to be
    merged later once more is known. Enough shared knowledge (``min_overlap``,
-   ``min_overlap_cells``, ``min_common_m2``) is asked for too, walls that pin the pose without a
-   slide along them, nor through one small thing (``min_cross_cells``, ``lone_pin_test``),
+   ``MIN_OVERLAP_CELLS``, ``min_common_m2``) is asked for too, walls that pin the pose without a
+   slide along them, nor through one small thing (``min_cross_cells``, ``LONE_PIN_TEST``),
    evidence that is more than one object (``min_wall_area_m2``, ``min_object_m2``,
-   ``object_hull_free``), and last the poses that move the best by either map's repeats must
-   be beaten as rivals are (``repeat_rivals``).
+   ``OBJECT_HULL_FREE``), and last the poses that move the best by either map's repeats must
+   be beaten as rivals are (``REPEAT_RIVALS``).
    Measurements behind each default: ``docs/merging.md``.
 
 The steps' machinery lives beside this module (:mod:`~mrexplore.merge.rotation`,
@@ -392,13 +392,13 @@ def stands_as_rival(
     best: Agreement, other: Agreement, cells_per_sample: float, o: SemanticOptions
 ) -> bool:
     """Does a far pose with agreement ``other`` stand as a rival to the best pose (``best``)?
-    It does when it explains at least ``o.rival_support`` of the best's agreeing wall cells and
-    is not beaten by ``o.min_margin`` in index and ``o.min_evidence_cells`` more contradicting
+    It does when it explains at least ``RIVAL_SUPPORT`` of the best's agreeing wall cells and
+    is not beaten by ``o.min_margin`` in index and ``MIN_EVIDENCE_CELLS`` more contradicting
     wall cells (``cells_per_sample``: wall cells per verified sample)."""
-    if other.agree < o.rival_support * best.agree:
+    if other.agree < RIVAL_SUPPORT * best.agree:
         return False
     excess = (other.disagree - best.disagree) * cells_per_sample
-    return best.score - other.score < o.min_margin or excess < o.min_evidence_cells
+    return best.score - other.score < o.min_margin or excess < MIN_EVIDENCE_CELLS
 
 
 #: Slides (cells, each way) of :func:`_standing_slide`: from beyond a wrong merge's 5 cells to
@@ -469,6 +469,104 @@ class _SharedSpace:
         return int(cv2.countNonZero(cv2.bitwise_and(warped, self.known_a[r0:r1, c0:c1])))
 
 
+# --- the rules' settings that are not options: one value each, chosen and measured on the
+# tuning worlds (why each is what it is: docs/merging.md, "What changed in this version, and
+# what each change bought"). Read where they are used, so a test or a bench ablation may set
+# one for a run (``mrexplore bench merge --semantic-variant SLACK_CELLS=0``). ----------------
+#: Contradicting wall cells (beyond the best's) that beat a rival, with ``MIN_MARGIN``'s index: a
+#: wall's worth, not speckle.
+MIN_EVIDENCE_CELLS: int = 20
+#: A rival beaten by less is still ruled out by one object of ``MIN_EVIDENCE_CELLS`` wall cells on
+#: the other map's free space (a notch tells two half-turns apart).
+STRUCTURE_TEST: bool = True
+#: Cells b's walls move on average between two poses for them to be two places, not one refitted.
+FAR_CELLS: float = 5.0
+#: Share of the best's agreeing wall cells a far pose must explain to be a rival (a corner match by
+#: coincidence is not).
+RIVAL_SUPPORT: float = 0.5
+#: Cells between the slide search's shifts along a's walls (0: no slide search).
+SLIDE_STEP: float = 8.0
+#: Wall cells of b on a's known cells every hypothesis needs, beside ``min_overlap``'s share.
+MIN_OVERLAP_CELLS: int = 80
+#: Cells per block of the coarse search (its cost against its precision, ~scale/2 cells).
+SCALE: int = 4
+#: Map cells (640 x 640) beyond which the rotation spectrum pools walls 2 x 2 (its cost on large
+#: maps; 0: never).
+HOUGH_MAX_CELLS: int = 409_600
+#: Translation peaks kept per candidate rotation by the coarse search.
+PEAKS_PER_ROTATION: int = 12
+#: Rotation peaks per spectrum (a hexagonal map folds into three equal peaks modulo 90 degrees).
+MAX_ROTATION_PEAKS: int = 3
+#: A sweep of rotations every this many degrees beside the spectrum's peaks (0: no sweep).
+ROTATION_STEP_DEG: float = 0.0
+#: Hypotheses refined (ICP) after polishing.
+N_REFINE: int = 8
+#: Hypotheses polished (a short ICP) after the coarse search.
+N_POLISH: int = 24
+#: Wall cells per map the judging verifier samples (0: all).
+MAX_SAMPLES: int = 20_000
+#: The linear coarse score's weight of b's walls on a's free cells (used when ``RATIO_POWER`` is 0).
+W_FREE: float = 0.2
+#: The linear coarse score's weight of disagreement (used when ``RATIO_POWER`` is 0).
+W_DISAGREE: float = 1.0
+#: The coarse score's power of the agreement ratio (0: the linear score).
+RATIO_POWER: float = 2.0
+#: A room-sized match (under ``room_match_m2``) passes when it covers this share of the smaller map.
+ROOM_MATCH_SHARE: float = 0.3
+#: The ranking's credit for known space both maps share under a pose, wall cells per shared cell.
+SHARED_WEIGHT: float = 0.04
+#: Cells beyond the one-cell tolerance within which two walls agree in the consistency index (a wall
+#: seen from both sides, eroded).
+SLACK_CELLS: int = 2
+#: Contradicting cells count in the consistency index only in 8-connected groups this large (a wall,
+#: not speckle).
+MIN_RUN_CELLS: int = 5
+#: An inconsistent best pose is replaced by the most consistent pose within 2 cells and 1 degree.
+CONSISTENCY_POLISH: bool = True
+#: A polished pose must clear ``min_score`` by this (the best of 125 nearby poses scores higher by
+#: selection alone).
+POLISH_MARGIN: float = 0.01
+#: Each map's strongest repeats by which the pose about to be merged is moved and judged as rivals
+#: (0: off).
+REPEAT_RIVALS: int = 4
+#: A match on one structure seen from outside (free cells under this share of its hull) is refused
+#: (0: off).
+OBJECT_HULL_FREE: float = 0.2
+#: A pinned pose must stay pinned with any one of b's small things left out (a post beside every
+#: aisle).
+LONE_PIN_TEST: bool = True
+
+#: The former options that are now the constants above (lower-case name -> constant name).
+DEMOTED_OPTIONS: dict[str, str] = {
+    "min_evidence_cells": "MIN_EVIDENCE_CELLS",
+    "structure_test": "STRUCTURE_TEST",
+    "far_cells": "FAR_CELLS",
+    "rival_support": "RIVAL_SUPPORT",
+    "slide_step": "SLIDE_STEP",
+    "min_overlap_cells": "MIN_OVERLAP_CELLS",
+    "scale": "SCALE",
+    "hough_max_cells": "HOUGH_MAX_CELLS",
+    "peaks_per_rotation": "PEAKS_PER_ROTATION",
+    "max_rotation_peaks": "MAX_ROTATION_PEAKS",
+    "rotation_step_deg": "ROTATION_STEP_DEG",
+    "n_refine": "N_REFINE",
+    "n_polish": "N_POLISH",
+    "max_samples": "MAX_SAMPLES",
+    "w_free": "W_FREE",
+    "w_disagree": "W_DISAGREE",
+    "ratio_power": "RATIO_POWER",
+    "room_match_share": "ROOM_MATCH_SHARE",
+    "shared_weight": "SHARED_WEIGHT",
+    "slack_cells": "SLACK_CELLS",
+    "min_run_cells": "MIN_RUN_CELLS",
+    "consistency_polish": "CONSISTENCY_POLISH",
+    "polish_margin": "POLISH_MARGIN",
+    "repeat_rivals": "REPEAT_RIVALS",
+    "object_hull_free": "OBJECT_HULL_FREE",
+    "lone_pin_test": "LONE_PIN_TEST",
+}
+
+
 @dataclass(frozen=True)
 class SemanticOptions(Options):
     """The options of :func:`merge_semantic` (documented there, measured in
@@ -478,43 +576,30 @@ class SemanticOptions(Options):
     detector: str | None = option(None, detector_check(SEMANTIC_DETECTORS))
     min_score: float = option(0.97, number(0.0, 1.0))
     min_margin: float = option(0.03, number(0.0, 1.0))
-    min_evidence_cells: int = option(20, integer(0))
-    structure_test: bool = option(True, boolean)
-    far_cells: float = option(5.0, number(0.0, math.inf))
-    rival_support: float = option(0.5, number(0.0, 1.0))
-    slide_step: float = option(8.0, number(0.0, math.inf))
     min_overlap: float = option(0.15, number(0.0, 1.0))
-    min_overlap_cells: int = option(80, integer(0))
-    scale: int = option(4, integer(1, 32))
-    hough_max_cells: int = option(409_600, integer(0))
-    peaks_per_rotation: int = option(12, integer(1, 1000))
-    max_rotation_peaks: int = option(3, integer(1, 45))
-    rotation_step_deg: float = option(0.0, number(0.0, 360.0))
-    n_refine: int = option(8, integer(1, 1000))
-    n_polish: int = option(24, integer(1, 10_000))
     paper_candidates: bool = option(False, boolean)
-    max_samples: int = option(20_000, integer(0))
-    w_free: float = option(0.2, number(0.0, 10.0))
-    w_disagree: float = option(1.0, number(0.0, 100.0))
-    ratio_power: float = option(2.0, number(0.0, 20.0))
     min_common_m2: float = option(10.0, number(0.0, math.inf))
     room_match_m2: float = option(20.0, number(0.0, math.inf))
-    room_match_share: float = option(0.3, number(0.0, 1.0))
-    shared_weight: float = option(0.04, number(0.0, 1.0))
     resolution_m: float = option(0.05, number(1e-6, math.inf))
-    slack_cells: int = option(2, integer(0, 10))
-    min_run_cells: int = option(5, integer(1, 1000))
-    consistency_polish: bool = option(True, boolean)
-    polish_margin: float = option(0.01, number(0.0, 1.0))
     min_cross_cells: float = option(10.0, number(0.0, math.inf))
     slide_test: bool = option(False, boolean)
-    repeat_rivals: int = option(4, integer(0, 100))
     rival_perfect_cells: int = option(250, integer(0))
     min_wall_area_m2: float = option(4.0, number(0.0, math.inf))
     min_object_m2: float = option(20.0, number(0.0, math.inf))
-    object_hull_free: float = option(0.2, number(0.0, 1.0))
-    lone_pin_test: bool = option(True, boolean)
     place_test: bool = option(False, boolean)
+
+    @classmethod
+    def from_kwargs(cls, **kwargs: Any) -> SemanticOptions:
+        """As :meth:`Options.from_kwargs`; a former option, now a constant of this module, is a
+        :class:`ConfigError` naming the constant."""
+        demoted = sorted(set(kwargs) & set(DEMOTED_OPTIONS))
+        if demoted:
+            names = ", ".join(f"{k} (now {DEMOTED_OPTIONS[k]})" for k in demoted)
+            raise ConfigError(
+                f"{cls.owner}: {names} no longer an option: a constant of "
+                "mrexplore.merge.semantic, chosen on the tuning worlds (docs/merging.md)"
+            )
+        return super().from_kwargs(**kwargs)
 
     def check_together(self) -> None:
         if self.detector is not None and not self.paper_candidates:
@@ -525,15 +610,15 @@ def rival_structure(
     verify: Verifier, T_best: Transform, T_rival: Transform, margin: float, o: SemanticOptions
 ) -> int:
     """Wall cells of the largest object that rules the rival pose out, 0 when the test is off
-    (``o.structure_test``) or does not apply: a connected group of one map's wall cells that,
+    (``STRUCTURE_TEST``) or does not apply: a connected group of one map's wall cells that,
     under ``T_rival`` and not under ``T_best`` (crop cells, b -> a), lies on the other map's
     open free space. It applies only when the best is ahead in index (``margin`` > 0) and
-    leaves no group of ``o.min_run_cells`` contradicting cells of its own. A rival is ruled
-    out when this reaches ``o.min_evidence_cells``."""
-    if not o.structure_test or margin <= 0.0:
+    leaves no group of ``MIN_RUN_CELLS`` contradicting cells of its own. A rival is ruled
+    out when this reaches ``MIN_EVIDENCE_CELLS``."""
+    if not STRUCTURE_TEST or margin <= 0.0:
         return 0
     against_best, against_rival = verify.exclusive_groups(T_best, T_rival)
-    return 0 if against_best >= o.min_run_cells else against_rival
+    return 0 if against_best >= MIN_RUN_CELLS else against_rival
 
 
 def merge_semantic(
@@ -545,44 +630,46 @@ def merge_semantic(
     **options: Any,
 ) -> MergeResult:
     """Verified merge of b into a (int8 maps, any sizes). Options (validated; why each default
-    is what it is, with the measurements: ``docs/merging.md``):
+    is what it is, with the measurements: ``docs/merging.md``) in lower case; the rules' other
+    settings, in upper case, are constants of this module (:data:`DEMOTED_OPTIONS`), not
+    options:
 
-    - decision: ``min_score`` (0.97) on the noise-aware consistency index, with ``slack_cells``
-      (2) and ``min_run_cells`` (5) defining the noise; ``min_margin`` (0.03) and
-      ``min_evidence_cells`` (20) against every rival, a pose ``far_cells`` (5.0) cells away
-      on average with ``rival_support`` (0.5) of the best's agreeing wall cells, or with no
+    - decision: ``min_score`` (0.97) on the noise-aware consistency index, with ``SLACK_CELLS``
+      (2) and ``MIN_RUN_CELLS`` (5) defining the noise; ``min_margin`` (0.03) and
+      ``MIN_EVIDENCE_CELLS`` (20) against every rival, a pose ``FAR_CELLS`` (5.0) cells away
+      on average with ``RIVAL_SUPPORT`` (0.5) of the best's agreeing wall cells, or with no
       disagreeing wall cell and at least ``rival_perfect_cells`` (250; 0 = off) agreeing ones;
-      ``structure_test`` (True): a rival beaten by less than that is still ruled out when one
-      object, a connected group of ``min_evidence_cells`` wall cells of one map, lies on the
+      ``STRUCTURE_TEST`` (True): a rival beaten by less than that is still ruled out when one
+      object, a connected group of ``MIN_EVIDENCE_CELLS`` wall cells of one map, lies on the
       other's open free space under it and not under the best, and the best, ahead in index,
-      leaves no group of ``min_run_cells`` contradicting cells (a notch tells two half-turns
+      leaves no group of ``MIN_RUN_CELLS`` contradicting cells (a notch tells two half-turns
       of a symmetric arena apart; noise contradicts in scattered cells);
     - shared knowledge: ``min_overlap`` (0.15) of b's wall cells on a's known cells,
-      ``min_overlap_cells`` (80), ``min_common_m2`` (10.0) m^2 known in both at
+      ``MIN_OVERLAP_CELLS`` (80), ``min_common_m2`` (10.0) m^2 known in both at
       ``resolution_m`` (0.05) m/cell (the every-step tracker asks for 20 m^2: a room);
-    - ``room_match_m2`` (20.0; 0 = off) and ``room_match_share`` (0.3): without a ``prior``,
+    - ``room_match_m2`` (20.0; 0 = off) and ``ROOM_MATCH_SHARE`` (0.3): without a ``prior``,
       refuse a pose whose shared known space is under 20 m^2 **and** under 0.3 of the smaller
       map's known space: a room-sized match in maps of several rooms may be a look-alike room
       (a twin-wings corridor was merged on its twin at 13.1 m^2, 0.24 of the smaller map; with
       the own maps' hit weight 3.6, a twin-wings room on its twin at 16.2 m^2);
-    - search: ``max_rotation_peaks`` (3: a hexagonal map's spectrum folds into three equal
-      peaks modulo 90 degrees) per rotation spectrum, ``rotation_step_deg`` (0 = no
-      sweep), ``hough_max_cells`` (409,600: 640 x 640; 0 = never) beyond which the wall
+    - search: ``MAX_ROTATION_PEAKS`` (3: a hexagonal map's spectrum folds into three equal
+      peaks modulo 90 degrees) per rotation spectrum, ``ROTATION_STEP_DEG`` (0 = no
+      sweep), ``HOUGH_MAX_CELLS`` (409,600: 640 x 640; 0 = never) beyond which the wall
       segments of the rotation spectrum come from walls pooled 2 x 2 (its cost on large maps),
-      ``scale`` (4) cells per coarse block, ``peaks_per_rotation`` (12), ``n_polish``
-      (24) and ``n_refine`` (8) hypotheses polished and refined, ``slide_step`` (8.0) cells
-      (0 = no slide search), ``max_samples`` (20000) wall cells per map in the verifier;
-    - coarse score: ``ratio_power`` (2.0), or the linear score with ``w_free`` (0.2) and
-      ``w_disagree`` (1.0) when it is 0;
-    - ``consistency_polish`` (True): an inconsistent best pose is replaced by the most
+      ``SCALE`` (4) cells per coarse block, ``PEAKS_PER_ROTATION`` (12), ``N_POLISH``
+      (24) and ``N_REFINE`` (8) hypotheses polished and refined, ``SLIDE_STEP`` (8.0) cells
+      (0 = no slide search), ``MAX_SAMPLES`` (20000) wall cells per map in the verifier;
+    - coarse score: ``RATIO_POWER`` (2.0), or the linear score with ``W_FREE`` (0.2) and
+      ``W_DISAGREE`` (1.0) when it is 0;
+    - ``CONSISTENCY_POLISH`` (True): an inconsistent best pose is replaced by the most
       consistent pose within 2 cells and 1 degree of it, if that one reaches ``min_score`` +
-      ``polish_margin`` (0.01: the best of 125 nearby poses scores higher by selection alone);
+      ``POLISH_MARGIN`` (0.01: the best of 125 nearby poses scores higher by selection alone);
     - ``min_cross_cells`` (10; 0 = off): refuse a pose whose agreeing walls pin it less than this
       (:func:`~mrexplore.merge.pinning.cross_support`, wall cells) across their direction: one
       straight wall or a corridor slides;
     - ``slide_test`` (False): a pose under ``min_cross_cells`` is still pinned when the maps
       contradict every slide of it along that direction by 5, 10, 20 and 40 cells both ways
-      (each beaten as a rival is: ``min_margin`` and ``min_evidence_cells``): door gaps, wall
+      (each beaten as a rival is: ``min_margin`` and ``MIN_EVIDENCE_CELLS``): door gaps, wall
       ends and the floor beyond them pin a corridor the wall normals cannot;
     - ``min_wall_area_m2`` (4.0; 0 = off): refuse a pose whose agreeing walls fit in a smaller
       rectangle (:func:`agreeing_area`, m^2): one object, a rack or a pillar, fits every copy of
@@ -591,17 +678,17 @@ def merge_semantic(
       connected wall structure in each map, when the larger of the two fits in a smaller
       rectangle (:func:`~mrexplore.merge.repeats.one_object_area`, m^2): a rack seen whole
       matches every copy of it, and the copies may lie where neither map has looked;
-    - ``lone_pin_test`` (True): a pose that ``min_cross_cells`` finds pinned must stay pinned
+    - ``LONE_PIN_TEST`` (True): a pose that ``min_cross_cells`` finds pinned must stay pinned
       with any one of b's small things (under 1.5 m: a post, a box) left out
       (:func:`~mrexplore.merge.pinning.lone_pin_support`): rack sides pinned along only by the
       post beside them match every aisle's post;
-    - ``object_hull_free`` (0.2; 0 = off): refuse a pose whose agreeing walls lie (95 %), in
+    - ``OBJECT_HULL_FREE`` (0.2; 0 = off): refuse a pose whose agreeing walls lie (95 %), in
       either map, on one structure seen from outside (at least 1 m across, the map's free
       cells under this share of its convex hull) plus at most one thing under 1.5 m
       (:func:`~mrexplore.merge.repeats.outside_object`): a rack with a post beside it, larger
       than ``min_object_m2``, is what a warehouse repeats;
-    - ``repeat_rivals`` (4; 0 = off): last, move the pose about to be merged by each map's 4
-      strongest repeats (:func:`~mrexplore.merge.repeats.repeat_shifts`, at least 4 ``scale``
+    - ``REPEAT_RIVALS`` (4; 0 = off): last, move the pose about to be merged by each map's 4
+      strongest repeats (:func:`~mrexplore.merge.repeats.repeat_shifts`, at least 4 ``SCALE``
       cells long) and judge the moved poses as rivals: a copy the coarse search never tried;
     - ``place_test`` (False; the every-step tracker sets it): without a ``prior``, the
       agreement outside the two places of each map that hold most of it (rooms, halls,
@@ -666,7 +753,7 @@ class _Pair:
     """The two maps cropped to their known boxes (all the work is on the crops), with what
     every stage reads: wall masks, codes, a's wall normals and the verifiers.
 
-    Verifiers: ``verify`` on up to ``max_samples`` wall cells (the judgement), ``quick`` on
+    Verifiers: ``verify`` on up to ``MAX_SAMPLES`` wall cells (the judgement), ``quick`` on
     2,000 (polishing), ``screen`` on 2,000 with a tolerance for the coarse poses' ~scale/2
     cells of error.
     """
@@ -699,7 +786,7 @@ class _Pair:
         if min(n_wall_a, n_wall_b) < 20:
             raise _Refused(f"too few wall cells to align (a: {n_wall_a}, b: {n_wall_b}; need 20)")
         codes_a, codes_b = MapCodes(ac), MapCodes(bc)  # shared by all the verifiers
-        quick_samples = min(o.max_samples, 2000) if o.max_samples else 2000
+        quick_samples = min(MAX_SAMPLES, 2000) if MAX_SAMPLES else 2000
         return cls(
             box_a=bba,
             box_b=bbb,
@@ -710,9 +797,9 @@ class _Pair:
             codes_a=codes_a,
             codes_b=codes_b,
             normals_a=wall_normals(wall_a),  # the rotation spectrum and the slide
-            verify=Verifier(codes_a, codes_b, max_samples=o.max_samples),
+            verify=Verifier(codes_a, codes_b, max_samples=MAX_SAMPLES),
             quick=Verifier(codes_a, codes_b, max_samples=quick_samples),
-            screen=Verifier(codes_a, codes_b, max_samples=2000, tolerance=max(1, o.scale // 2 + 1)),
+            screen=Verifier(codes_a, codes_b, max_samples=2000, tolerance=max(1, SCALE // 2 + 1)),
             shared=_SharedSpace(ac, bc),
             icp=WallICP(wall_a, wall_b, max_points=1500),
         )
@@ -730,7 +817,7 @@ class _Pair:
     def overlaps(self, h: _Hypothesis, verifier: Verifier, o: SemanticOptions) -> bool:
         """Whether ``h``'s agreement (by ``verifier``) has the shared walls asked for."""
         return h.agreement is not None and verifier.overlap_ok(
-            h.agreement, o.min_overlap, o.min_overlap_cells
+            h.agreement, o.min_overlap, MIN_OVERLAP_CELLS
         )
 
     def moved(
@@ -746,7 +833,7 @@ class _Pair:
             self.verify,
             self.icp,
             o.min_overlap,
-            o.min_overlap_cells,
+            MIN_OVERLAP_CELLS,
         )
 
 
@@ -780,21 +867,21 @@ def _coarse_hypotheses(pair: _Pair, o: SemanticOptions, info: dict[str, Any]) ->
     thetas = rotation_candidates(
         pair.wall_a,
         pair.wall_b,
-        o.max_rotation_peaks,
-        o.rotation_step_deg,
+        MAX_ROTATION_PEAKS,
+        ROTATION_STEP_DEG,
         pair.normals_a,
-        hough_max_cells=o.hough_max_cells,
+        hough_max_cells=HOUGH_MAX_CELLS,
     )
     info["rotations_deg"] = [round(float(np.degrees(t)), 2) for t in thetas]
     if not thetas:
         raise _Refused("no wall edges to estimate a rotation from (add rotation_step_deg to sweep)")
     rots = [_rotation_about(t, pair.bc.shape) for t in thetas]
     max_shape = (max(s[0] for _, s in rots), max(s[1] for _, s in rots))
-    coarse = CoarseMatcher(pair.ac, o.scale, max_shape, o.w_free, o.w_disagree, o.ratio_power)
+    coarse = CoarseMatcher(pair.ac, SCALE, max_shape, W_FREE, W_DISAGREE, RATIO_POWER)
     hyps: list[_Hypothesis] = []
     for T_rot, shape in rots:
         b_rot = warp_into(pair.bc, T_rot, shape)
-        for dc, dr, _ in coarse.peaks(b_rot, o.peaks_per_rotation):
+        for dc, dr, _ in coarse.peaks(b_rot, PEAKS_PER_ROTATION):
             # pooled blocks are anchored at the corner: half a block of ambiguity, which ICP removes
             hyps.append(_Hypothesis(chain(translation(dc, dr), T_rot), "coarse"))
         if o.paper_candidates:
@@ -813,7 +900,7 @@ def _search(
     prior: PosePrior | None,
 ) -> _Found:
     """Steps 1-4: candidates (coarse, handed in, the prior's guess), screened with a wide
-    tolerance, the best ``n_polish`` polished by a short ICP, the ``n_refine`` best distinct
+    tolerance, the best ``N_POLISH`` polished by a short ICP, the ``N_REFINE`` best distinct
     ones refined fully (the two best also turned by small angles), slid along a's walls; those
     that overlap enough (and lie near the prior's guess). Refuses when none does."""
     hyps = _coarse_hypotheses(pair, o, info)
@@ -833,7 +920,7 @@ def _search(
         # only poses near the guess; the coarse ones with room for their ~scale/2 cells of error
         prior_crop = pair.to_crops(prior.T_ab)
         centre = np.asarray(pair.verify.points_b, dtype=np.float64).mean(axis=0)
-        loose = PosePrior(prior_crop, prior.radius_cells + 2 * o.scale, prior.turn_deg + 2.0)
+        loose = PosePrior(prior_crop, prior.radius_cells + 2 * SCALE, prior.turn_deg + 2.0)
         hyps = [h for h in hyps if loose.admits(h.T, centre, prior_crop)]
         region = (prior, prior_crop, centre)
         info["prior"] = True
@@ -845,11 +932,11 @@ def _search(
     for hyp in hyps[: len(given)]:
         hyp.agreement = pair.screen(hyp.T)
     icp, quick, verify = pair.icp, pair.quick, pair.verify
-    for hyp in hyps[: o.n_polish]:
-        hyp.T = icp(hyp.T, iters=4, max_dist=1.5 * o.scale, n_points=400)
+    for hyp in hyps[:N_POLISH]:
+        hyp.T = icp(hyp.T, iters=4, max_dist=1.5 * SCALE, n_points=400)
         hyp.agreement = quick(hyp.T)
-    ok = [h for h in hyps[: o.n_polish] if pair.overlaps(h, quick, o)]
-    if o.shared_weight > 0:  # the credit of the final ranking (in _judge), so the truth is kept
+    ok = [h for h in hyps[:N_POLISH] if pair.overlaps(h, quick, o)]
+    if SHARED_WEIGHT > 0:  # the credit of the final ranking (in _judge), so the truth is kept
         _credit_shared_space(ok, pair, o)
     ok.sort(key=lambda h: -h.evidence)
     # keep distinct hypotheses only (ICP often pulls several peaks to the same pose)
@@ -858,7 +945,7 @@ def _search(
         # a cell apart on average: the quick verifier's 2,000 walls estimate it as well as all
         if all(_mean_shift(h.T, c.T, quick.points_b) >= 1.0 for c in chosen):
             chosen.append(h)
-        if len(chosen) >= o.n_refine:
+        if len(chosen) >= N_REFINE:
             break
     for h in chosen:
         h.T = icp(h.T, iters=10, max_dist=3.0)
@@ -868,9 +955,9 @@ def _search(
     for h in chosen[:2]:
         _rotation_polish(h, icp, verify, pair.bc.shape)
     chosen = [h for h in chosen if pair.overlaps(h, verify, o)]
-    if o.slide_step > 0 and chosen:
+    if SLIDE_STEP > 0 and chosen:
         best_so_far = max(chosen, key=lambda h: h.evidence)
-        shifts = _slide_shifts(pair.normals_a, pair.bc.shape, o.slide_step)
+        shifts = _slide_shifts(pair.normals_a, pair.bc.shape, SLIDE_STEP)
         chosen += pair.moved(best_so_far, shifts, "slide", o)
     chosen = [h for h in chosen if _in_region(region, h)]  # refined and slid: still near?
     found = _Found(hyps, chosen, region)
@@ -879,7 +966,7 @@ def _search(
         best_any = max((h.score for h in hyps), default=0.0)
         raise _Refused(
             f"no hypothesis overlaps enough (need {o.min_overlap:.0%} of b's wall cells on "
-            f"a's known cells and {o.min_overlap_cells} wall cells in all)",
+            f"a's known cells and {MIN_OVERLAP_CELLS} wall cells in all)",
             score=best_any,
             n_hypotheses=len(hyps),
         )
@@ -890,7 +977,7 @@ def _credit_shared_space(hs: list[_Hypothesis], pair: _Pair, o: SemanticOptions)
     """Count the known space the maps share under each pose, and its credit in the ranking."""
     for h in hs:
         h.shared_cells = pair.shared(h.T)
-        h.shared_bonus = o.shared_weight * h.shared_cells
+        h.shared_bonus = SHARED_WEIGHT * h.shared_cells
 
 
 @dataclass
@@ -930,7 +1017,7 @@ class _Judged:
 
     @property
     def agreement(self) -> Agreement:
-        """The best pose's agreement (the verifier's, on up to ``max_samples`` wall cells)."""
+        """The best pose's agreement (the verifier's, on up to ``MAX_SAMPLES`` wall cells)."""
         assert self.best.agreement is not None
         return self.best.agreement
 
@@ -998,18 +1085,16 @@ def _judge(pair: _Pair, found: _Found, o: SemanticOptions, info: dict[str, Any])
     # Consistency of the best pose with the maps' noise: walls within ``slack`` more cells of
     # the other map's walls (a wall seen from its two sides, a wall eroded by grazing beams) and
     # lone contradictions (groups under ``min_run`` cells) are noise, not evidence against it.
-    consistent_v = Verifier(
-        pair.codes_a, pair.codes_b, max_samples=o.max_samples, slack=o.slack_cells
-    )
-    best_consistency = consistent_v.structured(best.T, o.min_run_cells).score
-    if best_consistency < o.min_score and o.consistency_polish:
+    consistent_v = Verifier(pair.codes_a, pair.codes_b, max_samples=MAX_SAMPLES, slack=SLACK_CELLS)
+    best_consistency = consistent_v.structured(best.T, MIN_RUN_CELLS).score
+    if best_consistency < o.min_score and CONSISTENCY_POLISH:
         # the best pose as ICP left it may sit a cell and a degree from where the maps agree
         # within their noise; the nearby pose that does is the same place, not a new match
         # (the rival test below still judges it, with its own agreement)
         T_pol, c_pol = _consistency_polish(
             best.T,
             consistent_v,
-            lambda T: consistent_v.structured(T, o.min_run_cells).score,
+            lambda T: consistent_v.structured(T, MIN_RUN_CELLS).score,
             tuple(np.asarray(verify.points_b, dtype=np.float64).mean(axis=0)),
             start=best_consistency,
         )
@@ -1020,8 +1105,8 @@ def _judge(pair: _Pair, found: _Found, o: SemanticOptions, info: dict[str, Any])
         # The best of 125 nearby poses is consistent by selection as well as by place, so it
         # must clear the bar by a margin (a twin-wing pose polished from 0.949 to 0.971 was
         # merged 123 cells off; the correct polished poses of the bench reach 0.98-1.00).
-        if c_pol >= o.min_score + o.polish_margin and verify.overlap_ok(
-            ag_pol := verify(T_pol), o.min_overlap, o.min_overlap_cells
+        if c_pol >= o.min_score + POLISH_MARGIN and verify.overlap_ok(
+            ag_pol := verify(T_pol), o.min_overlap, MIN_OVERLAP_CELLS
         ):
             best.T, best_consistency = T_pol, c_pol
             best.agreement = ag_pol
@@ -1029,7 +1114,7 @@ def _judge(pair: _Pair, found: _Found, o: SemanticOptions, info: dict[str, Any])
             info["consistency_polished"] = True
 
     # A rival is a pose far from the best that explains a comparable part of the maps: at least
-    # ``rival_support`` of the best's agreeing wall cells. A pose that matches only a corner (b
+    # ``RIVAL_SUPPORT`` of the best's agreeing wall cells. A pose that matches only a corner (b
     # mostly hanging over a's unknown) agrees perfectly with little, which any corridor end or
     # room corner does by coincidence; it does not make the best ambiguous. (Walls only, not the
     # shared-space credit of the ranking: with the credit, a pose laid on one of a warehouse's
@@ -1041,9 +1126,9 @@ def _judge(pair: _Pair, found: _Found, o: SemanticOptions, info: dict[str, Any])
     rivals = [
         h
         for h in chosen[1:]
-        if _mean_shift(h.T, best.T, pts) >= o.far_cells
+        if _mean_shift(h.T, best.T, pts) >= FAR_CELLS
         and h.agreement is not None
-        and (h.agreement.agree >= o.rival_support * best.agreement.agree or _perfect(h, verify, o))
+        and (h.agreement.agree >= RIVAL_SUPPORT * best.agreement.agree or _perfect(h, verify, o))
     ]
     rivals.sort(key=lambda h: not _perfect(h, verify, o))  # a perfect rival is judged (stable)
     # every rival's pose (b's cells -> a's), for a caller that weighs them over time (the tracker)
@@ -1095,9 +1180,9 @@ def _rule_consistent(j: _Judged) -> str | None:
 
 def _rule_unique(j: _Judged) -> str | None:
     """The rival judged (a perfect one if any, else the one explaining most; see :func:`_judge`)
-    is beaten by ``min_margin`` in index and ``min_evidence_cells`` more contradicting wall
+    is beaten by ``min_margin`` in index and ``MIN_EVIDENCE_CELLS`` more contradicting wall
     cells, or ruled out by one object the maps show (a notch, a post:
-    ``min_evidence_cells`` wall cells in one group), while noise contradicts in scattered
+    ``MIN_EVIDENCE_CELLS`` wall cells in one group), while noise contradicts in scattered
     cells (docs/merging.md, "A rival ruled out by one object")."""
     o, best = j.o, j.best
     if not j.rivals:
@@ -1109,19 +1194,19 @@ def _rule_unique(j: _Judged) -> str | None:
         evidence = int(
             (rival.agreement.disagree - j.agreement.disagree) * j.pair.verify.cells_per_sample
         )
-    if margin >= o.min_margin and evidence >= o.min_evidence_cells:
+    if margin >= o.min_margin and evidence >= MIN_EVIDENCE_CELLS:
         return None
     structure = rival_structure(j.pair.verify, best.T, rival.T, margin, o)
     j.info["rival_structure_cells"] = structure
-    if structure >= o.min_evidence_cells:
+    if structure >= MIN_EVIDENCE_CELLS:
         return None
     return (
         f"ambiguous: best {best.score:.3f} vs {rival.score:.3f} for a pose "
         f"{j.away(rival):.0f} cells away "
         f"(margin {margin:.3f}, {evidence} more disagreeing wall cells"
-        + (f", the largest object ruling it out {structure}" if o.structure_test else "")
-        + f"; need {o.min_margin} and {o.min_evidence_cells}"
-        + (f", or one object of {o.min_evidence_cells})" if o.structure_test else ")")
+        + (f", the largest object ruling it out {structure}" if STRUCTURE_TEST else "")
+        + f"; need {o.min_margin} and {MIN_EVIDENCE_CELLS}"
+        + (f", or one object of {MIN_EVIDENCE_CELLS})" if STRUCTURE_TEST else ")")
     )
 
 
@@ -1140,17 +1225,17 @@ def _rule_shared_space(j: _Judged) -> str | None:
 def _rule_room_match(j: _Judged) -> str | None:
     """Without a prior, a room's worth of shared space is little evidence when each map holds
     several rooms: one of the others may be its look-alike (a guess of the pose rules those
-    out). Refused under ``room_match_m2`` and under ``room_match_share`` of the smaller map."""
+    out). Refused under ``room_match_m2`` and under ``ROOM_MATCH_SHARE`` of the smaller map."""
     o = j.o
     common_m2 = j.common_m2
     if j.prior_given or common_m2 >= o.room_match_m2:
         return None
     smaller_m2 = j.pair.shared.smaller_known_cells() * o.resolution_m**2
-    if common_m2 >= o.room_match_share * smaller_m2:
+    if common_m2 >= ROOM_MATCH_SHARE * smaller_m2:
         return None
     return (
         f"the maps share only {common_m2:.1f} m^2 of known space under the best pose, "
-        f"under {o.room_match_share:g} of the smaller map's {smaller_m2:.1f} m^2 (need "
+        f"under {ROOM_MATCH_SHARE:g} of the smaller map's {smaller_m2:.1f} m^2 (need "
         f"{o.room_match_m2:g} m^2 or that share): a match the size of a room, in maps "
         "of several rooms, may be one room's look-alike"
     )
@@ -1159,7 +1244,7 @@ def _rule_room_match(j: _Judged) -> str | None:
 def _rule_pinned(j: _Judged) -> str | None:
     """The agreeing walls pin the pose along them (``min_cross_cells``; or, with
     ``slide_test``, the maps contradict every slide of it), and not only through one small thing
-    (``lone_pin_test``): a slide along one straight wall or a corridor explains the maps as
+    (``LONE_PIN_TEST``): a slide along one straight wall or a corridor explains the maps as
     well as the pose, and a post beside rack sides matches every aisle's post."""
     o, pair, info = j.o, j.pair, j.info
     if o.min_cross_cells <= 0:
@@ -1185,7 +1270,7 @@ def _rule_pinned(j: _Judged) -> str | None:
             f"wall cells < {o.min_cross_cells:g}{slide}): a slide along one wall or "
             "corridor fits as well"
         )
-    if not o.lone_pin_test or cross < o.min_cross_cells:  # pinned by the slide test only
+    if not LONE_PIN_TEST or cross < o.min_cross_cells:  # pinned by the slide test only
         return None
     small_cells = OBJECT_CLUTTER_M / o.resolution_m
     lone = pins.lone_pin(False, j.structures_b(), small_cells)
@@ -1265,13 +1350,13 @@ def _rule_one_object(j: _Judged) -> str | None:
 
 def _rule_outside_object(j: _Judged) -> str | None:
     """The agreeing walls are not, in either map, one structure seen from outside plus at most
-    one small thing (``object_hull_free``): a rack and its post are what a warehouse repeats."""
+    one small thing (``OBJECT_HULL_FREE``): a rack and its post are what a warehouse repeats."""
     o = j.o
-    if o.object_hull_free <= 0 or not outside_object(
+    if OBJECT_HULL_FREE <= 0 or not outside_object(
         j.pair.codes_a,
         j.pair.codes_b,
         j.best.T,
-        o.object_hull_free,
+        OBJECT_HULL_FREE,
         clutter_cells=OBJECT_CLUTTER_M / o.resolution_m,
         min_width_cells=OBJECT_WIDTH_M / o.resolution_m,
         by_structure=j.by_structure(),
@@ -1280,30 +1365,30 @@ def _rule_outside_object(j: _Judged) -> str | None:
     j.info["outside_object"] = True
     return (
         "the walls that agree lie, in one map, on one object seen from outside (free "
-        f"space fills under {o.object_hull_free:g} of its hull) and at most one small "
+        f"space fills under {OBJECT_HULL_FREE:g} of its hull) and at most one small "
         "thing beside it: a rack and its post match every copy of them, seen or not"
     )
 
 
 def _rule_repeats(j: _Judged) -> str | None:
-    """The poses that move the best by either map's ``repeat_rivals`` strongest repeats are
+    """The poses that move the best by either map's ``REPEAT_RIVALS`` strongest repeats are
     beaten as rivals are: a copy the coarse search never tried. Last, since it costs an
     autocorrelation of each map (~2 ms) and only a pose about to be merged needs it; it only
     refuses, never picks the best."""
     o, pair, best = j.o, j.pair, j.best
-    if o.repeat_rivals <= 0:
+    if REPEAT_RIVALS <= 0:
         return None
     shifts = _repeat_moves(
         best.T,
-        repeat_shifts(pair.ac, o.scale, o.repeat_rivals, 4.0 * o.scale),
-        repeat_shifts(pair.bc, o.scale, o.repeat_rivals, 4.0 * o.scale),
+        repeat_shifts(pair.ac, SCALE, REPEAT_RIVALS, 4.0 * SCALE),
+        repeat_shifts(pair.bc, SCALE, REPEAT_RIVALS, 4.0 * SCALE),
     )
     for h in pair.moved(best, shifts, "repeat", o) if len(shifts) else []:
         assert h.agreement is not None
         away = j.away(h)
         if (
             not j.found.in_prior(h)
-            or away < o.far_cells
+            or away < FAR_CELLS
             or not (
                 _perfect(h, pair.verify, o)
                 or stands_as_rival(j.agreement, h.agreement, pair.verify.cells_per_sample, o)

@@ -12,17 +12,17 @@ Each step the caller hands over the robots' own-frame maps. The tracker
   refuses and breaks the run), the true one spreads as the maps grow;
 - keeps an accepted transform; every ``recheck_every`` steps re-runs the merger on merged pairs
   and replaces the transform only when the new one scores clearly better (by
-  ``replace_margin``) than the kept one does *on the same current maps*: no flip-flopping;
+  ``REPLACE_MARGIN``) than the kept one does *on the same current maps*: no flip-flopping;
   and drops it when, on the current maps, it agrees less than ``drop_below`` (new evidence
   contradicts it: a wrong merge is worse than no merge). The agreement that decides a drop
   discounts the maps' noise as the default merger's acceptance does (walls within
-  ``recheck_slack_cells`` of each other agree, lone contradictions under
-  ``recheck_min_run_cells`` cells do not count), so a pose accepted as consistent is not
+  ``RECHECK_SLACK_CELLS`` of each other agree, lone contradictions under
+  ``RECHECK_MIN_RUN_CELLS`` cells do not count), so a pose accepted as consistent is not
   dropped for the noise and drift it was accepted with; a contradicted transform is
   replaced instead of dropped when the merger, run on the same maps, accepts one within
-  ``relocate_tol_cells`` of it, or ranks one there first and refuses it only for the maps'
+  ``RELOCATE_TOL_CELLS`` of it, or ranks one there first and refuses it only for the maps'
   bending (the same place, refitted to maps that drift has bent); and it is kept when it is
-  contradicted only by walls a drift's width apart (``drift_slack_cells``);
+  contradicted only by walls a drift's width apart (``DRIFT_SLACK_CELLS``);
 - chains transforms through merged pairs (0-1 and 1-2 merged => 0-2 known);
 - hands the pixels to :class:`~mrexplore.merge.compositor.MapCompositor`: change detection,
   each teammate's map warped into i's frame, and robot i's fused map ("occupied beats free
@@ -58,6 +58,7 @@ from mrexplore.grid import (
     invert_transform,
     map_points,
 )
+from mrexplore.merge import semantic as _semantic
 from mrexplore.merge.api import METHODS, merge_maps
 from mrexplore.merge.common import MapCodes, MergeResult, Verifier, translation
 from mrexplore.merge.compositor import MapCompositor
@@ -90,12 +91,63 @@ MergeFn = Callable[[Int8Grid, Int8Grid], MergeResult]
 GUIDED_MIN_COMMON_M2 = 5.0
 
 
+# --- the in-loop rules' settings that are not options: one value each (measured:
+# docs/merging.md, "What changed in this version, and what each change bought"). Read where
+# used, so a test may set one for a run. ----------------------------------------------------
+#: A re-check replaces the kept transform only when the new one's score beats the kept one's on the
+#: same maps by this: no flip-flopping.
+REPLACE_MARGIN: float = 0.05
+#: In a re-check's noise-aware agreement, walls within this many cells beyond the one-cell tolerance
+#: agree (the semantic merger's ``SLACK_CELLS``).
+RECHECK_SLACK_CELLS: int = 2
+#: In that agreement, contradicting cells count only in 8-connected groups this large (the semantic
+#: merger's ``MIN_RUN_CELLS``).
+RECHECK_MIN_RUN_CELLS: int = 5
+#: A contradicted transform is kept, refitted, when the merger accepts one within this many cells of
+#: it (0.5 m at 0.05 m: a long episode's drift; 0: always drop).
+RELOCATE_TOL_CELLS: float = 10.0
+#: A contradicted transform is also kept, refitted, when the merger refuses but ranks a consistent
+#: pose within ``RELOCATE_TOL_CELLS`` first, beating every farther rival.
+REFIT_REFUSED: bool = True
+#: A contradicted transform is kept when, with walls this many cells apart taken as one (0.3 m:
+#: drift), it agrees at least ``DRIFT_KEEP_ABOVE`` (0: off).
+DRIFT_SLACK_CELLS: int = 6
+#: The agreement with ``DRIFT_SLACK_CELLS`` that keeps a contradicted transform as drift.
+DRIFT_KEEP_ABOVE: float = 0.9
+#: A sighting-guided attempt looks within this many cells of the guess (2 m at 0.05 m).
+PRIOR_RADIUS_CELLS: float = 40.0
+#: A sighting-guided attempt looks within this many degrees of the guess's heading.
+PRIOR_TURN_DEG: float = 10.0
+#: Rivals remembered per unmerged pair; a pose is accepted only once the maps rule out every one (0:
+#: none).
+RIVAL_MEMORY: int = 8
+#: An unmerged pair is tried again only once its two maps know this share more cells (the same maps
+#: give the same answer).
+RETRY_GROWTH: float = 0.02
+
+#: The tracker's former options that are now the constants above (name -> constant name).
+DEMOTED_TRACKER_OPTIONS: dict[str, str] = {
+    "replace_margin": "REPLACE_MARGIN",
+    "recheck_slack_cells": "RECHECK_SLACK_CELLS",
+    "recheck_min_run_cells": "RECHECK_MIN_RUN_CELLS",
+    "relocate_tol_cells": "RELOCATE_TOL_CELLS",
+    "refit_refused": "REFIT_REFUSED",
+    "drift_slack_cells": "DRIFT_SLACK_CELLS",
+    "drift_keep_above": "DRIFT_KEEP_ABOVE",
+    "prior_radius_cells": "PRIOR_RADIUS_CELLS",
+    "prior_turn_deg": "PRIOR_TURN_DEG",
+    "rival_memory": "RIVAL_MEMORY",
+    "retry_growth": "RETRY_GROWTH",
+}
+
+
 def rival_rule(merger: Any, merge_options: Mapping[str, Any]) -> SemanticOptions:
     """How the tracker judges a remembered rival against an accepted pose on the current maps:
-    as the semantic merger of this run judges a rival (``far_cells`` from it, explaining at
-    least ``rival_support`` of its agreeing wall cells, not beaten by ``min_margin`` in index
-    and ``min_evidence_cells`` contradicting wall cells, nor ruled out by one object), with the
-    run's own options when the merger is the named semantic one, its defaults otherwise."""
+    as the semantic merger of this run judges a rival (``FAR_CELLS`` from it, explaining at
+    least ``RIVAL_SUPPORT`` of its agreeing wall cells, not beaten by ``min_margin`` in index
+    and ``MIN_EVIDENCE_CELLS`` contradicting wall cells, nor ruled out by one object), with the
+    run's own options when the merger is the named semantic one, its defaults otherwise (the
+    upper-case settings are constants of :mod:`~mrexplore.merge.semantic`, the same for both)."""
     if isinstance(merger, str) and merger.lower() == "semantic":
         return SemanticOptions.from_kwargs(**merge_options)
     return SemanticOptions.from_kwargs()
@@ -116,7 +168,7 @@ class _Outcome:
     old_now: float | None = None  # re-check: the kept transform's raw index on those maps
     held_now: float | None = None  # re-check: its noise-aware agreement (what a drop judges)
     # re-check, when held_now is under the bar: that agreement with walls up to
-    # ``drift_slack_cells`` apart taken as one wall (None: not computed)
+    # ``DRIFT_SLACK_CELLS`` apart taken as one wall (None: not computed)
     drift_held: float | None = None
     # attempt: rival poses the merger reported (canvas cells), and the remembered rivals that
     # still stand against the accepted pose on these maps (None: none were checked)
@@ -200,56 +252,16 @@ class TrackerOptions(Options):
     Attributes:
         merge_every: try to merge unconnected pairs every this many steps (>= 1).
         recheck_every: re-check accepted transforms every this many steps (0 = never).
-        replace_margin: a re-check replaces the kept transform only if its score beats the kept
-            transform's score on the current maps by at least this (default 0.05).
         confirmations: consecutive agreeing attempts needed before a transform is accepted
             (default 2; 1 accepts the first match).
         confirm_tol_cells: two attempts agree when the corners of b's known box land within
             this many cells of each other (default 2.0).
         drop_below: a re-check drops the kept transform when its noise-aware agreement on the
             current maps falls below this (default 0.85; 0 never drops).
-        recheck_slack_cells: in that agreement, a wall of one map within this many cells
-            beyond the one-cell tolerance of the other's walls agrees (default 2: the semantic
-            merger's ``slack_cells``, the same wall seen from its two sides or eroded).
-        recheck_min_run_cells: in that agreement, contradicting cells count only in 8-connected
-            groups of at least this many (default 5: the semantic merger's ``min_run_cells``;
-            a wall laid across open space, not speckle). Slack 0 and runs of 1: a drop judges
-            the raw acceptance index (why not: ``docs/merging.md``, "The re-check judges a
-            kept transform as acceptance judged it").
-        relocate_tol_cells: a re-check that finds the kept transform contradicted keeps the
-            pair merged, with the merger's new transform, when the merger accepts one whose
-            placement of b's known box is within this many cells of the kept one's (default
-            10.0, half a metre at 0.05 m: the drift of a long episode; 0 = always drop).
-            Farther, or refused: dropped (but see ``refit_refused``).
-        refit_refused: a contradicted transform is also kept, refitted, when the merger refuses
-            but its best pose is within ``relocate_tol_cells`` of it, agrees within the maps'
-            noise at least ``drop_below``, and beats every farther rival by the merger's margin:
-            drift has bent the maps so that no rigid pose reaches the acceptance bar, yet the
-            place is still the best explanation (default True; semantic merger only, which
-            reports its best pose).
-        drift_slack_cells, drift_keep_above: a contradicted transform that is neither relocated
-            nor refitted is still kept when its noise-aware agreement, with walls up to
-            ``drift_slack_cells`` (default 6, 0.3 m at 0.05 m) beyond the tolerance taken as one
-            wall, is at least ``drift_keep_above`` (default 0.9): odometry drift displaces
-            walls by that much over a long episode, while a look-alike place lays walls across
-            open space (measurements: ``docs/merging.md``, "A merge that drift has bent is
-            kept"). 0 cells = off.
-        prior_radius_cells, prior_turn_deg: the region around a sighting's guess (``update``'s
-            ``sightings``) in which a guided attempt looks: poses that put the centre of j's
-            walls within this many cells of where the guess puts it, turned by at most this
-            many degrees (defaults 40 cells, 2 m at 0.05 m, and 10 degrees; the semantic
-            merger's :class:`~mrexplore.merge.PosePrior`).
-        rival_memory: rivals remembered per unmerged pair (default 8; 0 = none): a pose an
-            attempt found nearly as good as its best, far from it. A later attempt's pose is
-            accepted only when the maps now rule out every remembered rival (it explains less
-            than half as much, or is beaten by the merger's margin; the rivals the merger no
-            longer finds are checked too): evidence over time, not the search's memory.
         min_accept_cells: an attempt's pose counts towards acceptance only when it rests on at
             least this many cells (``MergeResult.overlap_cells``; the semantic merger's wall
             cells of both maps under the pose); below, it is a refusal (default 0; the env asks
             250 of the semantic merger: a few metres of look-alike wall are not a place).
-        retry_growth: an unmerged pair is tried again only once the two maps together know this
-            share more cells than at the last attempt (default 0.02; 0 = any change).
         confirm_growth: an agreeing attempt confirms the pending transform only when the shared
             wall cells under it (``MergeResult.overlap_cells``) grew by this share since the
             attempt before (default 0: any agreeing attempt on grown maps confirms).
@@ -258,7 +270,7 @@ class TrackerOptions(Options):
             refused for uniqueness, pinning or shared area, keeps the run of agreeing attempts
             instead of breaking it (it does not extend the run). A rival it reported is
             remembered and must be ruled out before the run can end in a merge
-            (``rival_memory``). Default False: every refusal breaks the run (measured in
+            (``RIVAL_MEMORY``). Default False: every refusal breaks the run (measured in
             ``docs/merging.md``, "Where the first merge waits"). Semantic merger only (it
             reports whether its best pose was consistent).
         merge_latency_steps: an attempt or re-check started at step t is applied at step
@@ -266,26 +278,59 @@ class TrackerOptions(Options):
             waits for the merger (default 0: computed and applied in the step that starts it).
             A fixed delay, not "when ready": the same seed gives the same run on any machine.
             With a delay, at most one attempt or re-check starts per step.
+
+    The in-loop rules' other settings are constants of this module (one value each, measured
+    on the tuning worlds; a test may set one for a run):
+
+        REPLACE_MARGIN: a re-check replaces the kept transform only if its score beats the kept
+            transform's score on the current maps by at least this (default 0.05).
+        RECHECK_SLACK_CELLS: in that agreement, a wall of one map within this many cells
+            beyond the one-cell tolerance of the other's walls agrees (default 2: the semantic
+            merger's ``SLACK_CELLS``, the same wall seen from its two sides or eroded).
+        RECHECK_MIN_RUN_CELLS: in that agreement, contradicting cells count only in 8-connected
+            groups of at least this many (default 5: the semantic merger's ``MIN_RUN_CELLS``;
+            a wall laid across open space, not speckle). Slack 0 and runs of 1: a drop judges
+            the raw acceptance index (why not: ``docs/merging.md``, "The re-check judges a
+            kept transform as acceptance judged it").
+        RELOCATE_TOL_CELLS: a re-check that finds the kept transform contradicted keeps the
+            pair merged, with the merger's new transform, when the merger accepts one whose
+            placement of b's known box is within this many cells of the kept one's (default
+            10.0, half a metre at 0.05 m: the drift of a long episode; 0 = always drop).
+            Farther, or refused: dropped (but see ``REFIT_REFUSED``).
+        REFIT_REFUSED: a contradicted transform is also kept, refitted, when the merger refuses
+            but its best pose is within ``RELOCATE_TOL_CELLS`` of it, agrees within the maps'
+            noise at least ``drop_below``, and beats every farther rival by the merger's margin:
+            drift has bent the maps so that no rigid pose reaches the acceptance bar, yet the
+            place is still the best explanation (default True; semantic merger only, which
+            reports its best pose).
+        DRIFT_SLACK_CELLS, DRIFT_KEEP_ABOVE: a contradicted transform that is neither relocated
+            nor refitted is still kept when its noise-aware agreement, with walls up to
+            ``DRIFT_SLACK_CELLS`` (default 6, 0.3 m at 0.05 m) beyond the tolerance taken as one
+            wall, is at least ``DRIFT_KEEP_ABOVE`` (default 0.9): odometry drift displaces
+            walls by that much over a long episode, while a look-alike place lays walls across
+            open space (measurements: ``docs/merging.md``, "A merge that drift has bent is
+            kept"). 0 cells = off.
+        PRIOR_RADIUS_CELLS, PRIOR_TURN_DEG: the region around a sighting's guess (``update``'s
+            ``sightings``) in which a guided attempt looks: poses that put the centre of j's
+            walls within this many cells of where the guess puts it, turned by at most this
+            many degrees (defaults 40 cells, 2 m at 0.05 m, and 10 degrees; the semantic
+            merger's :class:`~mrexplore.merge.PosePrior`).
+        RIVAL_MEMORY: rivals remembered per unmerged pair (default 8; 0 = none): a pose an
+            attempt found nearly as good as its best, far from it. A later attempt's pose is
+            accepted only when the maps now rule out every remembered rival (it explains less
+            than half as much, or is beaten by the merger's margin; the rivals the merger no
+            longer finds are checked too): evidence over time, not the search's memory.
+        RETRY_GROWTH: an unmerged pair is tried again only once the two maps together know this
+            share more cells than at the last attempt (default 0.02; 0 = any change).
     """
 
     owner: ClassVar[str] = "MapMergeTracker"
     merge_every: int = option(MERGE_EVERY_DEFAULT, MERGE_EVERY_CHECK)
     recheck_every: int = option(RECHECK_EVERY_DEFAULT, RECHECK_EVERY_CHECK)
-    replace_margin: float = option(0.05, number(0.0, 1.0))
     confirmations: int = option(2, integer(1))
     confirm_tol_cells: float = option(2.0, positive)
     drop_below: float = option(0.85, number(0.0, 1.0))
-    recheck_slack_cells: int = option(2, integer(0, 10))
-    recheck_min_run_cells: int = option(5, integer(1, 1000))
-    relocate_tol_cells: float = option(10.0, number(0.0, 1000.0))
-    refit_refused: bool = option(True, boolean)
-    drift_slack_cells: int = option(6, integer(0, 50))
-    drift_keep_above: float = option(0.9, number(0.0, 1.0))
-    prior_radius_cells: float = option(40.0, positive)
-    prior_turn_deg: float = option(10.0, number(0.0, 180.0, low_open=True))
-    rival_memory: int = option(8, integer(0, 1000))
     min_accept_cells: int = option(0, integer(0))
-    retry_growth: float = option(0.02, number(0.0, 10.0))
     confirm_growth: float = option(0.0, number(0.0, 10.0))
     keep_run_on_refusal: bool = option(False, boolean)
     merge_latency_steps: int = option(0, MERGE_LATENCY_CHECK)
@@ -298,6 +343,13 @@ TRACKER_KEYS: frozenset[str] = frozenset(f.name for f in fields(TrackerOptions))
 def tracker_options(options: TrackerOptions | None, kwargs: dict[str, Any]) -> TrackerOptions:
     """The tracker's options: ``options``, or the tracker's knobs among ``kwargs`` (removed
     from it; the old keyword form, kept for one release); both at once is a ``ConfigError``."""
+    demoted = sorted(set(kwargs) & set(DEMOTED_TRACKER_OPTIONS))
+    if demoted:
+        names = ", ".join(f"{k} (now {DEMOTED_TRACKER_OPTIONS[k]})" for k in demoted)
+        raise ConfigError(
+            f"MapMergeTracker: {names} no longer an option: a constant of "
+            "mrexplore.merge.tracker, chosen on the tuning worlds (docs/merging.md)"
+        )
     given = {k: kwargs.pop(k) for k in sorted(TRACKER_KEYS & set(kwargs))}
     if options is None:
         return TrackerOptions.from_kwargs(**given)
@@ -525,14 +577,14 @@ class MapMergeTracker:
             codes_a, codes_b = MapCodes(a), MapCodes(b)  # shared by both verifiers
             old_now = Verifier(codes_a, codes_b)(T_crop).score
             held_now = old_now
-            if self.options.recheck_slack_cells > 0 or self.options.recheck_min_run_cells > 1:
-                noisy = Verifier(codes_a, codes_b, slack=self.options.recheck_slack_cells)
-                held_now = noisy.structured(T_crop, self.options.recheck_min_run_cells).score
+            if RECHECK_SLACK_CELLS > 0 or RECHECK_MIN_RUN_CELLS > 1:
+                noisy = Verifier(codes_a, codes_b, slack=RECHECK_SLACK_CELLS)
+                held_now = noisy.structured(T_crop, RECHECK_MIN_RUN_CELLS).score
             drift_held = None
-            if held_now < self.options.drop_below and self.options.drift_slack_cells > 0:
-                drifted = Verifier(codes_a, codes_b, slack=self.options.drift_slack_cells)
-                drift_held = drifted.structured(T_crop, self.options.recheck_min_run_cells).score
-            if held_now < self.options.drop_below and self.options.relocate_tol_cells <= 0:
+            if held_now < self.options.drop_below and DRIFT_SLACK_CELLS > 0:
+                drifted = Verifier(codes_a, codes_b, slack=DRIFT_SLACK_CELLS)
+                drift_held = drifted.structured(T_crop, RECHECK_MIN_RUN_CELLS).score
+            if held_now < self.options.drop_below and RELOCATE_TOL_CELLS <= 0:
                 return _Outcome(None, None, old_now, held_now, drift_held)
         # A merger that needs the robots' ids and crop offsets (the benchmark's oracle) says so.
         pair = getattr(self._merger_obj, "merge_pair", None)
@@ -542,13 +594,13 @@ class MapMergeTracker:
             res = pair(i, j, a, b, (ca, ra), (cb, rb))
         elif guess is not None and prior_merge is not None and prior_merge.method == "semantic":
             T_guess = chain(translation(-ca, -ra), guess, translation(cb, rb))
-            prior = PosePrior(T_guess, self.options.prior_radius_cells, self.options.prior_turn_deg)
+            prior = PosePrior(T_guess, PRIOR_RADIUS_CELLS, PRIOR_TURN_DEG)
             # The shared-space floor guards against a look-alike room elsewhere, which the
             # sighting's region already excludes: a guided attempt asks a few square metres.
             res = prior_merge(a, b, prior=prior, min_common_m2=GUIDED_MIN_COMMON_M2)
             # the sighting rules out every place outside its region, remembered rivals too
             # (the region about the centre of j's known box, in canvas cells)
-            region = PosePrior(guess, self.options.prior_radius_cells, self.options.prior_turn_deg)
+            region = PosePrior(guess, PRIOR_RADIUS_CELLS, PRIOR_TURN_DEG)
             centre = np.array([(cb + cb + b.shape[1]) / 2.0, (rb + rb + b.shape[0]) / 2.0])
             rivals = [R for R in rivals if region.admits(R, centre, guess)]
         else:
@@ -560,7 +612,7 @@ class MapMergeTracker:
         if kind != "attempt":
             refit = None
             contradicted = held_now is not None and held_now < self.options.drop_below
-            if T is None and T_old is not None and self.options.refit_refused and contradicted:
+            if T is None and T_old is not None and REFIT_REFUSED and contradicted:
                 refit = self._drift_refit(res, T_old, (ca, ra), (cb, rb), box_j)
             return _Outcome(res, T, old_now, held_now, drift_held, refit=refit)
         ev = res.evidence
@@ -596,7 +648,7 @@ class MapMergeTracker:
 
         Odometry drift bends the maps as they grow, so late in an episode no rigid pose of the
         right place reaches the acceptance bar. The place still stands when the merger's best pose
-        (``evidence.best``) lies within ``relocate_tol_cells`` of the kept one, agrees
+        (``evidence.best``) lies within ``RELOCATE_TOL_CELLS`` of the kept one, agrees
         within the maps' noise at least ``drop_below`` (the bar a kept pose is judged by) and
         beats every rival farther than that from the kept pose by the merger's margin in raw
         index. Pure (canvas cells in and out)."""
@@ -615,11 +667,11 @@ class MapMergeTracker:
             )
 
         T_best = canvas(ev.best.transform)
-        if not self._same(T_old, T_best, box_j, self.options.relocate_tol_cells):
+        if not self._same(T_old, T_best, box_j, RELOCATE_TOL_CELLS):
             return None
         margin = self._rival_rule.min_margin
         for R, ag in ev.rivals:
-            if self._same(T_old, canvas(R), box_j, self.options.relocate_tol_cells):
+            if self._same(T_old, canvas(R), box_j, RELOCATE_TOL_CELLS):
                 continue  # the same place, refitted otherwise: no rival
             if agreement.score - ag.score < margin:
                 return None  # another place explains the maps about as well
@@ -648,14 +700,14 @@ class MapMergeTracker:
         best = verify(T_crop)
 
         def stands(R: Transform) -> bool:
-            if self._same(R, T, box_j, self._rival_rule.far_cells):
+            if self._same(R, T, box_j, _semantic.FAR_CELLS):
                 return False  # the same place
             other = verify(crop(R))
             if not stands_as_rival(best, other, verify.cells_per_sample, self._rival_rule):
                 return False
             margin = best.score - other.score
             ruled_out = rival_structure(verify, T_crop, crop(R), margin, self._rival_rule)
-            return ruled_out < self._rival_rule.min_evidence_cells
+            return ruled_out < _semantic.MIN_EVIDENCE_CELLS
 
         return [R for R in rivals if stands(R)]
 
@@ -727,7 +779,7 @@ class MapMergeTracker:
                     continue  # its last attempt is still under way
                 known = self._px.known_cells(i) + self._px.known_cells(j)
                 last = self._last_attempt_known.get((i, j))
-                if last is not None and known < last * (1.0 + self.options.retry_growth):
+                if last is not None and known < last * (1.0 + RETRY_GROWTH):
                     # Too little new knowledge since the last attempt: the answer would be the
                     # same (profiled: with random actions, repeated attempts on barely grown
                     # maps were 2/3 of the env's step time).
@@ -793,13 +845,13 @@ class MapMergeTracker:
     def _remember_rivals(self, i: int, j: int, out: _Outcome) -> bool:
         """Update pair (i, j)'s remembered rivals with one attempt's outcome (the checked ones
         that no longer stand are forgotten, the merger's new ones added, the newest
-        ``rival_memory`` kept); True when a remembered rival stands against its pose."""
-        if self.options.rival_memory == 0:
+        ``RIVAL_MEMORY`` kept); True when a remembered rival stands against its pose."""
+        if RIVAL_MEMORY == 0:
             return False
         mem = self._rivals.get((i, j), [])
         if out.standing is not None:
             mem = list(out.standing)
-        mem = (mem + list(out.rivals))[-self.options.rival_memory :]
+        mem = (mem + list(out.rivals))[-RIVAL_MEMORY:]
         if mem:
             self._rivals[(i, j)] = mem
         else:
@@ -851,8 +903,8 @@ class MapMergeTracker:
             if (
                 out.result is not None
                 and out.T is not None
-                and self.options.relocate_tol_cells > 0
-                and self._same(T_old, out.T, bbox_j, self.options.relocate_tol_cells)
+                and RELOCATE_TOL_CELLS > 0
+                and self._same(T_old, out.T, bbox_j, RELOCATE_TOL_CELLS)
             ):
                 # The same place, refitted to maps that odometry drift has bent: keep the pair
                 # merged with the merger's new pose (it passed every rule on these maps).
@@ -862,7 +914,7 @@ class MapMergeTracker:
                 # Refused, but the best pose is still the kept place (drift, not a wrong place)
                 self._replace_edge(i, j, out.refit, out.result.score)
                 return
-            if out.drift_held is not None and out.drift_held >= self.options.drift_keep_above:
+            if out.drift_held is not None and out.drift_held >= DRIFT_KEEP_ABOVE:
                 # Contradicted only by walls a drift's width apart: the maps bent, the place
                 # stands (a look-alike place lays walls across open space)
                 return
@@ -877,7 +929,7 @@ class MapMergeTracker:
         self._contradicted.pop((i, j), None)
         if out.result is None or out.T is None:
             return
-        if out.result.score >= out.old_now + self.options.replace_margin:
+        if out.result.score >= out.old_now + REPLACE_MARGIN:
             self._replace_edge(i, j, out.T, out.result.score)
 
     def _replace_edge(self, i: int, j: int, T: Transform, score: float) -> None:
@@ -943,7 +995,7 @@ class MapMergeTracker:
         """Where robot j's map may lie in robot i's, while the pair is not merged: ``T_ij``
         candidates (3x3, canvas cells), most likely first. The last attempt's best pose when it
         passed the consistency test (refused for uniqueness, pinning or shared space, or
-        waiting for confirmation), then the rivals the tracker remembers (``rival_memory``).
+        waiting for confirmation), then the rivals the tracker remembers (``RIVAL_MEMORY``).
         Empty once the pair is merged, or before any attempt found a candidate. The merger's
         own knowledge, no ground truth: for a policy that goes to where the candidates can be
         told apart (:class:`~mrexplore.policies.CoordinatedFrontierPolicy`'s ``verify_weight``).

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -106,3 +107,15 @@ def office_pair() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     b, T_rot = rotate_map(mb, np.radians(37.0))
     T_ab = translation(cb - ca, rb - ra) @ invert_transform(T_rot)
     return a, b, T_ab
+
+
+def merge_with(a: np.ndarray, b: np.ndarray, **kw: Any) -> Any:
+    """:func:`~mrexplore.merge.merge_maps` with the semantic merger's rule constants given by
+    their former option names (``object_hull_free=0``) set for this call only: a test of that
+    rule, on or off. The other keywords are options, as ``merge_maps`` takes them."""
+    from mrexplore.merge import merge_maps, semantic
+
+    with pytest.MonkeyPatch.context() as mp:
+        for name in [k for k in kw if k in semantic.DEMOTED_OPTIONS]:
+            mp.setattr(semantic, semantic.DEMOTED_OPTIONS[name], kw.pop(name))
+        return merge_maps(a, b, **kw)

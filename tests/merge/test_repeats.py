@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from conftest import merge_with
 
 from mrexplore.grid import FREE, OCCUPIED, UNKNOWN
 from mrexplore.merge import merge_maps
@@ -61,7 +62,7 @@ def test_a_rack_matched_on_another_rack_is_refused() -> None:
     ones. Rack on rack fits perfectly, and only the one-object rule refuses it."""
     a = _floor(200, [70])[:, :200]
     b = _floor(200, [70])[:, :200]  # the next rack of the row, seen by the other robot
-    off = merge_maps(a, b, min_object_m2=0.0, object_hull_free=0.0)
+    off = merge_with(a, b, min_object_m2=0.0, object_hull_free=0.0)
     assert off.matched  # the rules are what refuse it: the maps alone agree perfectly
     res = merge_maps(a, b)
     assert not res.matched
@@ -89,9 +90,9 @@ def test_a_pose_on_one_copy_has_the_next_copy_as_rival() -> None:
     a = _floor(400, [30, 130, 230])
     b = a[:, :200].copy()  # racks 1 and 2, and the floor before them
     narrow = dict(peaks_per_rotation=1, n_polish=2, n_refine=2, slide_step=0.0)
-    blind = merge_maps(a, b, repeat_rivals=0, **narrow)
+    blind = merge_with(a, b, repeat_rivals=0, **narrow)
     assert blind.matched  # one copy found, the other never tried: a guess (right, by luck)
-    res = merge_maps(a, b, **narrow)
+    res = merge_with(a, b, **narrow)
     assert not res.matched
     assert "ambiguous" in res.reason and "100 cells away" in res.reason
 
@@ -110,13 +111,13 @@ def test_the_held_out_warehouse_merges_are_refused() -> None:
         (one_rack, ("min_object_m2", "object_hull_free"), "one structure in each map"),
     ):
         off = dict.fromkeys(rules, 0)
-        loose = merge_maps(case.a, case.b, resolution_m=case.resolution_m, **off)
+        loose = merge_with(case.a, case.b, resolution_m=case.resolution_m, **off)
         assert classify(case, loose.matched, loose.transform)[0] == "wrong"
         res = merge_maps(case.a, case.b, resolution_m=case.resolution_m)
         # the pose laid a period off rests on one rack seen from outside as well: refused
         # first by that rule now (item 22 of docs/merging.md), by the repeats without it
         assert not res.matched and (reason in res.reason or "seen from outside" in res.reason)
-        alone = merge_maps(case.a, case.b, resolution_m=case.resolution_m, object_hull_free=0)
+        alone = merge_with(case.a, case.b, resolution_m=case.resolution_m, object_hull_free=0)
         assert not alone.matched and reason in alone.reason
 
 
@@ -137,7 +138,7 @@ def test_a_big_rack_and_its_post_matched_on_another_copy_are_refused() -> None:
     a = np.full((200, 320), FREE, dtype=np.int8)
     _big_rack(a, 40, 40, post=True)
     b = a[:, :200].copy()  # the other copy's left end: the same view, somewhere else
-    off = merge_maps(b, a, object_hull_free=0.0)
+    off = merge_with(b, a, object_hull_free=0.0)
     assert off.matched  # nothing else in the maps tells the copies apart
     res = merge_maps(b, a)
     assert not res.matched and "seen from outside" in res.reason
@@ -153,8 +154,8 @@ def test_the_aliased_rack_side_merges_are_refused() -> None:
     for seed, i in ((19, 25), (24, 13), (72, 11)):
         case = aliased_cases(i + 1, seed)[i]
         kw = {"resolution_m": case.resolution_m}
-        loose = merge_maps(case.a, case.b, **kw, object_hull_free=0, lone_pin_test=False)
+        loose = merge_with(case.a, case.b, **kw, object_hull_free=0, lone_pin_test=False)
         assert classify(case, loose.matched, loose.transform)[0] == "wrong"
-        res = merge_maps(case.a, case.b, **kw, lone_pin_test=False)
+        res = merge_with(case.a, case.b, **kw, lone_pin_test=False)
         assert not res.matched and "seen from outside" in res.reason
         assert not merge_maps(case.a, case.b, **kw).matched

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import two_rooms
+from conftest import merge_with, two_rooms
 
 from mrexplore.errors import ConfigError
 from mrexplore.experiments.merge_cases import rotate_map
@@ -335,7 +335,7 @@ def test_consistency_polish_is_an_option_and_changes_only_refusals(
     office_pair: tuple[np.ndarray, np.ndarray, np.ndarray],
 ) -> None:
     a, b, _ = office_pair
-    on, off = merge_maps(a, b), merge_maps(a, b, consistency_polish=False)
+    on, off = merge_maps(a, b), merge_with(a, b, consistency_polish=False)
     assert on.matched and off.matched
     np.testing.assert_array_equal(on.transform, off.transform)  # accepted as ICP left it
     with pytest.raises(Exception, match="consistency_polish"):
@@ -371,7 +371,7 @@ def test_a_polished_pose_must_clear_the_bar_by_a_margin() -> None:
     assert not res.matched, merge_error(res.transform, T_ab, b)
     assert (res.info or {}).get("consistency_polished") is None
     # the room-match rule refuses it too (14.1 m^2 shared, 0.28 of the smaller map): off here
-    old = merge_maps(a, b, resolution_m=0.05, polish_margin=0.0, room_match_m2=0.0)
+    old = merge_with(a, b, resolution_m=0.05, polish_margin=0.0, room_match_m2=0.0)
     assert old.matched and (old.info or {}).get("consistency_polished")
     assert merge_error(old.transform, T_ab, b)[0] > 100
     with pytest.raises(Exception, match="polish_margin"):
@@ -390,7 +390,7 @@ def test_a_perfect_far_pose_is_a_rival_however_little_it_explains() -> None:
     assert not res.matched and res.reason.startswith("ambiguous"), res.reason
     assert res.runner_up_score == 1.0  # the truth, judged as the rival
     # the shelf row is one object seen from outside too: that rule off as well
-    old = merge_maps(a, b, resolution_m=0.05, rival_perfect_cells=0, object_hull_free=0)
+    old = merge_with(a, b, resolution_m=0.05, rival_perfect_cells=0, object_hull_free=0)
     assert old.matched and merge_error(old.transform, T_ab, b)[0] > 300
 
 
@@ -514,7 +514,7 @@ def test_min_wall_area_m2_refuses_a_match_on_one_object(seed: int, index: int) -
     from mrexplore.experiments.merge_cases import aliased_cases
 
     case = aliased_cases(index + 1, seed)[index]
-    loose = merge_maps(
+    loose = merge_with(
         case.a,
         case.b,
         resolution_m=case.resolution_m,
@@ -527,7 +527,7 @@ def test_min_wall_area_m2_refuses_a_match_on_one_object(seed: int, index: int) -
     assert classify(case, loose.matched, loose.transform)[0] == "wrong"
     # the lone-pin test and the room-match rule, checked before it, refuse one of them first:
     # off here
-    res = merge_maps(
+    res = merge_with(
         case.a, case.b, resolution_m=case.resolution_m, lone_pin_test=False, room_match_m2=0
     )
     assert not res.matched and "walls that agree fit in" in res.reason
@@ -624,7 +624,7 @@ def test_a_rival_ruled_out_by_one_object_does_not_make_the_best_ambiguous() -> N
 
     case = real_cases(15, 7)[14]
     assert case.name.startswith("nav2/tb3_sandbox")
-    off = merge_maps(case.a, case.b, resolution_m=case.resolution_m, structure_test=False)
+    off = merge_with(case.a, case.b, resolution_m=case.resolution_m, structure_test=False)
     assert not off.matched and off.reason.startswith("ambiguous")
     res = merge_maps(case.a, case.b, resolution_m=case.resolution_m)
     assert classify(case, res.matched, res.transform)[0] == "correct", res.reason

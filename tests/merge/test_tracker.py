@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 from conftest import look_alike_canvases
 
+import mrexplore.merge.semantic as semantic_module
+import mrexplore.merge.tracker as tracker_module
 from mrexplore.errors import ConfigError, GridError
 from mrexplore.experiments.merge_cases import rotate_map
 from mrexplore.grid import OCCUPIED as OCC
@@ -33,6 +35,12 @@ def _in_crops(ca: np.ndarray, cb: np.ndarray, T: np.ndarray) -> np.ndarray:
     ra0, _, ca0, _ = known_bbox(ca)  # type: ignore[misc]
     rb0, _, cb0, _ = known_bbox(cb)  # type: ignore[misc]
     return translation(-ca0, -ra0) @ T @ translation(cb0, rb0)
+
+
+def _constants(mp: pytest.MonkeyPatch, **values: object) -> None:
+    """Set the tracker's rule constants (by their former option names) for this test."""
+    for name, value in values.items():
+        mp.setattr(tracker_module, tracker_module.DEMOTED_TRACKER_OPTIONS[name], value)
 
 
 def _merged_after_rechecks(
@@ -365,7 +373,9 @@ def test_recheck_drops_a_transform_the_grown_maps_contradict(
 
 @pytest.mark.parametrize("noise_aware", [True, False])
 def test_recheck_keeps_a_transform_the_maps_contradict_only_within_their_noise(
-    robots: tuple[np.ndarray, np.ndarray, np.ndarray], noise_aware: bool
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray],
+    noise_aware: bool,
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """Speckles (two wall cells each, in open space) pull the raw index under ``drop_below``;
     the drop judges the noise-aware agreement, as acceptance does, and keeps the true
@@ -386,20 +396,20 @@ def test_recheck_keeps_a_transform_the_maps_contradict_only_within_their_noise(
     raw = Verifier(ca, noisy)(T_true).score
     held = Verifier(ca, noisy, slack=2).structured(T_true, 5).score
     assert raw < 0.85 <= held  # the case the test is about
-    opts = (
-        {}
-        if noise_aware
-        else {"recheck_slack_cells": 0, "recheck_min_run_cells": 1, "relocate_tol_cells": 0.0}
-    )
-    tr = MapMergeTracker(
-        2, merger=_Seq([T_crop]), merge_every=1, recheck_every=5, confirmations=1, **opts
-    )
+    if not noise_aware:
+        _constants(
+            monkeypatch, recheck_slack_cells=0, recheck_min_run_cells=1, relocate_tol_cells=0.0
+        )
+    tr = MapMergeTracker(2, merger=_Seq([T_crop]), merge_every=1, recheck_every=5, confirmations=1)
     assert _merged_after_rechecks(tr, ca, cb, noisy) is noise_aware
 
 
 @pytest.mark.parametrize(("tol", "kept"), [(8.0, True), (5.0, False)])
 def test_recheck_refits_a_contradicted_transform_the_merger_finds_again_nearby(
-    robots: tuple[np.ndarray, np.ndarray, np.ndarray], tol: float, kept: bool
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray],
+    tol: float,
+    kept: bool,
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """Robot 1's map moves 6 cells (as drift moves a map): the kept transform is contradicted,
     and the merger, run on the same maps, accepts the refitted one 6 cells away. Within
@@ -418,9 +428,8 @@ def test_recheck_refits_a_contradicted_transform_the_merger_finds_again_nearby(
         merge_every=1,
         recheck_every=5,
         confirmations=1,
-        relocate_tol_cells=tol,
-        drift_slack_cells=0,  # this rule alone
     )
+    _constants(monkeypatch, relocate_tol_cells=tol, drift_slack_cells=0)  # this rule alone
     assert _merged_after_rechecks(tr, ca, cb, moved) is kept
     if kept:
         T = tr.transform(0, 1)
@@ -429,7 +438,7 @@ def test_recheck_refits_a_contradicted_transform_the_merger_finds_again_nearby(
 
 
 def test_a_callable_merger_without_evidence_merges_and_drops(
-    robots: tuple[np.ndarray, np.ndarray, np.ndarray],
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """A plain function that reports no :class:`MergeEvidence` (a user's own merger): it
     merges after two agreeing attempts (no best pose kept as a hypothesis, no rival
@@ -451,9 +460,8 @@ def test_a_callable_merger_without_evidence_merges_and_drops(
         merge_every=1,
         recheck_every=5,
         confirmations=2,
-        retry_growth=0.0,
-        drift_slack_cells=0,  # a 6-cell shift is not kept as drift here
     )
+    _constants(monkeypatch, retry_growth=0.0, drift_slack_cells=0)  # no drift kept here
     for step in range(3):  # accept, refuse (breaks the run), accept: one pending
         tr.update([ca, cb], step=step)
         assert not tr.merged(0)
@@ -518,6 +526,7 @@ def test_recheck_keeps_a_drifted_place_the_merger_ranks_first_but_refuses(
     rival: tuple[int, float] | None,
     refit: bool,
     kept: bool,
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """Drift bends the maps so that no rigid pose reaches the acceptance bar: the merger
     refuses, yet its best pose may still be the kept place. The pair stays merged, at that pose,
@@ -541,9 +550,9 @@ def test_recheck_keeps_a_drifted_place_the_merger_ranks_first_but_refuses(
         merge_every=1,
         recheck_every=5,
         confirmations=1,
-        refit_refused=refit,
-        drift_slack_cells=0,  # this rule alone (a 6-cell drift is also kept by the next test's)
     )
+    # this rule alone (a 6-cell drift is also kept by the next test's)
+    _constants(monkeypatch, refit_refused=refit, drift_slack_cells=0)
     assert _merged_after_rechecks(tr, ca, cb, moved) is kept and merger.calls > 1
     if kept:
         T = tr.transform(0, 1)
@@ -560,7 +569,11 @@ def test_recheck_keeps_a_drifted_place_the_merger_ranks_first_but_refuses(
     ],
 )
 def test_recheck_keeps_a_transform_contradicted_only_within_a_drifts_width(
-    robots: tuple[np.ndarray, np.ndarray, np.ndarray], shift: int, slack: int, kept: bool
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray],
+    shift: int,
+    slack: int,
+    kept: bool,
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """Robot 1's map slides ``shift`` cells (drift); the merger refuses every re-check without
     a pose. The kept transform stays while its walls lie within ``drift_slack_cells`` of the
@@ -578,8 +591,8 @@ def test_recheck_keeps_a_transform_contradicted_only_within_a_drifts_width(
         merge_every=1,
         recheck_every=5,
         confirmations=1,
-        drift_slack_cells=slack,
     )
+    _constants(monkeypatch, drift_slack_cells=slack)
     assert _merged_after_rechecks(tr, ca, cb, moved) is kept
     if kept:
         np.testing.assert_allclose(tr.transform(0, 1), T_true, atol=1e-9)  # crop round trip
@@ -722,7 +735,10 @@ class _WithRivals:
 
 @pytest.mark.parametrize(("memory", "merged"), [(8, False), (0, True)])
 def test_a_remembered_rival_the_maps_still_support_blocks_a_look_alike(
-    robots: tuple[np.ndarray, np.ndarray, np.ndarray], memory: int, merged: bool
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray],
+    memory: int,
+    merged: bool,
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """An attempt is refused as ambiguous between two poses; later attempts offer only the
     wrong one (the search no longer finds the other). The remembered rival, which the maps
@@ -731,17 +747,15 @@ def test_a_remembered_rival_the_maps_still_support_blocks_a_look_alike(
     truth = _in_crops(ca, cb, T_true)
     wrong = translation(40.0, 0.0) @ truth
     merger = _WithRivals([(None, [truth]), (wrong, []), (wrong, []), (wrong, [])])
-    tr = MapMergeTracker(
-        2, merger=merger, merge_every=1, recheck_every=0, confirmations=2, retry_growth=0.0,
-        rival_memory=memory,
-    )  # fmt: skip
+    tr = MapMergeTracker(2, merger=merger, merge_every=1, recheck_every=0, confirmations=2)
+    _constants(monkeypatch, retry_growth=0.0, rival_memory=memory)
     for step in range(4):
         tr.update([ca, cb], step=step)
     assert tr.merged(0) is merged and merger.calls == (3 if merged else 4)
 
 
 def test_a_remembered_rival_the_maps_rule_out_is_forgotten(
-    robots: tuple[np.ndarray, np.ndarray, np.ndarray],
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The other way round: the remembered rival is the wrong pose; the maps contradict it, so
     the true pose is accepted after its two agreeing attempts, and the rival is forgotten."""
@@ -749,7 +763,8 @@ def test_a_remembered_rival_the_maps_rule_out_is_forgotten(
     truth = _in_crops(ca, cb, T_true)
     wrong = translation(40.0, 0.0) @ truth
     merger = _WithRivals([(None, [wrong]), (truth, []), (truth, [])])
-    tr = MapMergeTracker(2, merger=merger, merge_every=1, recheck_every=0, retry_growth=0.0)
+    tr = MapMergeTracker(2, merger=merger, merge_every=1, recheck_every=0)
+    _constants(monkeypatch, retry_growth=0.0)
     for step in range(3):
         tr.update([ca, cb], step=step)
     assert tr.merged(0)
@@ -774,7 +789,9 @@ def test_a_pose_resting_on_too_little_wall_is_not_accepted(cells: int, merged: b
     assert seq.calls == (2 if merged else 4) and tr.merged(0) is merged
 
 
-def test_a_remembered_rival_ruled_out_by_one_object_does_not_stand() -> None:
+def test_a_remembered_rival_ruled_out_by_one_object_does_not_stand(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     """The sandbox crop pair the merger accepts through the structure test (tests/merge/
     test_semantic.py): its half-turned rival, remembered by the tracker, must not break the
     run of agreeing attempts either; judged by the margin alone it would."""
@@ -795,7 +812,8 @@ def test_a_remembered_rival_ruled_out_by_one_object_does_not_stand() -> None:
     assert tr._standing(*args) == []
     # the run's own options reach the tracker's rival checks: without the structure test the
     # rival stands
-    assert len(MapMergeTracker(2, structure_test=False)._standing(*args)) == 1
+    monkeypatch.setattr(semantic_module, "STRUCTURE_TEST", False)
+    assert len(MapMergeTracker(2)._standing(*args)) == 1
 
 
 def test_tracker_options_are_typed_validated_and_the_old_keywords_still_reach_them() -> None:
@@ -818,10 +836,15 @@ def test_tracker_options_are_typed_validated_and_the_old_keywords_still_reach_th
 
 
 def test_the_tracker_judges_rivals_with_the_runs_own_options() -> None:
-    """A user's ``min_margin`` or ``far_cells`` reaches the tracker's rival checks as well as
-    the merger: one run holds one value of each setting."""
-    tr = MapMergeTracker(2, min_margin=0.11, far_cells=7.5)
-    assert tr._rival_rule.min_margin == 0.11 and tr._rival_rule.far_cells == 7.5
+    """A user's ``min_margin`` reaches the tracker's rival checks as well as the merger: one
+    run holds one value of each setting (``FAR_CELLS`` and the rest are constants, one value
+    for both); a former option is refused by name."""
+    tr = MapMergeTracker(2, min_margin=0.11)
+    assert tr._rival_rule.min_margin == 0.11
+    with pytest.raises(ConfigError, match=r"far_cells \(now FAR_CELLS\) no longer an option"):
+        MapMergeTracker(2, far_cells=7.5)
+    with pytest.raises(ConfigError, match=r"rival_memory \(now RIVAL_MEMORY\)"):
+        MapMergeTracker(2, rival_memory=0)
     assert MapMergeTracker(2)._rival_rule.min_margin == 0.03
     # a merger of another kind: the semantic defaults judge its rivals
     assert MapMergeTracker(2, merger="orb")._rival_rule.min_margin == 0.03

@@ -13,8 +13,8 @@ For every method x detector, over seeded cases from the symmetric worlds and fro
   is limited to one thread, numpy's FFT and reductions are single-threaded, so CPU time is the
   one-core cost; on a shared machine it is the steadier figure).
 
-Run: ``python scripts/merge_bench.py --n 30 --out results/merge_bench`` (or ``mrexplore bench
-merge ...``); ``--tracker`` also times :class:`~mrexplore.merge.MapMergeTracker` per step.
+Run: ``mrexplore bench merge --n 30 --out results/merge_bench``; ``--tracker`` also times
+:class:`~mrexplore.merge.MapMergeTracker` per step.
 ``--seeds 0-9,12`` pools the cases of several seeds per family (one seed's 30 cases say little
 about a rate; the README's table is seed 0's).
 """

@@ -9,17 +9,25 @@ from typing import Any
 
 import numpy as np
 
-#: The repository's ``scripts/`` folder.
+#: The repository's ``scripts/`` folder (maintenance: results index, worlds, lock file).
 SCRIPTS = Path(__file__).resolve().parents[1] / "scripts"
+#: The repository's ``studies/`` folder (one script per study, documented in its README).
+STUDIES = Path(__file__).resolve().parents[1] / "studies"
 
 
-def load_script(name: str) -> ModuleType:
-    """``scripts/<name>.py`` imported as a module (scripts are not a package)."""
-    spec = importlib.util.spec_from_file_location(name, SCRIPTS / f"{name}.py")
+def load_script(name: str, folder: Path = SCRIPTS) -> ModuleType:
+    """``scripts/<name>.py`` (or ``<folder>/<name>.py``) imported as a module (neither folder is
+    a package)."""
+    spec = importlib.util.spec_from_file_location(name, folder / f"{name}.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+def load_study(name: str) -> ModuleType:
+    """``studies/<name>.py`` imported as a module."""
+    return load_script(name, STUDIES)
 
 
 def assert_same(x: Any, y: Any, where: str) -> None:

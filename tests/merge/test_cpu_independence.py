@@ -56,7 +56,7 @@ print(json.dumps({k: None if r.transform is None else np.round(r.transform, 6).t
 #: semantic merger every step): every merge attempt's answer, to the last bit. Before the
 #: merger's continuous quantities were made exact or rounded (2026-11-25), 123 of this world's
 #: 356 attempts over 20 seeds answered differently with the wide extensions off
-#: (``scripts/cpu_independence.py``).
+#: (``studies/cpu_independence.py``).
 _LOOP = r"""
 import hashlib, json, sys
 from mrexplore.experiments.loop_study import run_loop_episode

@@ -1,6 +1,6 @@
 """Env speed of this checkout against another one, measured side by side in one run.
 
-    python scripts/bench_env_vs.py --base /path/to/older/checkout [--rounds 3] [--steps 1500]
+    python studies/speed_vs_checkout.py --base /path/to/older/checkout [--rounds 3] [--steps 1500]
 
 Each round runs the same harness (:func:`mrexplore.experiments.env_bench.measure` of *this*
 checkout, which uses only the public env API) on every setting, once on the other tree and once

@@ -1,4 +1,4 @@
-"""``scripts/bench_vs_explore_bench.py`` without Explore-Bench: clear errors, the import shims on a
+"""``studies/speed_vs_explore_bench.py`` without Explore-Bench: clear errors, the import shims on a
 fake checkout, and the round alternation over fake step functions (nothing here is timed)."""
 
 from __future__ import annotations
@@ -11,12 +11,12 @@ from types import ModuleType
 
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "bench_vs_explore_bench.py"
+SCRIPT = Path(__file__).resolve().parents[2] / "studies" / "speed_vs_explore_bench.py"
 
 
 @pytest.fixture(scope="module")
 def bench() -> Iterator[ModuleType]:
-    name = "bench_vs_explore_bench"
+    name = "speed_vs_explore_bench"
     spec = importlib.util.spec_from_file_location(name, SCRIPT)
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)

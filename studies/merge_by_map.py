@@ -8,7 +8,7 @@ their reason (the text up to its first figure or parenthesis). Methods that run 
 detectors (``paper``, ``orb``) need ``--detector``. Cases of several files add up, so the seeds of
 every held-out file can be pooled:
 
-    python scripts/merge_by_map.py docs/results/merge_seeds.json docs/results/merge_heldout*.json
+    python studies/merge_by_map.py docs/results/merge_seeds.json docs/results/merge_heldout*.json
 
 A refusal at high overlap is a merge the evidence may have allowed; the reasons say which rule
 (ambiguity between look-alike places, consistency, shared space, ...) and the source maps where.

@@ -1,8 +1,8 @@
-"""Env speed against Explore-Bench's grid env, side by side in one run (issue 12, item 4).
+"""Env speed against Explore-Bench's grid env, side by side in one run.
 
     git clone https://github.com/efc-robot/Explore-Bench /tmp/explore-bench
     git -C /tmp/explore-bench checkout ce3b98a09bf593b0716b26555dc4cccbd9e83cd3
-    nice -n 5 python scripts/bench_vs_explore_bench.py --explore-bench /tmp/explore-bench
+    nice -n 5 python studies/speed_vs_explore_bench.py --explore-bench /tmp/explore-bench
 
 Explore-Bench is not vendored, installed or modified: the script imports one module of the
 checkout, the grid env its DRL training uses (``onpolicy/onpolicy/envs/GridEnv/GridEnv.py``, with
@@ -361,7 +361,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--json", default=None, help="also write the figures to this JSON file")
     p.add_argument("--force", action="store_true", help="replace an existing --json file")
     args = p.parse_args(argv)
-    prog = "bench_vs_explore_bench"
+    prog = "speed_vs_explore_bench"
     if str(HERE) not in sys.path:
         sys.path.insert(0, str(HERE))
     from mrexplore.errors import MrexploreError

@@ -1,4 +1,4 @@
-"""``scripts/merge_by_map.py``: bench cases per source map, refusals by their reasons' words."""
+"""``studies/merge_by_map.py``: bench cases per source map, refusals by their reasons' words."""
 
 from __future__ import annotations
 
@@ -9,11 +9,11 @@ from typing import Any
 
 import pytest
 
-from tests.helpers import load_script
+from tests.helpers import load_study
 
 
 def _script() -> ModuleType:
-    return load_script("merge_by_map")
+    return load_study("merge_by_map")
 
 
 def _case(name: str, overlap: float, kind: str, reason: str = "") -> dict[str, Any]:

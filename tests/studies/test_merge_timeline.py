@@ -1,4 +1,4 @@
-"""``scripts/merge_timeline.py``: every in-loop merge attempt beside the truth; options checked at
+"""``studies/merge_timeline.py``: every in-loop merge attempt beside the truth; options checked at
 the door, an existing output kept without ``--force``."""
 
 from __future__ import annotations
@@ -9,11 +9,11 @@ from types import ModuleType
 
 import pytest
 
-from tests.helpers import load_script
+from tests.helpers import load_study
 
 
 def _script() -> ModuleType:
-    return load_script("merge_timeline")
+    return load_study("merge_timeline")
 
 
 @pytest.mark.parametrize(

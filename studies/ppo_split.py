@@ -1,8 +1,8 @@
 """Where a PPO run's time goes: collecting rollouts through the batched env vs the update.
 
-    python scripts/ppo_split.py                       # 8 worlds x 2 robots, 8,192 robot-steps
-    python scripts/ppo_split.py --copies 8 --timesteps 16384
-    python scripts/ppo_split.py --unbatched           # the same through separate copies
+    python studies/ppo_split.py                       # 8 worlds x 2 robots, 8,192 robot-steps
+    python studies/ppo_split.py --copies 8 --timesteps 16384
+    python studies/ppo_split.py --unbatched           # the same through separate copies
 
 Trains stable-baselines3 PPO exactly as ``mrexplore train --algo ppo`` sets it up (the
 ``mrexplore/configs/ppo.yaml`` policy, env options and hyperparameters, one torch thread), but

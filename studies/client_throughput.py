@@ -12,7 +12,7 @@ counted, and RLlib runs with ``num_env_runners=0`` so that sampling happens in t
   steps, sampling and updates together. The models differ (SB3's NatureCNN, RLlib's 4-layer
   CNN, a small TorchRL ConvNet), so the training figures compare whole pipelines, not envs.
 
-Run: ``python scripts/bench_clients.py`` (about 4 minutes on 2 cores); ``--only sb3,rllib``.
+Run: ``python studies/client_throughput.py`` (about 4 minutes on 2 cores); ``--only sb3,rllib``.
 """
 
 from __future__ import annotations

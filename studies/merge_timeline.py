@@ -1,4 +1,4 @@
-"""Where the first merge waits: every in-loop merge attempt against the truth (issue 11).
+"""Where the first merge waits: every in-loop merge attempt against the truth.
 
 Runs loop-study episodes of the ``semantic`` variant (``mrexplore bench loop``'s settings:
 coordinated frontiers, random headings, noise on) with ``merge_latency_steps`` 0, so that each
@@ -22,7 +22,7 @@ have made, exactly, since nothing a robot sees before the first merge depends on
 attempts, their answers and the remembered rivals are the same). It first replays the run's own
 settings and says whether that reproduces every logged first merge.
 
-    python scripts/merge_timeline.py --worlds symmetric_office twin_wings --seeds 20 \\
+    python studies/merge_timeline.py --worlds symmetric_office twin_wings --seeds 20 \\
         --first-seed 3000 --json timeline.json --replay confirmations=1
 """
 

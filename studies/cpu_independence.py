@@ -1,7 +1,7 @@
 """Does the merger answer the same on every CPU? Loop-study merge attempts replayed with the
 wide SIMD paths of OpenCV, numpy and OpenBLAS switched off.
 
-    python scripts/cpu_independence.py [--worlds depot tb3_office] [--seeds 20] [--first-seed 1000]
+    python studies/cpu_independence.py [--worlds depot tb3_office] [--seeds 20] [--first-seed 1000]
 
 Runs the loop study's semantic episodes (:func:`mrexplore.experiments.loop_study.run_loop_episode`,
 two robots, random headings, noise on) and keeps every merge attempt's two maps; then replays

@@ -1,8 +1,8 @@
 #!/usr/bin/env python
 """The goal-level rule ``keep_or_burgard``, with and without turns, on a saved evaluation's
-worlds, paired with its saved coordinated-frontier and learned-policy rows (issue 16).
+worlds, paired with its saved coordinated-frontier and learned-policy rows.
 
-Usage: ``python scripts/rule_on_saved.py --saved docs/results/goal_policy_eval/office/eval.json
+Usage: ``python studies/rule_on_saved.py --saved docs/results/goal_policy_eval/office/eval.json
 [--seeds 50] [--check-seeds 5] [--size-weight W] [--planner NAME] [--json OUT] [--force]``
 
 Runs :class:`~mrexplore.policies.goal_rules.KeepOrBurgardTeam` (keep the current target while

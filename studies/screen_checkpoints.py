@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """Pick a training checkpoint on screening worlds that the reported evaluation never uses.
 
-Usage: ``python scripts/screen_checkpoints.py RUN [RUN ...] --worlds W [W ...] [--seeds 20]
+Usage: ``python studies/screen_checkpoints.py RUN [RUN ...] --worlds W [W ...] [--seeds 20]
 [--first-seed 1000100] [--max-time-s 300] [--json OUT] [--force]``
 
 Each ``RUN`` is a ``mrexplore train`` folder: its ``checkpoints/*_steps.zip`` and its final
@@ -15,7 +15,7 @@ worlds.
 Why a separate script: choosing the best of several checkpoints on the seeds that are then
 reported flatters the winner. ``mrexplore evaluate`` reports on seeds from
 ``EVAL_SEED_BASE`` (1,000,000) up, so the screening seeds must lie at ``EVAL_SEED_BASE + 100``
-or above (refused otherwise). Used for issue 16's continued training (docs/goal_policy.md,
+or above (refused otherwise). Used for the goal policy's continued training (docs/goal_policy.md,
 "Longer training from the shipped policy"): there the screening's best checkpoint lost its lead
 on the 50 reported seeds, which is what this separation is for.
 """

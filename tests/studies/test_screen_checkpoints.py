@@ -1,4 +1,4 @@
-"""``scripts/screen_checkpoints.py``: every checkpoint of a run against coordinated-frontier on
+"""``studies/screen_checkpoints.py``: every checkpoint of a run against coordinated-frontier on
 screening seeds, and the refusals (seeds overlapping the reported ones, a folder not a run)."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from mrexplore.experiments.train import train
-from tests.helpers import load_script
+from tests.helpers import load_study
 
 GOAL_ENV = {
     "world": "small_office",
@@ -24,7 +24,7 @@ GOAL_ENV = {
 
 
 def _script() -> ModuleType:
-    return load_script("screen_checkpoints")
+    return load_study("screen_checkpoints")
 
 
 def test_refuses_reported_seeds_and_a_folder_that_is_no_run(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]

@@ -1,10 +1,10 @@
 #!/usr/bin/env python
 """Two trained policy folders side by side on the same held-out worlds, paired.
 
-Usage: ``python scripts/compare_policies.py A B [--seeds 20] [--world SPEC] [--max-time-s S]
+Usage: ``python studies/compare_policies.py A B [--seeds 20] [--world SPEC] [--max-time-s S]
 [--sampled]``
 
-Used for the memory experiment of issue 16 (``goal_memory`` 1 vs 0 at the same training steps):
+Used for the goal policy's memory experiment (``goal_memory`` 1 vs 0 at the same training steps):
 each folder runs with the env options of its own ``config.yaml`` (so each sees the observation it
 was trained on), greedily unless ``--sampled``, on seeds from ``EVAL_SEED_BASE`` up; prints, per
 folder, the times to 90 % and 95 % coverage (mean, 95 % CI, how many reached it) and the paired

@@ -2,10 +2,10 @@
 """``mrexplore evaluate`` for a new goal-level policy, reusing a saved evaluation's rows once
 they are shown to reproduce on this code.
 
-Usage: ``python scripts/evaluate_against_saved.py NEW --saved OLD/eval.json --seeds 50
+Usage: ``python studies/evaluate_against_saved.py NEW --saved OLD/eval.json --seeds 50
 --max-time-s 300 --worlds W [W ...] --out DIR [--check-seeds 10] [--force]``
 
-Used for issue 16's memory policy against the shipped ``policies/goal_ppo_2r``: the full
+Used for the goal policy with memory against the shipped ``policies/goal_ppo_2r``: the full
 ``mrexplore evaluate`` re-runs random, nearest-, cost- and coordinated-frontier (half its time)
 and the paired comparison with the shipped policy needs its 300 episodes again. Per world this
 script runs NEW greedily and sampled on every seed (as ``mrexplore evaluate``), re-runs
@@ -185,7 +185,7 @@ def main() -> None:
         "policy_folder": args.folder,
         "saved": args.saved,
         "saved_policy_folder": saved_folder,
-        "command": "python scripts/evaluate_against_saved.py "
+        "command": "python studies/evaluate_against_saved.py "
         + " ".join(f"'{a}'" if "?" in a else a for a in sys.argv[1:]),
         "env": env,
         "seeds": seeds,

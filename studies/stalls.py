@@ -1,11 +1,11 @@
-"""Exploration stalls on real maps (issue 11): how many episodes reach the coverage target.
+"""Exploration stalls on real maps: how many episodes reach the coverage target.
 
 For each world, team size (1 robot; 2 robots coordinated, merging on) and kind of start
 (aligned headings as ``task-time``, or random headings), runs seeds ``first .. first + n - 1``
 and prints how many episodes reached the target (95 % within 600 s by default) and the mean task
 time in simulated seconds (a stalled episode counts its 600 s).
 
-    python scripts/stall_bench.py --worlds tb3_office depot --seeds 10 --first-seed 1000
+    python studies/stalls.py --worlds tb3_office depot --seeds 10 --first-seed 1000
 """
 
 from __future__ import annotations

@@ -61,7 +61,7 @@ def _bench(argv: Sequence[str]) -> int:
     what = argv[0] if argv else ""
     rest = list(argv[1:])
     if what == "merge":
-        from mrexplore.experiments.merge_bench import main as merge_main
+        from mrexplore.studies.merge_bench import main as merge_main
 
         return int(merge_main(rest))
     if what == "loop":
@@ -77,12 +77,12 @@ def _bench(argv: Sequence[str]) -> int:
 
         return int(sensor_main(rest))
     if what == "policies":
-        from mrexplore.policies.bench import main as policies_main
+        from mrexplore.studies.policy_bench import main as policies_main
 
         policies_main(rest)
         return 0
     if what == "wrappers":
-        from mrexplore.wrappers.bench import main as wrappers_main
+        from mrexplore.studies.wrapper_bench import main as wrappers_main
 
         wrappers_main(rest)
         return 0

@@ -29,7 +29,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from mrexplore.experiments.merge_bench import CORRECT_CELLS
+from mrexplore.studies.merge_bench import CORRECT_CELLS
 
 #: The first figure or parenthesis of a reason ends its fixed words ("best hypothesis agrees only
 #: 0.94 < 0.97" -> "best hypothesis agrees only").
@@ -74,7 +74,7 @@ def tally(
     ``detector`` (None: rows that name none), ``reasons`` (a Counter of :func:`reason_kind`
     over the refusals), and of the refusals whose judged pose the file records
     (``best_error_cells``; ``judged``), those where that pose was the truth (``truth_refused``:
-    within the bench's :data:`~mrexplore.experiments.merge_bench.CORRECT_CELLS` plus the
+    within the bench's :data:`~mrexplore.studies.merge_bench.CORRECT_CELLS` plus the
     case's drift): the search found the truth and a rule held it back."""
     out: dict[tuple[str, str], dict[str, Any]] = defaultdict(
         lambda: {

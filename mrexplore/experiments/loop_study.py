@@ -6,13 +6,13 @@ odometry noise on (:data:`LOOP_ENV_OPTIONS`). Variants (same world, same seed, s
 ``robot_0``):
 
 - ``semantic``: 2 robots, the default merger, through the env's tracker;
-- ``oracle``: 2 robots, :class:`~mrexplore.experiments.oracle.OracleMerger`: the true
+- ``oracle``: 2 robots, :class:`~mrexplore.studies.oracle.OracleMerger`: the true
   transform as soon as the two maps share any known cell, through the same tracker (same
   confirmations, re-checks and drops);
 - ``none``: 2 robots that never merge;
 - ``single``: 1 robot;
 - ``seeded`` (asked for by name, not in the default set): 2 robots,
-  :class:`~mrexplore.experiments.oracle.SeededMerger`: the semantic merger with the true pose
+  :class:`~mrexplore.studies.oracle.SeededMerger`: the semantic merger with the true pose
   added to its hypotheses, judged by the same rules. Between ``semantic`` and ``seeded`` lies
   what the search misses; between ``seeded`` and ``oracle``, what the decision rules (and the
   evidence the maps hold) refuse;
@@ -78,9 +78,9 @@ from mrexplore.experiments.loop_report import (
     load_study,
     summarize,
 )
-from mrexplore.experiments.merge_bench import parse_options
-from mrexplore.experiments.oracle import OracleMerger, SeededMerger
 from mrexplore.experiments.task_time import NAV_WARMUP_S
+from mrexplore.studies.merge_bench import parse_options
+from mrexplore.studies.oracle import OracleMerger, SeededMerger
 
 #: The worlds of the study (two symmetric generated floors, two real maps).
 WORLDS: tuple[str, ...] = ("symmetric_office", "twin_wings", "tb3_office", "depot")
@@ -484,9 +484,9 @@ def study_settings(
     env_options: Mapping[str, Any] | None,
 ) -> dict[str, Any]:
     """What, beside world, variant and seed, decides an episode: the code, worlds and maps
-    (:func:`~mrexplore.experiments.provenance.source_digest`), the policy, every env option and
+    (:func:`~mrexplore.studies.provenance.source_digest`), the policy, every env option and
     the merger's options, as the study's document records them."""
-    from mrexplore.experiments.provenance import source_digest
+    from mrexplore.studies.provenance import source_digest
 
     return {
         "source_digest": source_digest(),

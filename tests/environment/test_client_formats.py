@@ -124,7 +124,7 @@ def test_infos_have_the_same_flat_numeric_keys_on_every_step(task: str) -> None:
 
 def test_merge_error_fields_once_merged_and_extra_on_request() -> None:
     from mrexplore.environment.infos import merge_error_of
-    from mrexplore.experiments.oracle import OracleMerger
+    from mrexplore.studies.oracle import OracleMerger
 
     oracle = OracleMerger()  # the true transform through the tracker: merged after 2.5 s
     penv = mrexplore.parallel_env(**SMALL, info_extra=True, merger=oracle)

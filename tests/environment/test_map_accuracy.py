@@ -10,9 +10,9 @@ import pytest
 
 import mrexplore
 from mrexplore.environment.evaluation import is_wrong_merge
-from mrexplore.experiments.oracle import OracleMerger
 from mrexplore.grid import make_transform
 from mrexplore.merge.common import MergeResult
+from mrexplore.studies.oracle import OracleMerger
 from mrexplore.truth import IncrementalScore, MapScorer
 
 SMALL: dict[str, Any] = {"world": "small_office", "n_robots": 2}

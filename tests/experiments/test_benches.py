@@ -55,7 +55,7 @@ def test_bench_outputs_are_not_overwritten(tmp_path: Path, capsys) -> None:  # t
 def test_lidar_options_make_the_lidar_maps_and_are_recorded() -> None:
     """``--lidar-options`` reach the env of the lidar family's episodes (here the mapper's hit
     weight changes the maps) and are recorded in the row and its table's heading."""
-    from mrexplore.experiments.merge_bench import make_cases, run_bench, to_markdown
+    from mrexplore.studies.merge_bench import make_cases, run_bench, to_markdown
 
     base = make_cases("lidar", 1, 0)[0]
     former = make_cases("lidar", 1, 0, {"map_l_occ": 1.4})[0]
@@ -100,7 +100,7 @@ def test_env_batched_rows_run_on_a_tiny_setting(tmp_path: Path, capsys) -> None:
 
 
 def test_merge_seeds_pool_the_cases_of_each_seed() -> None:
-    from mrexplore.experiments.merge_bench import run_bench
+    from mrexplore.studies.merge_bench import run_bench
 
     one = run_bench(2, methods=["semantic"], families=["real"], seed=1)[0]
     pooled = run_bench(2, methods=["semantic"], families=["real"], seeds=[0, 1])[0]
@@ -115,7 +115,7 @@ def test_merge_seeds_pool_the_cases_of_each_seed() -> None:
 def test_merge_seeded_row_hands_the_merger_the_truth(monkeypatch) -> None:  # type: ignore[no-untyped-def]
     """``seeded`` runs only when named, and calls the semantic merger with the case's true pose
     among its hypotheses (and nothing else changed)."""
-    from mrexplore.experiments import merge_bench
+    from mrexplore.studies import merge_bench
 
     calls: list[dict] = []
     real = merge_bench.merge_maps
@@ -140,8 +140,8 @@ def test_merge_seeded_row_hands_the_merger_the_truth(monkeypatch) -> None:  # ty
 def test_large_cases_reach_past_the_large_map_bound() -> None:
     """The large family's maps are where the merger's large-map rule acts (b, rotated, beyond
     640 x 640 cells), with the truth known and the resolution of their source."""
-    from mrexplore.experiments.merge_cases import LARGE_CROP, large_cases
     from mrexplore.merge.rotation import hough_pool
+    from mrexplore.studies.merge_cases import LARGE_CROP, large_cases
 
     cases = large_cases(5, seed=0)
     assert [c.name.split("#")[0] for c in cases] == [
@@ -164,8 +164,8 @@ def test_aliased_cases_do_not_overlap() -> None:
     cells, so a refusal is the right answer and any merge is counted wrong."""
     import numpy as np
 
-    from mrexplore.experiments.merge_bench import classify
-    from mrexplore.experiments.merge_cases import aliased_cases, overlap_share
+    from mrexplore.studies.merge_bench import classify
+    from mrexplore.studies.merge_cases import aliased_cases, overlap_share
 
     cases = aliased_cases(4, seed=0)
     assert {c.family for c in cases} == {"aliased"}
@@ -176,7 +176,7 @@ def test_aliased_cases_do_not_overlap() -> None:
 
 
 def test_seeded_summary_counts_rescues_refusals_and_losses() -> None:
-    from mrexplore.experiments.merge_bench import COLUMNS, seeded_summary, to_markdown
+    from mrexplore.studies.merge_bench import COLUMNS, seeded_summary, to_markdown
 
     def row(method: str, kinds: list[str]) -> dict:
         cases = [
@@ -202,8 +202,8 @@ def test_seeded_summary_counts_rescues_refusals_and_losses() -> None:
 def test_guided_guess_lies_within_its_bounds_and_repeats() -> None:
     """The ``guided`` method's guess moves b's centre at most GUIDE_SHIFT_CELLS from where the
     truth puts it and turns it at most GUIDE_TURN_DEG, and is the same on every call."""
-    from mrexplore.experiments import merge_bench as mb
     from mrexplore.grid import UNKNOWN, map_points, transform_angle
+    from mrexplore.studies import merge_bench as mb
 
     for case in mb.make_cases("real", 4, 3):
         p, q = mb.guide(case), mb.guide(case)
@@ -222,7 +222,7 @@ def test_a_refusal_records_how_far_its_judged_pose_lay_from_the_truth() -> None:
     """A refusal after the judgement keeps the pose it refused; the bench measures it against
     the truth (``best_error_cells``, evaluation only): here the truth, refused by a shared-space
     floor no pair can meet. Merges record None."""
-    from mrexplore.experiments import merge_bench as mb
+    from mrexplore.studies import merge_bench as mb
 
     cases = mb.make_cases("real", 2, 3)
     refused = mb.evaluate(cases, "semantic", None, min_common_m2=1e9)["cases"]

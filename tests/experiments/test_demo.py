@@ -12,10 +12,10 @@ import pytest
 from mrexplore.experiments import demo
 from mrexplore.experiments.demo import PairLedger, PairRecord, format_pairs
 from mrexplore.experiments.episode import EpisodeResult, run_episode
-from mrexplore.experiments.oracle import OracleMerger
 from mrexplore.experiments.task_time import make_team
 from mrexplore.grid import make_transform
 from mrexplore.merge.common import MergeResult
+from mrexplore.studies.oracle import OracleMerger
 
 RIGHT = {"translation_cells": 0.5, "rotation_deg": 0.1, "drift_cells": 0.0}
 WRONG = {"translation_cells": 40.0, "rotation_deg": 0.0, "drift_cells": 0.0}

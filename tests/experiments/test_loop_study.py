@@ -117,7 +117,7 @@ def test_the_room_oracle_is_the_oracle_held_to_the_mergers_floor(
     """``oracle_room``: the env of the ``oracle`` variant, its oracle waiting for
     :data:`ROOM_EVIDENCE_M2` (a room's worth) of known space under the truth."""
     from mrexplore.experiments import loop_study
-    from mrexplore.experiments.oracle import OracleMerger
+    from mrexplore.studies.oracle import OracleMerger
 
     assert loop_study.ROOM_EVIDENCE_M2 == 20.0
     assert "oracle_room" not in loop_study.VARIANTS  # asked for by name

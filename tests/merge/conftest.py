@@ -9,9 +9,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from mrexplore.experiments.merge_cases import rotate_map
 from mrexplore.grid import FREE, OCCUPIED, UNKNOWN, invert_transform
 from mrexplore.merge.common import translation
+from mrexplore.studies.merge_cases import rotate_map
 
 # The real TurtleBot3 office map (ROBOTIS, Apache-2.0) ships in envs/ as tb3_office.
 ENVS = Path(__file__).resolve().parents[2] / "envs"

@@ -77,7 +77,7 @@ def test_correlation_is_the_circular_cross_correlation(shape: tuple[int, int]) -
 
 
 def _office_pair(seed: int) -> tuple[np.ndarray, np.ndarray]:
-    from mrexplore.experiments.merge_cases import real_map_case
+    from mrexplore.studies.merge_cases import real_map_case
     from mrexplore.world import symmetric_office
 
     rng = np.random.default_rng(seed)

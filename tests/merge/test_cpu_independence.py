@@ -32,7 +32,7 @@ import numpy as np
 sys.path.insert(0, sys.argv[1])
 from conftest import ENVS
 from test_paper import _rooms
-from mrexplore.experiments.merge_cases import rotate_map, symmetric_case
+from mrexplore.studies.merge_cases import rotate_map, symmetric_case
 from mrexplore.merge import merge_maps
 from mrexplore.world import read_map_yaml
 

@@ -101,8 +101,8 @@ def test_the_held_out_warehouse_merges_are_refused() -> None:
     """The bench's wrong merges on seeds 39-50 (nav2 warehouse): a real crop pair laid one rack
     period off, whose true pose the search never tried (refused now by a repeat of b), and two
     disjoint crops laid rack on rack (refused now as one object)."""
-    from mrexplore.experiments.merge_bench import classify
-    from mrexplore.experiments.merge_cases import aliased_cases, real_cases
+    from mrexplore.studies.merge_bench import classify
+    from mrexplore.studies.merge_cases import aliased_cases, real_cases
 
     period = real_cases(16, 40)[15]
     one_rack = aliased_cases(14, 42)[13]
@@ -148,8 +148,8 @@ def test_the_aliased_rack_side_merges_are_refused() -> None:
     """The last wrong merges of 1,800 disjoint aliased pairs (seeds 13-72, nav2 warehouse):
     the side of one rack and a post, laid on another rack's side and post. The lone-pin test
     (item 22 of docs/merging.md) refuses them as well; each rule alone does."""
-    from mrexplore.experiments.merge_bench import classify
-    from mrexplore.experiments.merge_cases import aliased_cases
+    from mrexplore.studies.merge_bench import classify
+    from mrexplore.studies.merge_cases import aliased_cases
 
     for seed, i in ((19, 25), (24, 13), (72, 11)):
         case = aliased_cases(i + 1, seed)[i]

@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mrexplore.experiments.merge_cases import rotate_map
 from mrexplore.grid import OCCUPIED_THRESHOLD
 from mrexplore.merge.rotation import hough_pool, pool_any, rotation_candidates
+from mrexplore.studies.merge_cases import rotate_map
 
 
 @pytest.mark.parametrize("f", [1, 2, 3, 5, 16])
@@ -40,7 +40,7 @@ def test_rotation_candidates_contain_the_truth_off_the_grid_axes(
     both are degraded like SLAM maps (ragged walls, speckle, a bend): the truth must still be
     within 1.5 degrees of a candidate. ``pooled``: the bound set so low that the segments come
     from walls pooled 2 x 2, as on a large map."""
-    from mrexplore.experiments.merge_cases import add_map_noise
+    from mrexplore.studies.merge_cases import add_map_noise
     from mrexplore.world.map_io import read_map_yaml
 
     rng = np.random.default_rng(int(abs(turn_deg) * 10))

@@ -10,11 +10,11 @@ import pytest
 from conftest import merge_with, two_rooms
 
 from mrexplore.errors import ConfigError
-from mrexplore.experiments.merge_cases import rotate_map
 from mrexplore.grid import FREE, OCCUPIED, UNKNOWN, invert_transform, transform_angle
 from mrexplore.merge import MergeEvidence, merge_maps
 from mrexplore.merge.common import chain, translation
 from mrexplore.merge.rotation import rotation_candidates
+from mrexplore.studies.merge_cases import rotate_map
 from mrexplore.truth import merge_error
 
 
@@ -510,8 +510,8 @@ def test_min_wall_area_m2_refuses_a_match_on_one_object(seed: int, index: int) -
     """Two disjoint crops of the depot or the warehouse (the bench's aliased family), each with
     a rack or a pillar of one repeated kind: without the area rule the merger lays one copy on
     the other (a wrong merge), with it the pose is refused for the size of its evidence."""
-    from mrexplore.experiments.merge_bench import classify
-    from mrexplore.experiments.merge_cases import aliased_cases
+    from mrexplore.studies.merge_bench import classify
+    from mrexplore.studies.merge_cases import aliased_cases
 
     case = aliased_cases(index + 1, seed)[index]
     loose = merge_with(
@@ -619,8 +619,8 @@ def test_a_rival_ruled_out_by_one_object_does_not_make_the_best_ambiguous() -> N
     0.03 of the best in index. Under it the notch (32 wall cells in one group) lies on the
     other map's open floor, while the best leaves no group of contradictions: merged
     correctly. Without the structure test it is refused as ambiguous."""
-    from mrexplore.experiments.merge_bench import classify
-    from mrexplore.experiments.merge_cases import real_cases
+    from mrexplore.studies.merge_bench import classify
+    from mrexplore.studies.merge_cases import real_cases
 
     case = real_cases(15, 7)[14]
     assert case.name.startswith("nav2/tb3_sandbox")

@@ -12,11 +12,11 @@ from conftest import look_alike_canvases
 import mrexplore.merge.semantic as semantic_module
 import mrexplore.merge.tracker as tracker_module
 from mrexplore.errors import ConfigError, GridError
-from mrexplore.experiments.merge_cases import rotate_map
 from mrexplore.grid import OCCUPIED as OCC
 from mrexplore.grid import UNKNOWN, chain, invert_transform
 from mrexplore.merge import MapMergeTracker, MergeResult, TrackerOptions
 from mrexplore.merge.common import Agreement, MergeEvidence, WeighedPose, known_bbox, translation
+from mrexplore.studies.merge_cases import rotate_map
 from mrexplore.truth import merge_error
 
 
@@ -795,9 +795,9 @@ def test_a_remembered_rival_ruled_out_by_one_object_does_not_stand(
     """The sandbox crop pair the merger accepts through the structure test (tests/merge/
     test_semantic.py): its half-turned rival, remembered by the tracker, must not break the
     run of agreeing attempts either; judged by the margin alone it would."""
-    from mrexplore.experiments.merge_cases import real_cases
     from mrexplore.grid import known_bbox
     from mrexplore.merge import merge_maps
+    from mrexplore.studies.merge_cases import real_cases
 
     case = real_cases(15, 7)[14]
     # (one office of the real map: the place test would wait for a second place to agree)

@@ -10,9 +10,9 @@ import pytest
 
 from mrexplore.cli import main
 from mrexplore.errors import ConfigError
-from mrexplore.experiments import case_cache, merge_bench
-from mrexplore.experiments.case_cache import cached_cases, check_cache_dir
-from mrexplore.experiments.merge_bench import make_cases, run_bench
+from mrexplore.studies import case_cache, merge_bench
+from mrexplore.studies.case_cache import cached_cases, check_cache_dir
+from mrexplore.studies.merge_bench import make_cases, run_bench
 
 
 def _same(a: list, b: list) -> bool:  # type: ignore[type-arg]

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from mrexplore.experiments import provenance
+from mrexplore.studies import provenance
 
 
 def test_the_digest_follows_every_file_of_every_tree(

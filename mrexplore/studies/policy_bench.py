@@ -1,6 +1,6 @@
-"""Benchmark of the policies: planner speed and cost per ``act`` over whole episodes.
+"""``mrexplore bench policies``: planner speed and cost per ``act`` over whole episodes.
 
-Run ``python -m mrexplore.policies.bench [--worlds small_office symmetric_office] [--seeds 0]``.
+Run ``mrexplore bench policies --worlds small_office symmetric_office --seeds 0``.
 Prints figures (never asserts on time). Episodes run the simulator directly with views built
 from each robot's own map and pose (no merging), until the policy reports ``done`` or a step
 budget is spent.
@@ -21,27 +21,26 @@ from mrexplore.policies.explorers import (
     NearestFrontierPolicy,
 )
 from mrexplore.policies.planning import PlanningGrid, distance_field, distance_field_scan
+from mrexplore.sim import Simulation
 from mrexplore.types import RobotView
+from mrexplore.world.registry import load_world
 
 
-def _view(sim: object, i: int) -> RobotView:
-    s = sim  # typed loosely: mrexplore.sim is another engineer's module
+def _view(sim: Simulation, i: int) -> RobotView:
+    """Robot ``i``'s view from its own map and pose (no merging, no teammates)."""
     return RobotView(
         agent=f"robot_{i}",
-        map=s.maps[i].to_int8(),  # type: ignore[attr-defined]
-        resolution_m=s.resolution_m,  # type: ignore[attr-defined]
-        pose_cell=s.pose_cell(i),  # type: ignore[attr-defined]
-        robot_radius_m=s.config.robot.radius_m,  # type: ignore[attr-defined]
-        time_s=s.time_s,  # type: ignore[attr-defined]
+        map=sim.maps[i].to_int8(),
+        resolution_m=sim.resolution_m,
+        pose_cell=sim.pose_cell(i),
+        robot_radius_m=sim.config.robot.radius_m,
+        time_s=sim.time_s,
     )
 
 
 def _episode(
     world_name: str, n_robots: int, policy: str, seed: int, max_steps: int
 ) -> dict[str, float]:
-    from mrexplore.sim import Simulation
-    from mrexplore.world.registry import load_world
-
     sim = Simulation(load_world(world_name), n_robots)
     rng = np.random.default_rng(seed)
     sim.reset(rng)
@@ -91,9 +90,6 @@ def _episode(
 
 def _field_timing(world_name: str, seed: int, steps: int) -> str:
     """Distance-field timings on a real map after ``steps`` steps of nearest-frontier runs."""
-    from mrexplore.sim import Simulation
-    from mrexplore.world.registry import load_world
-
     sim = Simulation(load_world(world_name), 1)
     rng = np.random.default_rng(seed)
     sim.reset(rng)

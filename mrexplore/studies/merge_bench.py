@@ -1,7 +1,7 @@
 """The merge benchmark: a table like the seed paper's Table 1, with the truth known.
 
 For every method x detector, over seeded cases from the symmetric worlds and from real maps
-(:mod:`mrexplore.experiments.merge_cases`), it counts:
+(:mod:`mrexplore.studies.merge_cases`), it counts:
 
 - **correct**: accepted and the mean displacement of b's known cells (estimate vs truth) < 2 cells;
 - **WRONG**: accepted, yet >= 5 cells off: a wrong merge;
@@ -33,8 +33,11 @@ from typing import Any
 import numpy as np
 
 from mrexplore.errors import ConfigError, MrexploreError
-from mrexplore.experiments.case_cache import cached_cases, check_cache_dir
-from mrexplore.experiments.merge_cases import (
+from mrexplore.io_safety import check_outputs, write_text
+from mrexplore.merge import MapMergeTracker, merge_maps
+from mrexplore.merge.semantic import DEMOTED_OPTIONS
+from mrexplore.studies.case_cache import cached_cases, check_cache_dir
+from mrexplore.studies.merge_cases import (
     LIDAR_NOISE,
     MergeCase,
     aliased_cases,
@@ -44,9 +47,6 @@ from mrexplore.experiments.merge_cases import (
     real_cases,
     symmetric_cases,
 )
-from mrexplore.io_safety import check_outputs, write_text
-from mrexplore.merge import MapMergeTracker, merge_maps
-from mrexplore.merge.semantic import DEMOTED_OPTIONS
 from mrexplore.truth import merge_error
 
 #: (method, detector, options) run by default; detector None = the method has none to choose.
@@ -241,7 +241,7 @@ def make_cases(
     """``n`` cases of ``family`` (one of :data:`FAMILIES`), seeded; ``lidar_options``: env
     options of the ``lidar`` family's episodes beyond its noise (e.g. the mapper's
     ``map_l_occ``). With ``cache_dir``, read from or saved to that cache
-    (:mod:`mrexplore.experiments.case_cache`: the same cases, made once per code)."""
+    (:mod:`mrexplore.studies.case_cache`: the same cases, made once per code)."""
     if family not in FAMILIES:
         raise ConfigError(f"unknown case family {family!r}; choose from {FAMILIES}")
     if cache_dir is not None:
@@ -424,7 +424,7 @@ def size_timing(sizes: Sequence[int], n: int = 10, seed: int = 0) -> list[dict[s
     (``symmetric_office`` at 0.05 m/cell, 1.6 S cells wide, fully known: walls 100, free 0),
     merged with the default options. Reports the median and the outcome counts.
     """
-    from mrexplore.experiments.merge_cases import real_map_case
+    from mrexplore.studies.merge_cases import real_map_case
     from mrexplore.world import symmetric_office
 
     out = []
@@ -461,7 +461,7 @@ def tracker_timing(
     merged once (truth-free: the merger finds it), then each step a few cells change in both
     maps (as a lidar update would) and both fused maps are read.
     """
-    from mrexplore.experiments.merge_cases import load_real_map
+    from mrexplore.studies.merge_cases import load_real_map
 
     rng = np.random.default_rng(seed)
     full = load_real_map("nav2/depot.yaml")

@@ -18,7 +18,7 @@ _PACKAGE = Path(__file__).resolve().parents[1]
 def _inputs() -> list[tuple[str, Path]]:
     """(label, root) of every tree of files a result is made from: the package's sources, the
     shipped worlds (``envs/``) and the real maps the merge bench crops."""
-    from mrexplore.experiments.merge_cases import SHARED_MAPS
+    from mrexplore.studies.merge_cases import SHARED_MAPS
     from mrexplore.world.registry import envs_dir
 
     return [("code", _PACKAGE), ("envs", envs_dir()), ("maps", SHARED_MAPS)]

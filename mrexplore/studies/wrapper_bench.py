@@ -1,4 +1,4 @@
-"""Throughput of the wrappers: ``python -m mrexplore.wrappers.bench [--world W] [--steps N]``.
+"""``mrexplore bench wrappers [--world W] [--steps N]``: throughput of the wrappers.
 
 Prints steps per second (and robot-steps per second, the unit SB3 counts) for the raw
 ``ParallelEnv``, the single-robot env, the merge wrapper, and the SB3 adapter in-process and with

@@ -613,7 +613,7 @@ def lidar_cases(
     With odometry noise each map is bent by its robot's drift, so even a perfect merge sits off
     the start-frame truth: ``meta["drift_cells"]`` holds how far drift alone can move it (both
     robots' position drift plus their heading drift times the mean distance of b's cells from
-    b's start), and :func:`mrexplore.experiments.merge_bench.classify` widens its thresholds by
+    b's start), and :func:`mrexplore.studies.merge_bench.classify` widens its thresholds by
     it. 0 without odometry noise.
     """
     from mrexplore.environment.parallel_env import MultiRobotExplorationEnv

@@ -7,7 +7,7 @@ the cases of seeds 0-9 and 12 in five files; with ``mrexplore bench merge --case
 first run saves them and the others read them back.
 
 A case depends only on its family, count, seed and options, and on what made it: the key holds
-all of them and :func:`~mrexplore.experiments.provenance.source_digest` (the package's sources,
+all of them and :func:`~mrexplore.studies.provenance.source_digest` (the package's sources,
 the shipped worlds, the real maps, the libraries' versions). Change a line of ``mrexplore`` or a
 pixel of a map and the cache misses. Entries are written whole (:func:`mrexplore.io_safety.
 write_bytes`: a temporary file renamed into place); one that cannot be read back (cut short by
@@ -26,9 +26,9 @@ from pathlib import Path
 from typing import Any
 
 from mrexplore.errors import ConfigError
-from mrexplore.experiments.merge_cases import MergeCase
-from mrexplore.experiments.provenance import source_digest
 from mrexplore.io_safety import write_bytes
+from mrexplore.studies.merge_cases import MergeCase
+from mrexplore.studies.provenance import source_digest
 
 
 def case_key(family: str, n: int, seed: int, options: Mapping[str, Any] | None) -> str:

@@ -8,9 +8,9 @@ import pytest
 import mrexplore
 from mrexplore.errors import ConfigError
 from mrexplore.experiments.loop_study import VARIANTS
-from mrexplore.experiments.oracle import OracleMerger, SeededMerger
 from mrexplore.experiments.task_time import make_team
 from mrexplore.merge.common import translation
+from mrexplore.studies.oracle import OracleMerger, SeededMerger
 
 
 def test_oracle_answers_the_truth_once_the_maps_share_a_cell() -> None:

@@ -150,7 +150,7 @@ class FrameSnapshot:
         pose_cells: each robot's pose estimate (col, row, theta) in its own map cells.
         trails: each robot's driven path, (T, 2) own map cells.
         world_from_map: each robot's true 3x3 transform from its map cells to world cells.
-        fused: ``robot_0``'s :class:`~mrexplore.environment.view.RobotView` (its fused map and
+        fused: ``robot_0``'s :class:`~mrexplore.types.RobotView` (its fused map and
             teammates), None for one robot.
         fused_error: ``robot_0``'s worst merge error against the truth, None when not merged.
         time_s: simulated seconds since reset.
@@ -381,11 +381,6 @@ def render_frame(snap: FrameSnapshot) -> NDArray[np.uint8]:
     top = np.hstack(panels)
     strip, _ = legend(snap.agents, layout, top.shape[1])
     return np.ascontiguousarray(np.vstack([top, strip]))
-
-
-def render_env_frame(env: Any) -> NDArray[np.uint8]:
-    """The frame of an env's current step: ``render_frame(env.snapshot())`` (the old name)."""
-    return render_frame(env.snapshot())
 
 
 class HumanWindow:

@@ -1,7 +1,8 @@
-"""The PettingZoo environment: options, observations, the env class and the robot view.
+"""The PettingZoo environment: options, observations, the env class and the batched env.
 
-Imports are lazy so that ``mrexplore.environment.view`` (used by policies) does not pull in the
-simulator.
+Imports are lazy so that importing one part (``mrexplore.environment.config``, ``.infos``) does
+not pull in the simulator, the merger and the batched env. What one robot knows at one step is
+:class:`mrexplore.types.RobotView` (policies read it without importing the env).
 """
 
 from __future__ import annotations
@@ -13,7 +14,6 @@ __all__ = [
     "EnvConfig",
     "ExploreVectorEnv",
     "MultiRobotExplorationEnv",
-    "RobotView",
 ]
 
 
@@ -30,8 +30,4 @@ def __getattr__(name: str) -> Any:
         from mrexplore.environment import batched
 
         return getattr(batched, name)
-    if name == "RobotView":
-        from mrexplore.types import RobotView
-
-        return RobotView
     raise AttributeError(f"module 'mrexplore.environment' has no attribute {name!r}")

@@ -34,7 +34,6 @@ from mrexplore.types import Merger
 
 RewardMode = Literal["time", "coverage"]
 TaskName = Literal["explore", "navigate"]
-Task = TaskName  # the old name of the literal (the task object is environment.task.Task)
 CoverageMode = Literal["observed", "held"]
 ObsLayout = Literal["chw", "hwc"]
 ObsDtype = Literal["uint8", "float32"]

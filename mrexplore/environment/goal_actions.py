@@ -55,7 +55,6 @@ import numpy as np
 from numpy.typing import NDArray
 from pettingzoo import ParallelEnv
 
-from mrexplore.environment.view import RobotView
 from mrexplore.errors import ConfigError, WorldError
 from mrexplore.policies.candidates import (
     FEATURE_MAX,
@@ -66,6 +65,7 @@ from mrexplore.policies.candidates import (
     gain_features,
     teammate_claims,
 )
+from mrexplore.types import RobotView
 
 AgentID = str
 ACTION_MODES = ("low", "goal")

@@ -1,6 +1,6 @@
 """Each robot's observation: a uint8 image stack in the robot's own map frame.
 
-Everything drawn here comes from a :class:`~mrexplore.environment.view.RobotView`, i.e. from what
+Everything drawn here comes from a :class:`~mrexplore.types.RobotView`, i.e. from what
 the robot knows (its own map or the fused map, its own pose estimate, teammates only after a merge).
 Nothing is read from the ground truth.
 

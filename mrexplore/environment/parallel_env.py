@@ -57,18 +57,8 @@ from numpy.typing import NDArray
 from pettingzoo import ParallelEnv
 
 from mrexplore.environment.config import EnvConfig
-from mrexplore.environment.evaluation import (
-    WRONG_MERGE_CELLS,
-    TruthMonitor,
-    is_wrong_merge,
-)
-from mrexplore.environment.infos import (
-    INFO_KEYS,
-    UNKNOWN_INFO,
-    known_or_unknown,
-    merge_error_infos,
-    merge_error_of,
-)
+from mrexplore.environment.evaluation import TruthMonitor
+from mrexplore.environment.infos import UNKNOWN_INFO, known_or_unknown, merge_error_infos
 from mrexplore.environment.observations import ObservationBuilder, ObservationFormat
 from mrexplore.environment.radio import Radio
 from mrexplore.environment.sighting import SightingSensor, sightings
@@ -82,16 +72,7 @@ from mrexplore.sensors import LidarConfig
 from mrexplore.sim import SimConfig, Simulation
 from mrexplore.types import AgentID, RobotView
 
-# The info and merge-error helpers lived here before the infos and evaluation modules; their
-# old names stay importable from here (docs/clients.md named this home).
-__all__ = [
-    "INFO_KEYS",
-    "UNKNOWN_INFO",
-    "WRONG_MERGE_CELLS",
-    "MultiRobotExplorationEnv",
-    "is_wrong_merge",
-    "merge_error_of",
-]
+__all__ = ["MultiRobotExplorationEnv"]
 from mrexplore.world import World, load_world
 
 Observations = dict[AgentID, NDArray[Any]]

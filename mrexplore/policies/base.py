@@ -4,7 +4,7 @@ Protocol (what the env, the experiments and users rely on):
 
 * :class:`Policy` - one robot. ``reset(rng)`` once per episode with a
   ``numpy.random.Generator`` (the only source of randomness), then ``act(view) -> int`` every
-  step, where ``view`` is the robot's :class:`~mrexplore.environment.view.RobotView` (get it with
+  step, where ``view`` is the robot's :class:`~mrexplore.types.RobotView` (get it with
   ``env.unwrapped.robot_view(agent)``) and the result an :class:`mrexplore.robot.Action` value.
 * :class:`TeamPolicy` - all robots at once: ``reset(rng)``, then
   ``act(views: Mapping[agent, RobotView]) -> {agent: action}``. Agents missing from ``views``

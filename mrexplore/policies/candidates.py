@@ -11,7 +11,7 @@ is due (goal reached, target no longer a frontier, stuck, collision, or ``replan
 :func:`candidate_features` turns a proposal into a fixed ``(K, F)`` float32 array: the ``K``
 nearest candidates by path length (the robot's current target kept among them), one row each,
 features in :data:`FEATURE_NAMES`, and a mask of the valid rows. Everything comes from the
-robot's :class:`~mrexplore.environment.view.RobotView` and from the targets teammates announced
+robot's :class:`~mrexplore.types.RobotView` and from the targets teammates announced
 (moved into this robot's frame with the *estimated* transforms, only once merged and only from
 teammates in radio range) - never from the ground truth.
 
@@ -35,10 +35,10 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import NDArray
 
-from mrexplore.environment.view import RobotView
 from mrexplore.grid import apply_transform
 from mrexplore.policies.explorers import FrontierCandidates, FrontierExplorer, PlanRound
 from mrexplore.robot import Action
+from mrexplore.types import RobotView
 
 __all__ = [
     "FEATURE_NAMES",

@@ -16,7 +16,7 @@ All three share one per-robot machine, :class:`FrontierExplorer`, and differ onl
   and drops by ``max(0, 1 - d / sensor_range)`` for every target ``t'`` teammates chose, ``d`` the
   distance between ``t`` and ``t'`` (what a teammate at ``t'`` will see, this robot need not
   visit). Teammates' targets come from *their* frames and are moved into this robot's frame by
-  the estimated transforms of its :class:`~mrexplore.environment.view.RobotView`; before a merge
+  the estimated transforms of its :class:`~mrexplore.types.RobotView`; before a merge
   a robot has no teammate transforms and so plans alone on its own map.
 
 The machine (per robot, every step):

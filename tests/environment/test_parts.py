@@ -43,19 +43,6 @@ def test_a_task_that_is_not_one_is_refused() -> None:
         mrexplore.parallel_env(**SMALL, task=object())
 
 
-def test_old_homes_of_moved_names_still_import() -> None:
-    from mrexplore.environment.config import Task as TaskLiteral  # noqa: F401
-    from mrexplore.environment.parallel_env import INFO_KEYS, is_wrong_merge, merge_error_of
-    from mrexplore.fusion import FusionStage  # noqa: F401
-    from mrexplore.render import render_env_frame
-
-    assert "coverage" in INFO_KEYS and merge_error_of({"merge_error_cells": -1.0}) is None
-    assert is_wrong_merge({"translation_cells": 9.0, "drift_cells": 0.0})
-    penv = mrexplore.parallel_env(**SMALL, render_mode="rgb_array")
-    penv.reset(seed=0)
-    assert render_env_frame(penv).shape == penv.render().shape
-
-
 def test_the_old_kernel_switch_still_switches(monkeypatch: pytest.MonkeyPatch) -> None:
     from mrexplore import kernels, sensors
 

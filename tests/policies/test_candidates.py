@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mrexplore.environment.view import RobotView
 from mrexplore.grid import FREE, OCCUPIED, UNKNOWN
 from mrexplore.policies.candidates import (
     FAR,
@@ -17,6 +16,7 @@ from mrexplore.policies.candidates import (
     teammate_claims,
 )
 from mrexplore.policies.explorers import FrontierCandidates
+from mrexplore.types import RobotView
 
 COL = {n: i for i, n in enumerate(FEATURE_NAMES)}
 

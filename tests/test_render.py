@@ -1,4 +1,4 @@
-"""Demo figures (issue 14): legend, one scale for all panels, fixed geometry, one coverage."""
+"""Demo figures: legend, one scale for all panels, fixed geometry, one coverage."""
 
 from __future__ import annotations
 

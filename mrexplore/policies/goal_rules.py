@@ -3,7 +3,7 @@
 :func:`keep_or_burgard` reads one robot's goal-level observation (the ``(K, F)`` candidate
 features of :mod:`mrexplore.policies.candidates`, with or without the memory and gain columns
 after them) and its mask, and returns a row. It is the teacher of ``mrexplore imitate``
-(behaviour cloning before PPO, issue 16): a learned chooser starts from it instead of from a
+(behaviour cloning before PPO): a learned chooser starts from it instead of from a
 random network.
 
 Why "keep": at a goal-level decision every robot chooses again, also one still on its way (the

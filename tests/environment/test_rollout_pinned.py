@@ -1,6 +1,6 @@
 """Pinned rollouts: observations, rewards, infos and maps of short seeded episodes, hashed.
 
-The digests were recorded before the step was made lean (issue 12: compiled observation,
+The digests were recorded before the step was made lean (compiled observation,
 tracker bookkeeping from the maps' own known and changed boxes, reused buffers). Any change to
 what a step returns, however small, changes a digest: a speed-up must leave them as they are.
 A deliberate behaviour change updates them in the same commit, saying why.

@@ -57,7 +57,7 @@ def test_demo_command_writes_pictures(tmp_path: Path) -> None:
     assert img is not None and img.shape[1] > 1000
 
 
-# --- validate first, resume, never overwrite (issue 14) -------------------------------------
+# --- validate first, resume, never overwrite ------------------------------------------------------
 
 
 def _no_episodes(*args: object, **kwargs: object) -> None:

@@ -118,7 +118,7 @@ def test_bad_training_input() -> None:
         train(timesteps=0, out="/nonexistent/never/created")
 
 
-# --- refuse bad input at the door, never overwrite a policy (issue 14) ----------------------
+# --- refuse bad input at the door, never overwrite a policy ---------------------------------------
 
 SHIPPED = Path(__file__).resolve().parents[2] / "policies" / "ppo_symmetric_2r"
 

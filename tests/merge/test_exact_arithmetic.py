@@ -1,4 +1,4 @@
-"""The merger's CPU-independent arithmetic (issue 11): transform products and inverses without
+"""The merger's CPU-independent arithmetic: transform products and inverses without
 BLAS, the exact integer blur of the rotation spectrum, rounded rotation candidates."""
 
 from __future__ import annotations

@@ -73,7 +73,7 @@ def test_different_resolutions_raise(files, tmp_path: Path) -> None:  # type: ig
         merge_files(pa, pc, tmp_path / "m.yaml")
 
 
-# --- never destroy a user's files (issue 14) ------------------------------------------------
+# --- never destroy a user's files -----------------------------------------------------------------
 
 
 def _snapshot(folder: Path) -> dict[str, bytes]:

@@ -312,7 +312,7 @@ def test_goal_policy_plans_through_a_door_only_the_fine_rounds_see() -> None:
     assert np.hypot(*(pol.path[-1] - (60.0, 20.0))) < 1e-9  # it ends at the goal itself
 
 
-# -- issue 11: stalls on real maps' narrow gaps --------------------------------------------------
+# -- stalls on real maps' narrow gaps --------------------------------------------------------------
 
 
 def _room_door_room(door_rows: int, door_row0: int = 18) -> np.ndarray:

@@ -10,8 +10,10 @@ from __future__ import annotations
 import argparse
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
+from pettingzoo import ParallelEnv
 
 import mrexplore
 
@@ -40,12 +42,11 @@ def main(argv: list[str] | None = None) -> None:
     rng = np.random.default_rng(0)
     opts = {"world": world, "n_robots": r, "max_cycles": 10_000}
 
-    def run_parallel(env: object) -> Callable[[], None]:
+    def run_parallel(env: ParallelEnv[str, Any, int]) -> Callable[[], None]:
         def go() -> None:
-            e: object = env
-            e.reset(seed=0)  # type: ignore[attr-defined]
+            env.reset(seed=0)
             for _ in range(n):
-                e.step({a: int(rng.integers(4)) for a in e.agents})  # type: ignore[attr-defined]
+                env.step({a: int(rng.integers(4)) for a in env.agents})
 
         return go
 

@@ -43,18 +43,33 @@ merge worker           one single-thread executor for all copies' delayed merge 
                        worker thread off the step path; the schedule (applied 8 steps after the
                        start) does not depend on the worker, so the run is the same as N separate
                        envs with their own workers (``tests/environment/test_batched.py``)
+threads                ``num_threads`` (default: the cores this process may run on, at most N)
+                       threads step the worlds: the calling thread and ``num_threads - 1`` pool
+                       threads each take the next world not yet stepped until all are
+                       (``cv2.setNumThreads(1)`` is set once when there is more than one)
 =====================  ========================================================================
 
-The copies are stepped one after the other in this process. What was measured before deciding
-not to fuse the numba calls of all robots of all worlds into one call: ``docs/speed.md``
-("The batched env"): the dispatch of a world-step's 11 kernel calls costs ~10-15 us of its
-~1.4 ms (under 1 %), and the work inside the kernels is the same either way.
+Why threads, and why the same run at any thread count: every kernel of a world-step (lidar
+cast, own-map update, observation blocks, map accuracy; :mod:`mrexplore.kernels`) is compiled
+``nogil``, and they hold ~70 % of a world-step; the Python around them holds the GIL. With
+several threads, one world's kernels run on one core while another world's Python runs on the
+other, so the worlds are stepped in parallel without copying any state between processes. Each
+world owns everything it steps (its own random stream, simulator, maps, tracker, observation
+builder); a thread steps one whole world at a time and writes only that world's rows of the
+batch; the shared merge worker's results are applied on a schedule of steps, never of time.
+Which thread steps which world is left to chance, what it computes is not
+(``tests/environment/test_batched.py`` holds 1 and 3 threads to N separate envs, bit for bit).
+A ``merger`` object (not a name) is shared by the copies: with ``merge_latency_steps=0`` it is
+called from several threads at once and must be safe for that (the built-in mergers are).
+What was measured: ``docs/speed.md`` ("Worlds stepped on every core").
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
+import itertools
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -77,6 +92,30 @@ def check_num_envs(num_envs: Any, owner: str = "vector_env") -> int:
     ):
         raise ConfigError(f"{owner}: num_envs must be an integer >= 1, got {num_envs!r}")
     return int(num_envs)
+
+
+def usable_cores() -> int:
+    """The number of cores this process may run on (its CPU affinity where the OS tells it)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def check_num_threads(num_threads: Any, num_envs: int) -> int:
+    """``num_threads`` (None: :func:`usable_cores`) capped at ``num_envs``, else a
+    :class:`ConfigError` naming the option."""
+    if num_threads is None:
+        return max(1, min(usable_cores(), num_envs))
+    if (
+        isinstance(num_threads, (bool, np.bool_))
+        or not isinstance(num_threads, (int, np.integer))
+        or num_threads < 1
+    ):
+        raise ConfigError(
+            f"vector_env: num_threads must be None or an integer >= 1, got {num_threads!r}"
+        )
+    return min(int(num_threads), num_envs)
 
 
 def _seeds(seed: int | Sequence[int | None] | None, n: int) -> list[int | None]:
@@ -135,18 +174,21 @@ class BatchedExploreEnv:
     Args:
         num_envs: N >= 1 copies (worlds).
         render_mode: passed to every copy (``"rgb_array"``: :meth:`render` gives N frames).
+        num_threads: threads that step the worlds (None: the usable cores; capped at N); the
+            run is the same at any number (module docstring).
         **env_options: :class:`~mrexplore.environment.EnvConfig` options of every copy (the
             goal-level ``action_mode="goal"`` is not batched).
 
     Attributes:
         envs: the N copies (:class:`MultiRobotExplorationEnv`), for inspection.
+        num_threads: the threads that step them (1: the calling thread alone).
         possible_agents: the robots of one copy, the R axis of every array.
         single_observation_space / single_action_space: one robot's spaces.
         observation_space: ``Box`` of shape (N, R, *obs_shape); action_space:
             ``MultiDiscrete`` (N, R).
 
     Raises:
-        ConfigError: a bad ``num_envs`` or env option.
+        ConfigError: a bad ``num_envs``, ``num_threads`` or env option.
     """
 
     metadata: ClassVar[dict[str, Any]] = {
@@ -154,8 +196,15 @@ class BatchedExploreEnv:
         "render_modes": ["rgb_array"],
     }
 
-    def __init__(self, num_envs: int, render_mode: str | None = None, **env_options: Any) -> None:
+    def __init__(
+        self,
+        num_envs: int,
+        render_mode: str | None = None,
+        num_threads: int | None = None,
+        **env_options: Any,
+    ) -> None:
         self.num_envs = check_num_envs(num_envs)
+        self.num_threads = check_num_threads(num_threads, self.num_envs)
         if env_options.get("action_mode", "low") != "low":
             raise ConfigError(
                 "vector_env: action_mode must be 'low' (the goal-level env is not batched), "
@@ -169,6 +218,13 @@ class BatchedExploreEnv:
         self.render_mode = render_mode
         # One worker for every copy's delayed merge attempts (threads start on first submit).
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mrexplore-merge")
+        # The stepping threads besides the caller's (threads start on first submit).
+        self._pool: ThreadPoolExecutor | None = None
+        if self.num_threads > 1:
+            self._pool = ThreadPoolExecutor(
+                max_workers=self.num_threads - 1, thread_name_prefix="mrexplore-step"
+            )
+            _one_opencv_thread()
         self.envs: list[MultiRobotExplorationEnv] = []
         try:
             for _ in range(self.num_envs):
@@ -179,6 +235,8 @@ class BatchedExploreEnv:
                 )
         except BaseException:
             self._executor.shutdown(wait=False)
+            if self._pool is not None:
+                self._pool.shutdown(wait=False)
             raise
         first = self.envs[0]
         self.possible_agents = list(first.possible_agents)
@@ -212,13 +270,17 @@ class BatchedExploreEnv:
                 "world is reset by the step that ends it)"
             )
         seeds = _seeds(seed, self.num_envs)
+        agents = self.possible_agents
         obs = np.empty((self.num_envs, self.n_robots, *self._obs_shape), dtype=self._obs_dtype)
-        infos: list[list[dict[str, Any]]] = []
-        for k, env in enumerate(self.envs):
-            o, inf = env.reset(seed=seeds[k], options=options)
-            for j, a in enumerate(self.possible_agents):
+        infos: list[list[dict[str, Any]]] = [[] for _ in range(self.num_envs)]
+
+        def reset_world(k: int) -> None:
+            o, inf = self.envs[k].reset(seed=seeds[k], options=options)
+            for j, a in enumerate(agents):
                 obs[k, j] = o[a]
-            infos.append([inf[a] for a in self.possible_agents])
+            infos[k] = [inf[a] for a in agents]
+
+        self._each_world(reset_world)
         self._running = True
         return obs, infos
 
@@ -233,16 +295,27 @@ class BatchedExploreEnv:
                 f"actions must have shape ({self.num_envs}, {self.n_robots}) (copies, robots), "
                 f"got {act.shape}"
             )
+        # checked here, not by each world, so that a bad action steps no world at all
+        n_act = int(self.single_action_space.n)
+        if act.dtype.kind not in "iu" or ((act < 0) | (act >= n_act)).any():
+            raise ValueError(
+                f"actions must be integers in [0, {n_act}) (the action space "
+                f"{self.single_action_space}), got {act.dtype} values "
+                f"{np.unique(act)[:8].tolist()}"
+            )
         agents = self.possible_agents
         n, r = self.num_envs, self.n_robots
         obs = np.empty((n, r, *self._obs_shape), dtype=self._obs_dtype)
         rewards = np.empty((n, r), dtype=np.float64)
         terms = np.empty((n, r), dtype=bool)
         truncs = np.empty((n, r), dtype=bool)
-        infos: list[list[dict[str, Any]]] = []
-        final: dict[int, tuple[NDArray[Any], list[dict[str, Any]]]] = {}
+        infos: list[list[dict[str, Any]]] = [[] for _ in range(n)]
+        ended: list[tuple[NDArray[Any], list[dict[str, Any]]] | None] = [None] * n
         rows = act.tolist()  # plain ints: the env's fast path for actions
-        for k, env in enumerate(self.envs):
+
+        def step_world(k: int) -> None:
+            # writes only row k of the batch: any thread may step any world
+            env = self.envs[k]
             o, rew, term, trunc, inf = env.step(dict(zip(agents, rows[k], strict=True)))
             for j, a in enumerate(agents):
                 obs[k, j] = o[a]
@@ -251,13 +324,43 @@ class BatchedExploreEnv:
                 truncs[k, j] = trunc[a]
             step_infos = [inf[a] for a in agents]
             if not env.agents:  # the copy's episode ended (all robots end together)
-                final[k] = (obs[k].copy(), step_infos)
+                ended[k] = (obs[k].copy(), step_infos)
                 o, inf = env.reset()  # None: the copy's own stream goes on
                 for j, a in enumerate(agents):
                     obs[k, j] = o[a]
                 step_infos = [inf[a] for a in agents]
-            infos.append(step_infos)
+            infos[k] = step_infos
+
+        self._each_world(step_world)
+        # in world order, whichever thread finished first
+        final = {k: e for k, e in enumerate(ended) if e is not None}
         return BatchStep(obs, rewards, terms, truncs, infos, final)
+
+    def _each_world(self, fn: Callable[[int], None]) -> None:
+        """``fn(k)`` for every world k, on :attr:`num_threads` threads: each thread takes the next
+        world not yet taken (worlds differ in cost: resets, merges); returns when all are done
+        and re-raises the first error of a world, in world order."""
+        n = self.num_envs
+        if self._pool is None:
+            for k in range(n):
+                fn(k)
+            return
+        ticket = itertools.count()  # next() on it is atomic under the GIL
+        errors: list[tuple[int, BaseException]] = []
+
+        def take() -> None:
+            while (k := next(ticket)) < n:
+                try:
+                    fn(k)
+                except BaseException as exc:  # re-raised below, in world order
+                    errors.append((k, exc))
+
+        futures: list[Future[None]] = [self._pool.submit(take) for _ in range(self.num_threads - 1)]
+        take()  # the calling thread steps worlds too
+        for f in futures:
+            f.result()
+        if errors:
+            raise min(errors, key=lambda e: e[0])[1]
 
     # ------------------------------------------------------------------ array API
     def reset(
@@ -306,7 +409,18 @@ class BatchedExploreEnv:
         for env in self.envs:
             env.close()
         self._executor.shutdown(wait=True, cancel_futures=True)
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
         self.closed = True
+
+
+def _one_opencv_thread() -> None:
+    """``cv2.setNumThreads(1)``, once: the worlds already fill the cores, and OpenCV's own pool
+    (a few calls of the observation and the merger spread over it) would only contend with them.
+    Process-wide, as OpenCV's setting is."""
+    import cv2
+
+    cv2.setNumThreads(1)
 
 
 def _zero_like(v: Any) -> Any:
@@ -328,10 +442,11 @@ class ExploreVectorEnv(VectorEnv[NDArray[Any], NDArray[np.int64], NDArray[Any]])
     Gymnasium's ``_key`` masks, same-step auto-reset with ``final_obs`` / ``final_info`` exactly
     as ``gymnasium.vector.SyncVectorEnv(..., autoreset_mode=AutoresetMode.SAME_STEP)`` over
     ``mrexplore/Explore-v0`` copies gives them (a test holds it to that), but stepped by the
-    batched engine (:class:`BatchedExploreEnv`).
+    batched engine (:class:`BatchedExploreEnv`; ``num_threads`` as there).
 
     Raises:
-        ConfigError: ``n_robots`` other than 1, a bad ``num_envs`` or env option.
+        ConfigError: ``n_robots`` other than 1, a bad ``num_envs``, ``num_threads`` or env
+            option.
     """
 
     metadata: dict[str, Any] = {  # noqa: RUF012 - gymnasium reads it from the class

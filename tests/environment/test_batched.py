@@ -18,9 +18,14 @@ from tests.helpers import assert_same
 WORLD = "small_office"
 
 
-def test_batched_team_equals_separate_copies_bit_for_bit_over_auto_resets() -> None:
+# 1: the calling thread steps every world; 3: the caller and two pool threads share the 3 worlds
+@pytest.mark.parametrize("num_threads", [1, 3])
+def test_batched_team_equals_separate_copies_bit_for_bit_over_auto_resets(
+    num_threads: int,
+) -> None:
     """N worlds, merging on (delayed attempts on the one shared worker), random actions over
-    several episodes: every array equals what N separate envs seeded ``seed + k`` give."""
+    several episodes: every array equals what N separate envs seeded ``seed + k`` give, at any
+    number of stepping threads."""
     # (random actions seldom take a robot out of its first place, where the merger's place
     # test waits: off here, so merges are accepted and their arrays compared)
     n, seed = 3, 11
@@ -31,8 +36,8 @@ def test_batched_team_equals_separate_copies_bit_for_bit_over_auto_resets() -> N
         "merge_every": 5,
         "merge_options": {"place_test": False},
     }
-    venv = mrexplore.vector_env(num_envs=n, **opts)
-    assert isinstance(venv, BatchedExploreEnv)
+    venv = mrexplore.vector_env(num_envs=n, num_threads=num_threads, **opts)
+    assert isinstance(venv, BatchedExploreEnv) and venv.num_threads == num_threads
     refs = [mrexplore.parallel_env(**opts) for _ in range(n)]
     agents = refs[0].possible_agents
     rng = np.random.default_rng(0)
@@ -160,6 +165,37 @@ def test_bad_num_envs_is_a_config_error_naming_it(bad: Any) -> None:
         mrexplore.vector_env(num_envs=bad, world=WORLD)
 
 
+@pytest.mark.parametrize("bad", [0, -1, 2.0, "2", True])
+def test_bad_num_threads_is_a_config_error_naming_it(bad: Any) -> None:
+    with pytest.raises(ConfigError, match="num_threads"):
+        mrexplore.vector_env(num_envs=2, world=WORLD, num_threads=bad)
+
+
+def test_threads_default_to_the_cores_and_never_exceed_the_worlds() -> None:
+    from mrexplore.environment.batched import usable_cores
+
+    venv = mrexplore.vector_env(num_envs=2, world=WORLD, max_cycles=3)
+    assert venv.num_threads == min(2, usable_cores())
+    venv.close()
+    venv = mrexplore.vector_env(num_envs=2, world=WORLD, max_cycles=3, num_threads=8)
+    assert venv.num_threads == 2
+    venv.close()
+
+
+def test_an_error_in_one_world_is_raised_by_the_step() -> None:
+    """A world that fails while another thread steps the rest: the step raises its error."""
+    venv = BatchedExploreEnv(3, world=WORLD, max_cycles=3, num_threads=3)
+    venv.reset(seed=0)
+
+    def broken(actions: Any) -> Any:
+        raise RuntimeError("world 1 broke")
+
+    venv.envs[1].step = broken  # type: ignore[method-assign]
+    with pytest.raises(RuntimeError, match="world 1 broke"):
+        venv.step(np.zeros((3, 2), dtype=np.int64))
+    venv.close()
+
+
 def test_bad_options_and_actions() -> None:
     with pytest.raises(ConfigError, match="action_mode"):
         mrexplore.vector_env(num_envs=2, world=WORLD, action_mode="goal")
@@ -175,6 +211,9 @@ def test_bad_options_and_actions() -> None:
         venv.step(np.zeros(2, dtype=np.int64))
     with pytest.raises(ValueError, match="action"):
         venv.step(np.full((2, 2), 7))
+    with pytest.raises(ValueError, match="integers"):
+        venv.step(np.zeros((2, 2)))
+    assert [e.sim.steps for e in venv.envs] == [0, 0]  # a bad action steps no world
     with pytest.raises(ConfigError, match="reset_mask"):
         venv.reset(options={"reset_mask": np.array([True, False])})
     venv.close()

@@ -21,7 +21,21 @@ steps (``--batched-steps``, 200) after 20 untimed ones, and world k draws its ac
 stream seeded ``seed + k`` as :func:`measure` does: each world is timed over the same steps of
 the same trajectory whatever N (world 0's is the per-env row's with ``--steps 200``), since a
 step's cost changes along an episode (maps grow, merges happen) and with where the robots go.
-``--evaluate 1,0`` applies to these rows too.
+``--evaluate 1,0`` applies to these rows too. The batched env steps its worlds on all usable
+cores (``num_threads``), so its stepping thread's CPU time is only the caller's share.
+
+``--side-by-side 32`` (single vs batched, the figures to quote): one env and the batched env of
+N worlds (``symmetric_office``, 2 robots, merging on) stepped in alternation, ``--rounds``
+rounds of ``--round-steps`` steps each, so the machine's load falls on them alike; the batched
+env once on one thread (the worlds one after the other, as before it had threads) and once on
+every core. Per row: robot-steps per second of the stepping thread's CPU time
+(``time.thread_time``), of the whole process's CPU time (``time.process_time``: pool threads and
+the merge worker included) and of wall time, the cores used (process CPU / wall) and the
+robot-steps/s in wall time as a ratio to the single env's. World k acts as in ``--batched`` (world
+0 is the single env's run). With ``--team coordinated-frontier`` each world (and the single env)
+is driven by that team, its decisions (``team.act`` on every robot's view, in the calling thread)
+timed with the step: a realistic rollout. The machine's core count and load are printed: on a
+shared machine the wall ratio is a ratio under contention.
 
 Settings: ``symmetric_office`` (0.05 m/cell, 360 beams, 4 m, merging on) for ``--robots``
 (default 1, 2, 4, 8), and two robots on the Explore-Bench-sized world (250 x 250 cells,
@@ -38,6 +52,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 from collections import defaultdict
 from collections.abc import Callable, Sequence
@@ -147,7 +162,8 @@ def measure_batched(
     """Step ``vector_env(num_envs, **options)`` (a team) ``steps`` times with seeded random
     actions after ``warmup`` untimed steps; CPU-time figures of one batched step.
 
-    Returns a dict: ``num_envs``, ``n_robots``, ``steps`` (batched), ``episodes_ended``,
+    Returns a dict: ``num_envs``, ``n_robots``, ``num_threads`` (the threads that stepped the
+    worlds; ``options`` may set it), ``steps`` (batched), ``episodes_ended``,
     ``cpu_s`` (stepping thread), ``batch_steps_per_s``, ``world_steps_per_s``,
     ``robot_steps_per_s``, ``p50_ms`` / ``p99_ms`` / ``max_ms`` (one batched step),
     ``process_cpu_s`` and ``robot_steps_per_process_cpu_s`` (all threads: the merge worker too),
@@ -187,6 +203,7 @@ def measure_batched(
         "options": dict(options),
         "num_envs": venv.num_envs,
         "n_robots": venv.n_robots,
+        "num_threads": venv.num_threads,
         "steps": steps,
         "episodes_ended": ended,
         "cpu_s": total,
@@ -201,6 +218,183 @@ def measure_batched(
         "p99_ms": 1000.0 * float(np.percentile(lat, 99)),
         "max_ms": 1000.0 * float(lat.max()),
     }
+
+
+def _load_line(when: str) -> str:
+    """The machine's cores and load average (the context of every wall-time figure)."""
+    from mrexplore.environment.batched import usable_cores
+
+    try:
+        load = " ".join(f"{v:.2f}" for v in os.getloadavg())
+    except OSError:  # not available on this OS
+        load = "unknown"
+    return f"machine: {os.cpu_count()} cores ({usable_cores()} usable); load average {when}: {load}"
+
+
+class _Driver:
+    """What acts in one world: seeded random actions (one stream per world, one draw per robot
+    as :func:`measure` does) or a team policy on the robots' views (reset with each episode)."""
+
+    def __init__(self, env: Any, seed: int, team: str | None) -> None:
+        self.env = env
+        self.rng = np.random.default_rng(seed)
+        self.team: Any = None
+        if team is not None:
+            from mrexplore.policies import make_team_policy
+
+            self.team = make_team_policy(team, env.possible_agents)
+            self.reset()
+
+    def reset(self) -> None:
+        if self.team is not None:
+            self.team.reset(np.random.default_rng([int(self.rng.integers(2**31)), 1]))
+
+    def act(self) -> list[int]:
+        agents = self.env.possible_agents
+        if self.team is None:
+            return [int(self.rng.integers(4)) for _ in agents]
+        acts = self.team.act({a: self.env.robot_view(a) for a in agents})
+        return [int(acts[a]) for a in agents]
+
+
+class _Clock:
+    """Stepping-thread CPU, process CPU and wall seconds summed over timed spans."""
+
+    def __init__(self) -> None:
+        self.thread = self.process = self.wall = 0.0
+
+    def span(self, fn: Callable[[], Any]) -> Any:
+        w0, p0, t0 = time.perf_counter(), time.process_time(), time.thread_time()
+        out = fn()
+        self.thread += time.thread_time() - t0
+        self.process += time.process_time() - p0
+        self.wall += time.perf_counter() - w0
+        return out
+
+
+def side_by_side(
+    num_envs: int,
+    rounds: int = 4,
+    steps_per_round: int = 25,
+    seed: int = 0,
+    team: str | None = None,
+    merger: Any = "semantic",
+    warmup: int = 5,
+    **options: Any,
+) -> dict[str, Any]:
+    """The single env and the batched env of ``num_envs`` worlds (on one thread, then on every
+    usable core) stepped in alternation, ``rounds`` x ``steps_per_round`` steps each after
+    ``warmup`` untimed ones; ``team`` None: random actions, else a team policy name whose
+    decisions are timed with the steps.
+
+    Returns a dict: ``num_envs``, ``team``, ``cores``, ``threads`` and per row (``single``,
+    ``batched_1_thread``, ``batched_threads``) the robot-steps, ``thread_s``, ``process_s``,
+    ``wall_s``, robot-steps per second of each, ``cores_used`` and ``wall_ratio`` (robot-steps/s
+    in wall time / the single env's).
+    """
+    from mrexplore.environment.batched import BatchedExploreEnv, usable_cores
+
+    opts = {**DEFAULT_WORLD, "n_robots": 2, "merger": merger, **options}
+    cores = usable_cores()
+    single = mrexplore.parallel_env(**opts)
+    batches = {
+        "batched_1_thread": BatchedExploreEnv(num_envs, num_threads=1, **opts),
+        "batched_threads": BatchedExploreEnv(num_envs, num_threads=cores, **opts),
+    }
+    try:
+        single.reset(seed=seed)
+        drivers: dict[str, list[_Driver]] = {"single": [_Driver(single, seed, team)]}
+        for name, b in batches.items():
+            b.reset(seed=seed)
+            drivers[name] = [_Driver(e, seed + k, team) for k, e in enumerate(b.envs)]
+        clocks = {name: _Clock() for name in drivers}
+        counted = dict.fromkeys(drivers, 0)
+
+        def step_single() -> None:
+            (d,) = drivers["single"]
+            single.step(dict(zip(single.possible_agents, d.act(), strict=True)))
+            if not single.agents:
+                single.reset()
+                d.reset()
+
+        def step_batch(name: str) -> Callable[[], None]:
+            def run() -> None:
+                ds = drivers[name]
+                _, _, terms, truncs, _ = batches[name].step(np.array([d.act() for d in ds]))
+                for k in np.flatnonzero(terms[:, 0] | truncs[:, 0]):
+                    ds[k].reset()  # the world was reset in the step (same-step auto-reset)
+
+            return run
+
+        steppers: dict[str, Callable[[], None]] = {
+            "single": step_single,
+            **{name: step_batch(name) for name in batches},
+        }
+        robot_steps = {"single": 2, **dict.fromkeys(batches, 2 * num_envs)}
+        for fn in steppers.values():
+            for _ in range(warmup):
+                fn()
+        for _ in range(rounds):
+            for name, fn in steppers.items():  # in alternation: the load falls on all alike
+                for _ in range(steps_per_round):
+                    clocks[name].span(fn)
+                counted[name] += steps_per_round * robot_steps[name]
+    finally:
+        single.close()
+        for b in batches.values():
+            b.close()
+    out: dict[str, Any] = {
+        "num_envs": num_envs,
+        "team": team or "random",
+        "cores": cores,
+        "threads": batches["batched_threads"].num_threads,
+        "rounds": rounds,
+        "steps_per_round": steps_per_round,
+    }
+    for name, c in clocks.items():
+        n = counted[name]
+        out[name] = {
+            "robot_steps": n,
+            "thread_s": c.thread,
+            "process_s": c.process,
+            "wall_s": c.wall,
+            "robot_steps_per_thread_s": n / c.thread,
+            "robot_steps_per_process_s": n / c.process,
+            "robot_steps_per_wall_s": n / c.wall,
+            "cores_used": c.process / c.wall,
+        }
+    base = out["single"]["robot_steps_per_wall_s"]
+    for name in clocks:
+        out[name]["wall_ratio"] = out[name]["robot_steps_per_wall_s"] / base
+    return out
+
+
+def side_by_side_header(num_envs: int, rounds: int, steps: int) -> str:
+    """The title and column names of the side-by-side table."""
+    return (
+        f"single vs batched, side by side ({rounds} rounds x {steps} steps each, in "
+        f"alternation; symmetric_office, 2 robots, merger on; robot-steps per second of:)\n"
+        f"{'driver, env':<52} {'thread CPU':>10} {'process CPU':>11} {'wall':>8} "
+        f"{'cores used':>10} {'wall vs single':>14}"
+    )
+
+
+def side_by_side_lines(r: dict[str, Any]) -> list[str]:
+    """The printed rows of a result of :func:`side_by_side`."""
+    labels = {
+        "single": "one env",
+        "batched_1_thread": f"batched, {r['num_envs']} worlds, 1 thread",
+        "batched_threads": f"batched, {r['num_envs']} worlds, {r['threads']} threads",
+    }
+    lines = []
+    for name, label in labels.items():
+        x = r[name]
+        lines.append(
+            f"{r['team'] + ', ' + label:<52} {x['robot_steps_per_thread_s']:>10.0f} "
+            f"{x['robot_steps_per_process_s']:>11.0f} {x['robot_steps_per_wall_s']:>8.0f} "
+            f"{x['cores_used']:>10.2f} {x['wall_ratio']:>13.2f}x"
+        )
+    return lines
 
 
 BATCHED_HEADER = (
@@ -281,6 +475,28 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument(
         "--batched-only", action="store_true", help="with --batched: skip the per-env table"
     )
+    p.add_argument(
+        "--side-by-side",
+        type=int,
+        default=None,
+        metavar="N",
+        help="single env vs the batched env of N worlds (2 robots) on one thread and on every "
+        "core, stepped in alternation; prints robot-steps/s of the stepping thread, process CPU "
+        "and wall, and the wall ratio batched / single",
+    )
+    p.add_argument("--rounds", type=int, default=4, help="--side-by-side: rounds (default 4)")
+    p.add_argument(
+        "--round-steps",
+        type=int,
+        default=25,
+        help="--side-by-side: steps of each env per round (default 25)",
+    )
+    p.add_argument(
+        "--team",
+        default="random",
+        help="--side-by-side: comma-separated drivers, 'random' and/or a team policy name "
+        "(e.g. random,coordinated-frontier)",
+    )
     p.add_argument("--breakdown", action="store_true", help="also time the stages (2 robots)")
     p.add_argument("--json", default=None, help="also write the figures to this JSON file")
     p.add_argument("--force", action="store_true", help="replace an existing --json file")
@@ -326,8 +542,30 @@ def main(argv: Sequence[str] | None = None) -> int:
         raise ConfigError(
             f"bench env: --batched-steps must be at least 1, got {args.batched_steps}"
         )
-    if args.batched_only and not batched:
-        raise ConfigError("bench env: --batched-only needs --batched")
+    if args.batched_only and not batched and args.side_by_side is None:
+        raise ConfigError("bench env: --batched-only needs --batched or --side-by-side")
+    if args.side_by_side is not None and args.side_by_side < 1:
+        raise ConfigError(
+            f"bench env: --side-by-side must be an integer >= 1 (worlds), got {args.side_by_side}"
+        )
+    if args.rounds < 1 or args.round_steps < 1:
+        raise ConfigError(
+            f"bench env: --rounds and --round-steps must be at least 1, got {args.rounds} "
+            f"and {args.round_steps}"
+        )
+    teams: list[str | None] = []
+    for word in (w.strip() for w in args.team.split(",") if w.strip()):
+        if word != "random":
+            from mrexplore.policies import POLICIES
+
+            if word not in POLICIES:
+                raise ConfigError(
+                    f"bench env: --team must name 'random' or a team policy "
+                    f"({', '.join(sorted(POLICIES))}), got {word!r}"
+                )
+        teams.append(None if word == "random" else word)
+    if not teams:
+        raise ConfigError(f"bench env: --team names no driver, got {args.team!r}")
     if args.json:
         check_outputs([args.json], force=args.force, what="mrexplore bench env")
     merger = None if args.merger.lower() == "none" else args.merger
@@ -335,6 +573,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"mrexplore bench env: {args.steps} random-action steps per setting, seed {args.seed}, "
         f"merger {merger}; figures are CPU time of the stepping thread"
     )
+    print(_load_line("before"))
     results: dict[str, Any] = {}
     if not args.batched_only:
         print(HEADER)
@@ -372,6 +611,21 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"observe {ms['observe']:.3f} | other (reward, infos) {ms['other']:.3f}"
         )
         results["breakdown"] = r
+    if args.side_by_side is not None:
+        print(side_by_side_header(args.side_by_side, args.rounds, args.round_steps))
+        for team in teams:
+            r = side_by_side(
+                args.side_by_side,
+                rounds=args.rounds,
+                steps_per_round=args.round_steps,
+                seed=args.seed,
+                team=team,
+                merger=merger,
+            )
+            results[f"side by side, {team or 'random'}"] = r
+            for line in side_by_side_lines(r):
+                print(line, flush=True)
+        print(_load_line("after"))
     if args.json:
         write_text(args.json, json.dumps(results, indent=2))
     return 0

@@ -227,7 +227,29 @@ def run_loop_episode(
     merge_options: Mapping[str, Any] | None = None,
     env_options: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """One episode of the study; a JSON-friendly record (simulated seconds, NaN -> None)."""
+    """One episode of the study; a JSON-friendly record (simulated seconds, NaN -> None).
+    Upper-case ``merge_options`` are rule constants, set for this episode
+    (:func:`~mrexplore.merge.constants.rule_constants`)."""
+    from mrexplore.merge.constants import rule_constants, split_constants
+
+    proper, constants = split_constants(merge_options or {})
+    with rule_constants(constants):
+        return _run_loop_episode(
+            world, variant, seed, max_time_s, noise, task, nav_goal, proper or None, env_options
+        )
+
+
+def _run_loop_episode(
+    world: str,
+    variant: str,
+    seed: int,
+    max_time_s: float,
+    noise: bool,
+    task: str,
+    nav_goal: str,
+    merge_options: Mapping[str, Any] | None,
+    env_options: Mapping[str, Any] | None,
+) -> dict[str, Any]:
     from mrexplore.experiments.episode import run_episode
     from mrexplore.experiments.task_time import make_team
 
@@ -335,10 +357,12 @@ def validate(
             f"loop study: --nav-goal must be one of {list(NAV_GOALS)}, got {nav_goal!r}"
         )
     if merge_options:
+        from mrexplore.merge.constants import split_constants
         from mrexplore.merge.fusion import FusionStage
 
         try:  # the tracker checks every name and value, as the env would at its first reset
-            FusionStage(["a", "b"], "semantic", merge_options=merge_options, resolution_m=0.05)
+            proper, _ = split_constants(merge_options)
+            FusionStage(["a", "b"], "semantic", merge_options=proper, resolution_m=0.05)
         except ConfigError as exc:
             raise ConfigError(f"loop study: --merge-options: {exc}") from exc
     if env_options:
@@ -600,8 +624,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument(
         "--part",
         default=None,
-        help="with --family: tune (world seeds 0, 1, ...) or test (100000, ...); tune rules "
-        "on tune only",
+        help="with --family: tune (world seeds 0, 1, ...), test (100000, ...) or test2 "
+        "(200000, ...: kept for a rule chosen after test was read); tune rules on tune only",
     )
     p.add_argument("--seeds", type=int, default=20, help="seeds per world (default 20)")
     p.add_argument("--first-seed", type=int, default=1000, help="first seed (default 1000)")
@@ -630,7 +654,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         default="",
         metavar="K=V,K=V",
         help="options of the semantic merger and its tracker for the variants "
-        f"{list(MERGER_VARIANTS)}, e.g. min_common_m2=10,confirmations=3 (a rule's ablation)",
+        f"{list(MERGER_VARIANTS)}, e.g. min_common_m2=10,confirmations=3, and their rule "
+        "constants in upper case, e.g. OUTRANKED_DROP=false (a rule's ablation)",
     )
     p.add_argument(
         "--env-options",

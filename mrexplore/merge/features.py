@@ -6,8 +6,8 @@ OpenCV's PyPI builds; SIFT is its closest available relative. ``akaze`` is refus
 
 **Deterministic order.** OpenCV computes corner responses with CPU-specific SIMD code (SSE,
 AVX2, AVX-512) whose rounding differs in the last bits, and sorts them with an unstable sort:
-the same map gave a different keypoint order on two machines, and so a different match
-(issue 10). Every detector here therefore returns its points in one stated order: responses
+the same map gave a different keypoint order on two machines, and so a different match.
+Every detector here therefore returns its points in one stated order: responses
 rounded to :data:`RESPONSE_DIGITS` significant digits relative to the strongest, strongest
 first, ties by row then column. Harris and Shi-Tomasi selection (``goodFeaturesToTrack``'s
 rule) is done here, on that order, rather than inside OpenCV.

@@ -19,7 +19,7 @@ The result is a translation only, as in the paper: the method cannot recover a r
 
 Ties: windows with identical content (two wall stubs) correlate equally, to the last bit or
 within BLAS rounding, and an arg-max then picks whichever comes first, which differed between
-machines (issue 10). The paper does not say; our rule (:func:`best_pair`): pairs within
+machines. The paper does not say; our rule (:func:`best_pair`): pairs within
 :data:`TIE_TOL` of the best are tied, and the tie goes to the translation that the most pairs
 with C >= ``min_correlation`` agree with (within one cell); then to the smaller translation.
 """

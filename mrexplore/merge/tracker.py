@@ -22,7 +22,10 @@ Each step the caller hands over the robots' own-frame maps. The tracker
   replaced instead of dropped when the merger, run on the same maps, accepts one within
   ``RELOCATE_TOL_CELLS`` of it, or ranks one there first and refuses it only for the maps'
   bending (the same place, refitted to maps that drift has bent); and it is kept when it is
-  contradicted only by walls a drift's width apart (``DRIFT_SLACK_CELLS``);
+  contradicted only by walls a drift's width apart (``DRIFT_SLACK_CELLS``). A re-check also
+  judges the kept place as a rival of the merger's best pose (``OUTRANKED_DROP``): when the
+  grown maps single out another place, consistent with them, that neither the kept place nor
+  any other pose stands against, the pair moves there (the merger accepted it) or is un-merged;
 - chains transforms through merged pairs (0-1 and 1-2 merged => 0-2 known);
 - hands the pixels to :class:`~mrexplore.merge.compositor.MapCompositor`: change detection,
   each teammate's map warped into i's frame, and robot i's fused map ("occupied beats free
@@ -114,6 +117,10 @@ REFIT_REFUSED: bool = True
 DRIFT_SLACK_CELLS: int = 6
 #: The agreement with ``DRIFT_SLACK_CELLS`` that keeps a contradicted transform as drift.
 DRIFT_KEEP_ABOVE: float = 0.9
+#: A re-check hands the merger the kept place and judges it as a rival of the merger's best pose
+#: on the current maps: the pair lets it go when the maps single out another place
+#: (:meth:`MapMergeTracker._outranked`; False: off, the kept place judged by ``drop_below`` only).
+OUTRANKED_DROP: bool = True
 #: A sighting-guided attempt looks within this many cells of the guess (2 m at 0.05 m).
 PRIOR_RADIUS_CELLS: float = 40.0
 #: A sighting-guided attempt looks within this many degrees of the guess's heading.
@@ -153,6 +160,12 @@ def rival_rule(merger: Any, merge_options: Mapping[str, Any]) -> SemanticOptions
     return SemanticOptions.from_kwargs()
 
 
+def _same_place_cells() -> float:
+    """How near (cells) a re-check's pose must lie to the kept one to be the same place: the
+    drift a refit absorbs (``RELOCATE_TOL_CELLS``), and never under a rival's ``FAR_CELLS``."""
+    return max(RELOCATE_TOL_CELLS, _semantic.FAR_CELLS)
+
+
 def _consistent(res: MergeResult) -> bool:
     """The merger found its best pose consistent with the maps (refused, if at all, for
     uniqueness, pinning, shared space or a look-alike rule); False without evidence."""
@@ -180,12 +193,15 @@ class _Outcome:
     refit: Transform | None = None
     # attempt: the merger's best pose (canvas cells), accepted or not (None: not reported)
     best: Transform | None = None
+    # re-check: the merger's best pose lies far from the kept transform and the kept one would
+    # not stand as a rival to it on these maps (the maps now prefer another place)
+    outranked: bool = False
 
 
 @dataclass(frozen=True)
 class AttemptRecord:
     """One merge attempt of a pair as the tracker applied it, for diagnostics
-    (:attr:`MapMergeTracker.attempt_observer`; ``scripts/merge_timeline.py``).
+    (:attr:`MapMergeTracker.attempt_observer`; ``studies/merge_timeline.py``).
 
     Attributes:
         step: the step the attempt took effect (its start + ``merge_latency_steps``).
@@ -603,6 +619,16 @@ class MapMergeTracker:
             region = PosePrior(guess, PRIOR_RADIUS_CELLS, PRIOR_TURN_DEG)
             centre = np.array([(cb + cb + b.shape[1]) / 2.0, (rb + rb + b.shape[0]) / 2.0])
             rivals = [R for R in rivals if region.admits(R, centre, guess)]
+        elif (
+            kind == "recheck"
+            and OUTRANKED_DROP
+            and prior_merge is not None
+            and prior_merge.method == "semantic"
+        ):
+            # the kept place is one of the hypotheses, refitted to the grown maps like the rest
+            assert T_old is not None
+            T_kept = chain(translation(-ca, -ra), T_old, translation(cb, rb))
+            res = prior_merge(a, b, extra_hypotheses=[T_kept])
         else:
             res = self._merge(a, b)
         T = None
@@ -614,7 +640,12 @@ class MapMergeTracker:
             contradicted = held_now is not None and held_now < self.options.drop_below
             if T is None and T_old is not None and REFIT_REFUSED and contradicted:
                 refit = self._drift_refit(res, T_old, (ca, ra), (cb, rb), box_j)
-            return _Outcome(res, T, old_now, held_now, drift_held, refit=refit)
+            outranked = (
+                OUTRANKED_DROP
+                and T_old is not None
+                and self._outranked(a, b, offsets, res, T_old, box_j)
+            )
+            return _Outcome(res, T, old_now, held_now, drift_held, refit=refit, outranked=outranked)
         ev = res.evidence
         found = tuple(
             chain(
@@ -676,6 +707,44 @@ class MapMergeTracker:
             if agreement.score - ag.score < margin:
                 return None  # another place explains the maps about as well
         return T_best
+
+    def _outranked(
+        self,
+        a: Int8Grid,
+        b: Int8Grid,
+        offsets: tuple[tuple[int, int], tuple[int, int]],
+        res: MergeResult,
+        T_old: Transform,
+        box_j: Box,
+    ) -> bool:
+        """Do the grown maps (cropped ``a``, ``b``) prefer another place to the kept one
+        (``T_old``, canvas cells)? Yes when the merger's best pose is another place, consistent
+        with the maps, and neither the kept place (as kept, or at any refit of it among the
+        merger's hypotheses: the semantic merger is handed it) nor any other rival the merger
+        reports stands against it as a rival of an accepted pose must not
+        (:meth:`_standing`). So a look-alike place won while the maps were small gives way once
+        they single out another place by the merger's own margins; where the maps repeat (many
+        places stand) nothing changes. Pure."""
+        ev = res.evidence
+        if ev is None or ev.best is None or not ev.consistent:
+            return False  # no place the merger finds consistent with the maps
+
+        def canvas(X: Any) -> Transform:
+            return chain(
+                translation(*offsets[0]),
+                np.asarray(X, dtype=np.float64),
+                translation(-offsets[1][0], -offsets[1][1]),
+            )
+
+        near = _same_place_cells()
+        best = canvas(ev.best.transform)
+        if self._same(T_old, best, box_j, near):
+            return False
+        refits = [
+            H for h in ev.hypotheses if self._same(T_old, H := canvas(h.transform), box_j, near)
+        ]
+        others = [canvas(r.transform) for r in ev.rivals]
+        return not self._standing(a, b, offsets, best, [T_old, *refits, *others], box_j)
 
     def _standing(
         self,
@@ -898,6 +967,17 @@ class MapMergeTracker:
         if kept is None or T_old is None or not np.array_equal(kept, T_old):
             return  # dropped or replaced since the re-check started
         assert out.old_now is not None and out.held_now is not None
+        if out.outranked:
+            # The grown maps prefer another place by the merger's margins: un-merge, or move to
+            # that place at once when the merger accepted it on these maps.
+            first = self._contradicted.pop((i, j), step)
+            self.drops.append(DropRecord(i, j, first, step))
+            moved = out.T is not None and not self._same(T_old, out.T, bbox_j, _same_place_cells())
+            if moved and out.result is not None and out.T is not None:
+                self._replace_edge(i, j, out.T, out.result.score)
+                return
+            self._unmerge(i, j)
+            return
         if out.held_now < self.options.drop_below:
             first = self._contradicted.setdefault((i, j), step)
             if (
@@ -921,16 +1001,19 @@ class MapMergeTracker:
             # The maps grew and now contradict the kept transform: un-merge this pair.
             self.drops.append(DropRecord(i, j, first, step))
             del self._contradicted[(i, j)]
-            del self._edges[(i, j)]
-            self._edge_score.pop((i, j), None)
-            self._paths = None
-            self._px.forget_pair(i, j)
+            self._unmerge(i, j)
             return
         self._contradicted.pop((i, j), None)
         if out.result is None or out.T is None:
             return
         if out.result.score >= out.old_now + REPLACE_MARGIN:
             self._replace_edge(i, j, out.T, out.result.score)
+
+    def _unmerge(self, i: int, j: int) -> None:
+        del self._edges[(i, j)]
+        self._edge_score.pop((i, j), None)
+        self._paths = None
+        self._px.forget_pair(i, j)
 
     def _replace_edge(self, i: int, j: int, T: Transform, score: float) -> None:
         """Keep pair (i, j) merged with the new transform ``T`` (its fused pixels redone)."""

@@ -8,8 +8,10 @@ rule is chosen, so that nothing is tuned on the worlds it is judged on.
 The split: world ``index`` of a part is drawn from ``numpy.random.default_rng(seed)`` alone,
 with ``seed = PART_FIRST_SEED[part] + index``: the tune part is world seeds 0, 1, 2, ...
 (:data:`TUNE_FIRST_SEED`), the test part world seeds 100_000, 100_001, ...
-(:data:`TEST_FIRST_SEED`); an index is below :data:`PART_SIZE`, so the parts never share a
-seed. Nobody tunes on the test part. A world is named by the spec
+(:data:`TEST_FIRST_SEED`), and a second test part ``test2``, world seeds 200_000, ...
+(:data:`TEST2_FIRST_SEED`), kept closed for a rule chosen after the test part's results were
+read; an index is below :data:`PART_SIZE`, so the parts never share a seed. Nobody tunes on a
+test part. A world is named by the spec
 ``"family:<family>/<part>/<index>"`` (:func:`family_spec`), which
 :func:`mrexplore.world.load_world` resolves; its :class:`~mrexplore.world.World` is named
 ``"<family>/<part>/<index:04d>"``.
@@ -95,14 +97,20 @@ __all__ = [
 #: The spec prefix: ``"family:paper_like/test/7"``.
 FAMILY_PREFIX = "family:"
 #: The parts of every family, by world seed.
-PARTS: tuple[str, ...] = ("tune", "test")
+PARTS: tuple[str, ...] = ("tune", "test", "test2")
 #: First world seed of the tune part (world seeds 0, 1, 2, ...).
 TUNE_FIRST_SEED = 0
 #: First world seed of the test part (world seeds 100_000, 100_001, ...).
 TEST_FIRST_SEED = 100_000
+#: First world seed of the second test part (world seeds 200_000, 200_001, ...).
+TEST2_FIRST_SEED = 200_000
 #: Worlds per part at most: indices 0 .. PART_SIZE - 1, so the parts' seeds never meet.
 PART_SIZE = 100_000
-PART_FIRST_SEED: dict[str, int] = {"tune": TUNE_FIRST_SEED, "test": TEST_FIRST_SEED}
+PART_FIRST_SEED: dict[str, int] = {
+    "tune": TUNE_FIRST_SEED,
+    "test": TEST_FIRST_SEED,
+    "test2": TEST2_FIRST_SEED,
+}
 #: Largest floor, metres: the long side and the short side.
 MAX_LONG_M = 35.0
 MAX_SHORT_M = 25.0

@@ -33,6 +33,8 @@ from mrexplore.experiments.loop_study import (
         ["--merge-options", "min_comon_m2=10"],
         ["--merge-options", "min_common_m2=-1"],
         ["--merge-options", "confirmations"],
+        ["--merge-options", "NO_SUCH_RULE=1"],
+        ["--merge-options", "OUTRANKED_DROP=3"],
         ["--env-options", "map_l_oc=2.6"],
         ["--env-options", "map_l_occ=9"],
         ["--env-options", "range_noise_m=0"],
@@ -265,3 +267,24 @@ def test_reuse_takes_the_episodes_a_study_of_the_same_settings_holds(
     assert main([*both, "--out", str(third), "--reuse", str(tmp_path / "old.json")]) == 2
     assert "made by other code, worlds or maps" in capsys.readouterr().out
     assert not Path(f"{third}.json").exists()
+
+
+def test_rule_constants_in_the_merge_options_are_set_for_each_episode_only(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Upper-case ``--merge-options`` are the rules' constants: set while an episode runs (in
+    its process), restored after it, and not handed to the env as options."""
+    import mrexplore.experiments.loop_study as study
+    from mrexplore.merge import tracker
+
+    seen: list[tuple[bool, object]] = []
+
+    def fake(*args: object) -> dict[str, object]:
+        seen.append((tracker.OUTRANKED_DROP, args[7]))
+        return {}
+
+    monkeypatch.setattr(study, "_run_loop_episode", fake)
+    study.run_loop_episode(
+        "depot", "semantic", 1000, 2.0, merge_options={"OUTRANKED_DROP": False, "confirmations": 3}
+    )
+    assert seen == [(False, {"confirmations": 3})] and tracker.OUTRANKED_DROP is True

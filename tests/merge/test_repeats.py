@@ -115,7 +115,7 @@ def test_the_held_out_warehouse_merges_are_refused() -> None:
         assert classify(case, loose.matched, loose.transform)[0] == "wrong"
         res = merge_maps(case.a, case.b, resolution_m=case.resolution_m)
         # the pose laid a period off rests on one rack seen from outside as well: refused
-        # first by that rule now (item 22 of docs/merging.md), by the repeats without it
+        # first by that rule now (the object-hull rule), by the repeats without it
         assert not res.matched and (reason in res.reason or "seen from outside" in res.reason)
         alone = merge_with(case.a, case.b, resolution_m=case.resolution_m, object_hull_free=0)
         assert not alone.matched and reason in alone.reason
@@ -147,7 +147,7 @@ def test_a_big_rack_and_its_post_matched_on_another_copy_are_refused() -> None:
 def test_the_aliased_rack_side_merges_are_refused() -> None:
     """The last wrong merges of 1,800 disjoint aliased pairs (seeds 13-72, nav2 warehouse):
     the side of one rack and a post, laid on another rack's side and post. The lone-pin test
-    (item 22 of docs/merging.md) refuses them as well; each rule alone does."""
+    (``LONE_PIN_TEST``) refuses them as well; each rule alone does."""
     from mrexplore.studies.merge_bench import classify
     from mrexplore.studies.merge_cases import aliased_cases
 

@@ -848,3 +848,70 @@ def test_the_tracker_judges_rivals_with_the_runs_own_options() -> None:
     assert MapMergeTracker(2)._rival_rule.min_margin == 0.03
     # a merger of another kind: the semantic defaults judge its rivals
     assert MapMergeTracker(2, merger="orb")._rival_rule.min_margin == 0.03
+
+
+class _ScriptedWithBest:
+    """A merger answering with scripted (accepted transform or None, best pose) pairs, in crop
+    cells; the best pose is reported as the semantic merger's ``evidence.best``."""
+
+    def __init__(self, answers: list[tuple[np.ndarray | None, np.ndarray]]) -> None:
+        self.answers = answers
+        self.calls = 0
+
+    def merge(self, a: np.ndarray, b: np.ndarray) -> MergeResult:
+        T, best = self.answers[min(self.calls, len(self.answers) - 1)]
+        self.calls += 1
+        ev = MergeEvidence(
+            best=WeighedPose(best, Agreement(95, 5)), consistency=0.99, consistent=True
+        )
+        if T is None:
+            return MergeResult(False, None, 0.9, reason="scripted: refused", evidence=ev)
+        return MergeResult(True, T, 0.99, overlap_cells=500, evidence=ev)
+
+
+@pytest.mark.parametrize(
+    ("recheck", "on", "outcome"),
+    [
+        ("truth", True, "moved"),  # the merger accepts the true place: the pair moves there
+        ("refused", True, "dropped"),  # it prefers the true place but refuses it: un-merged
+        ("refused", False, "kept"),  # the rule off: the look-alike stays (drop_below 0)
+        ("wrong", True, "kept"),  # the merger still prefers the kept place
+    ],
+)
+def test_a_kept_pose_the_grown_maps_rank_below_another_place_gives_way(
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray],
+    recheck: str,
+    on: bool,
+    outcome: str,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A look-alike pose accepted while the maps were small is held to the standard of a
+    rival: once the merger's best pose on the current maps is another place, consistent, that
+    beats it by the merger's margins (here the maps contradict the kept pose) and that no
+    other pose stands against, the pair moves to that place when the merger accepts it, and
+    is un-merged otherwise. A kept pose merely contradicted is judged by ``drop_below`` (off
+    here)."""
+    ca, cb, T_true = robots
+    truth = _in_crops(ca, cb, T_true)
+    wrong = translation(40.0, 0.0) @ truth
+    later = {"truth": (truth, truth), "refused": (None, truth), "wrong": (wrong, wrong)}
+    merger = _ScriptedWithBest([(wrong, wrong), (wrong, wrong), later[recheck]])
+    tr = MapMergeTracker(
+        2, merger=merger.merge, merge_every=1, recheck_every=3, confirmations=2, drop_below=0.0
+    )
+    monkeypatch.setattr(tracker_module, "OUTRANKED_DROP", on)
+    _constants(monkeypatch, retry_growth=0.0)
+    for step in range(2):
+        tr.update([ca, cb], step=step)
+    assert tr.merged(0)
+    kept = tr.transform(0, 1)
+    assert kept is not None and merge_error(kept, T_true, cb)[0] > 30
+    tr.update([ca, cb], step=3)  # the re-check
+    now = tr.transform(0, 1)
+    err = None if now is None else merge_error(now, T_true, cb)[0]
+    if outcome == "moved":
+        assert err is not None and err < 0.5 and len(tr.drops) == 1
+    elif outcome == "dropped":
+        assert err is None and len(tr.drops) == 1
+    else:
+        assert err is not None and err > 30 and not tr.drops

@@ -24,17 +24,18 @@ step's cost changes along an episode (maps grow, merges happen) and with where t
 ``--evaluate 1,0`` applies to these rows too. The batched env steps its worlds on all usable
 cores (``num_threads``), so its stepping thread's CPU time is only the caller's share.
 
-``--side-by-side 32`` (single vs batched, the figures to quote): one env and the batched env of
-N worlds (``symmetric_office``, 2 robots, merging on) stepped in alternation, ``--rounds``
-rounds of ``--round-steps`` steps each, so the machine's load falls on them alike; the batched
+``--side-by-side 32`` (single vs batched, the figures to quote): N single envs, each stepped
+alone in turn, and the batched env of the same N worlds (``symmetric_office``, 2 robots, merging
+on, the same seeds and actions), stepped in alternation, ``--rounds`` rounds of
+``--round-steps`` steps of every world, so the machine's load falls on them alike; the batched
 env once on one thread (the worlds one after the other, as before it had threads) and once on
 every core. Per row: robot-steps per second of the stepping thread's CPU time
 (``time.thread_time``), of the whole process's CPU time (``time.process_time``: pool threads and
 the merge worker included) and of wall time, the cores used (process CPU / wall) and the
-robot-steps/s in wall time as a ratio to the single env's. World k acts as in ``--batched`` (world
-0 is the single env's run). With ``--team coordinated-frontier`` each world (and the single env)
-is driven by that team, its decisions (``team.act`` on every robot's view, in the calling thread)
-timed with the step: a realistic rollout. The machine's core count and load are printed: on a
+robot-steps/s in wall time as a ratio to the single envs'. World k acts as in ``--batched``.
+With ``--team coordinated-frontier`` every world is driven by that team, its decisions
+(``team.act`` on every robot's view, in the calling thread) timed with the steps: a realistic
+rollout. The machine's core count and load are printed: on a
 shared machine the wall ratio is a ratio under contention.
 
 Settings: ``symmetric_office`` (0.05 m/cell, 360 beams, 4 m, merging on) for ``--robots``
@@ -51,6 +52,7 @@ prints the ratios measured side by side.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import time
@@ -282,67 +284,75 @@ def side_by_side(
     warmup: int = 5,
     **options: Any,
 ) -> dict[str, Any]:
-    """The single env and the batched env of ``num_envs`` worlds (on one thread, then on every
-    usable core) stepped in alternation, ``rounds`` x ``steps_per_round`` steps each after
-    ``warmup`` untimed ones; ``team`` None: random actions, else a team policy name whose
+    """Single envs and the batched env of ``num_envs`` worlds (on one thread, then on every
+    usable core) stepped in alternation, ``rounds`` x ``steps_per_round`` steps of every world
+    after ``warmup`` untimed ones; ``team`` None: random actions, else a team policy name whose
     decisions are timed with the steps.
+
+    The single row steps the same worlds as the batched rows (world k seeded ``seed + k``, the
+    same actions), each by its own :func:`mrexplore.parallel_env` stepped alone: in a round,
+    world 0's env takes its ``steps_per_round`` steps, then world 1's, ... (each with its own
+    merge worker, as one env has). So all rows do the same work and differ only in how it is
+    stepped.
 
     Returns a dict: ``num_envs``, ``team``, ``cores``, ``threads`` and per row (``single``,
     ``batched_1_thread``, ``batched_threads``) the robot-steps, ``thread_s``, ``process_s``,
     ``wall_s``, robot-steps per second of each, ``cores_used`` and ``wall_ratio`` (robot-steps/s
-    in wall time / the single env's).
+    in wall time / the single envs').
     """
     from mrexplore.environment.batched import BatchedExploreEnv, usable_cores
 
     opts = {**DEFAULT_WORLD, "n_robots": 2, "merger": merger, **options}
     cores = usable_cores()
-    single = mrexplore.parallel_env(**opts)
-    batches = {
-        "batched_1_thread": BatchedExploreEnv(num_envs, num_threads=1, **opts),
-        "batched_threads": BatchedExploreEnv(num_envs, num_threads=cores, **opts),
-    }
+    singles: list[Any] = []
+    batches: dict[str, BatchedExploreEnv] = {}
     try:
-        single.reset(seed=seed)
-        drivers: dict[str, list[_Driver]] = {"single": [_Driver(single, seed, team)]}
+        singles.extend(mrexplore.parallel_env(**opts) for _ in range(num_envs))
+        batches["batched_1_thread"] = BatchedExploreEnv(num_envs, num_threads=1, **opts)
+        batches["batched_threads"] = BatchedExploreEnv(num_envs, num_threads=cores, **opts)
+        for k, env in enumerate(singles):
+            env.reset(seed=seed + k)
+        drivers: dict[str, list[_Driver]] = {
+            "single": [_Driver(e, seed + k, team) for k, e in enumerate(singles)]
+        }
         for name, b in batches.items():
             b.reset(seed=seed)
             drivers[name] = [_Driver(e, seed + k, team) for k, e in enumerate(b.envs)]
-        clocks = {name: _Clock() for name in drivers}
-        counted = dict.fromkeys(drivers, 0)
 
-        def step_single() -> None:
-            (d,) = drivers["single"]
-            single.step(dict(zip(single.possible_agents, d.act(), strict=True)))
-            if not single.agents:
-                single.reset()
-                d.reset()
+        def run_single(steps: int) -> None:
+            for env, d in zip(singles, drivers["single"], strict=True):
+                for _ in range(steps):  # this world's env stepped alone
+                    env.step(dict(zip(env.possible_agents, d.act(), strict=True)))
+                    if not env.agents:
+                        env.reset()
+                        d.reset()
 
-        def step_batch(name: str) -> Callable[[], None]:
-            def run() -> None:
+        def run_batch(name: str) -> Callable[[int], None]:
+            def run(steps: int) -> None:
                 ds = drivers[name]
-                _, _, terms, truncs, _ = batches[name].step(np.array([d.act() for d in ds]))
-                for k in np.flatnonzero(terms[:, 0] | truncs[:, 0]):
-                    ds[k].reset()  # the world was reset in the step (same-step auto-reset)
+                for _ in range(steps):
+                    _, _, terms, truncs, _ = batches[name].step(np.array([d.act() for d in ds]))
+                    for k in np.flatnonzero(terms[:, 0] | truncs[:, 0]):
+                        ds[k].reset()  # the world was reset in the step (same-step auto-reset)
 
             return run
 
-        steppers: dict[str, Callable[[], None]] = {
-            "single": step_single,
-            **{name: step_batch(name) for name in batches},
+        runs: dict[str, Callable[[int], None]] = {
+            "single": run_single,
+            **{name: run_batch(name) for name in batches},
         }
-        robot_steps = {"single": 2, **dict.fromkeys(batches, 2 * num_envs)}
-        for fn in steppers.values():
-            for _ in range(warmup):
-                fn()
+        clocks = {name: _Clock() for name in runs}
+        for run in runs.values():
+            run(warmup)
         for _ in range(rounds):
-            for name, fn in steppers.items():  # in alternation: the load falls on all alike
-                for _ in range(steps_per_round):
-                    clocks[name].span(fn)
-                counted[name] += steps_per_round * robot_steps[name]
+            for name, run in runs.items():  # in alternation: the load falls on all alike
+                clocks[name].span(functools.partial(run, steps_per_round))
     finally:
-        single.close()
+        for env in singles:
+            env.close()
         for b in batches.values():
             b.close()
+    n = rounds * steps_per_round * num_envs * 2
     out: dict[str, Any] = {
         "num_envs": num_envs,
         "team": team or "random",
@@ -352,7 +362,6 @@ def side_by_side(
         "steps_per_round": steps_per_round,
     }
     for name, c in clocks.items():
-        n = counted[name]
         out[name] = {
             "robot_steps": n,
             "thread_s": c.thread,
@@ -382,7 +391,7 @@ def side_by_side_header(num_envs: int, rounds: int, steps: int) -> str:
 def side_by_side_lines(r: dict[str, Any]) -> list[str]:
     """The printed rows of a result of :func:`side_by_side`."""
     labels = {
-        "single": "one env",
+        "single": f"{r['num_envs']} single envs, each stepped alone",
         "batched_1_thread": f"batched, {r['num_envs']} worlds, 1 thread",
         "batched_threads": f"batched, {r['num_envs']} worlds, {r['threads']} threads",
     }

@@ -23,11 +23,12 @@ def test_side_by_side_prints_single_and_batched_rows_with_the_cores(
     assert "cores" in out and "load average" in out
     assert "thread CPU" in out and "process CPU" in out and "wall vs single" in out
     for team in ("random", "coordinated-frontier"):
-        assert f"{team}, one env" in out
+        assert f"{team}, 2 single envs, each stepped alone" in out
         assert f"{team}, batched, 2 worlds, 1 thread" in out
     r = json.loads(out_json.read_text())["side by side, coordinated-frontier"]
-    assert r["num_envs"] == 2 and r["single"]["robot_steps"] == 2 * 2
-    assert r["batched_1_thread"]["robot_steps"] == r["batched_threads"]["robot_steps"] == 2 * 2 * 2
+    # every row: 1 round x 2 steps x 2 worlds x 2 robots
+    assert r["num_envs"] == 2 and r["single"]["robot_steps"] == 8
+    assert r["batched_1_thread"]["robot_steps"] == r["batched_threads"]["robot_steps"] == 8
     assert r["single"]["wall_ratio"] == 1.0
     assert all(r[k]["wall_s"] > 0 for k in ("single", "batched_1_thread", "batched_threads"))
 

@@ -66,7 +66,9 @@ def vector_env(
     (N, C, H, W)); a team (the default, 2 robots): a :class:`BatchedExploreEnv` with arrays
     (N, R, ...). Both auto-reset in the same step (``final_obs`` / ``final_info`` in the infos);
     ``reset(seed=s)`` seeds world k with ``s + k``. The options are those of
-    :func:`parallel_env` (low-level actions only). For stable-baselines3:
+    :func:`parallel_env` (low-level actions only), and ``num_threads``: the threads that step
+    the worlds (default: every usable core; the run is the same at any number). For
+    stable-baselines3:
     ``mrexplore.wrappers.make_vec_env(n_copies=N, batched=True, ...)``.
 
     Raises:

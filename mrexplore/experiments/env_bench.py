@@ -378,11 +378,12 @@ def side_by_side(
     return out
 
 
-def side_by_side_header(num_envs: int, rounds: int, steps: int) -> str:
+def side_by_side_header(num_envs: int, rounds: int, steps: int, merger: Any) -> str:
     """The title and column names of the side-by-side table."""
     return (
-        f"single vs batched, side by side ({rounds} rounds x {steps} steps each, in "
-        f"alternation; symmetric_office, 2 robots, merger on; robot-steps per second of:)\n"
+        f"single vs batched, side by side ({num_envs} worlds, {rounds} rounds x {steps} steps "
+        f"of each, in alternation; symmetric_office, 2 robots, merger {merger}; robot-steps "
+        f"per second of:)\n"
         f"{'driver, env':<52} {'thread CPU':>10} {'process CPU':>11} {'wall':>8} "
         f"{'cores used':>10} {'wall vs single':>14}"
     )
@@ -621,7 +622,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         results["breakdown"] = r
     if args.side_by_side is not None:
-        print(side_by_side_header(args.side_by_side, args.rounds, args.round_steps))
+        print(side_by_side_header(args.side_by_side, args.rounds, args.round_steps, merger))
         for team in teams:
             r = side_by_side(
                 args.side_by_side,

@@ -71,7 +71,7 @@ import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Any, ClassVar, TypeVar
 
 import gymnasium
 import numpy as np
@@ -92,6 +92,9 @@ def check_num_envs(num_envs: Any, owner: str = "vector_env") -> int:
     ):
         raise ConfigError(f"{owner}: num_envs must be an integer >= 1, got {num_envs!r}")
     return int(num_envs)
+
+
+_T = TypeVar("_T")
 
 
 def usable_cores() -> int:
@@ -335,6 +338,30 @@ class BatchedExploreEnv:
         # in world order, whichever thread finished first
         final = {k: e for k, e in enumerate(ended) if e is not None}
         return BatchStep(obs, rewards, terms, truncs, infos, final)
+
+    def map_worlds(self, fn: Callable[[int, MultiRobotExplorationEnv], _T]) -> list[_T]:
+        """``[fn(k, envs[k]) for every world k]``, computed on the stepping threads.
+
+        For per-world work between steps, e.g. a team policy's decisions on world k's robot
+        views (``team_k.act({a: env.robot_view(a) for a in env.agents})``): the worlds'
+        decisions then run on every core as their steps do. ``fn`` must touch only world k's
+        objects (its env, its policy); the results are in world order whichever thread
+        computed them.
+
+        >>> import mrexplore
+        >>> venv = mrexplore.vector_env(num_envs=2, world="small_office", max_cycles=4)
+        >>> _ = venv.reset(seed=0)
+        >>> venv.map_worlds(lambda k, env: (k, env.agents))
+        [(0, ['robot_0', 'robot_1']), (1, ['robot_0', 'robot_1'])]
+        >>> venv.close()
+        """
+        out: list[Any] = [None] * self.num_envs
+
+        def one(k: int) -> None:
+            out[k] = fn(k, self.envs[k])
+
+        self._each_world(one)
+        return out
 
     def _each_world(self, fn: Callable[[int], None]) -> None:
         """``fn(k)`` for every world k, on :attr:`num_threads` threads: each thread takes the next

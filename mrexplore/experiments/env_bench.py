@@ -34,8 +34,9 @@ every core. Per row: robot-steps per second of the stepping thread's CPU time
 the merge worker included) and of wall time, the cores used (process CPU / wall) and the
 robot-steps/s in wall time as a ratio to the single envs'. World k acts as in ``--batched``.
 With ``--team coordinated-frontier`` every world is driven by that team, its decisions
-(``team.act`` on every robot's view, in the calling thread) timed with the steps: a realistic
-rollout. The machine's core count and load are printed: on a
+(``team.act`` on every robot's view; in the batched rows on the stepping threads,
+:meth:`~mrexplore.environment.batched.BatchedExploreEnv.map_worlds`) timed with the steps: a
+realistic rollout. The machine's core count and load are printed: on a
 shared machine the wall ratio is a ratio under contention.
 
 Settings: ``symmetric_office`` (0.05 m/cell, 360 beams, 4 m, merging on) for ``--robots``
@@ -329,9 +330,11 @@ def side_by_side(
 
         def run_batch(name: str) -> Callable[[int], None]:
             def run(steps: int) -> None:
-                ds = drivers[name]
+                ds, b = drivers[name], batches[name]
                 for _ in range(steps):
-                    _, _, terms, truncs, _ = batches[name].step(np.array([d.act() for d in ds]))
+                    # the decisions on the stepping threads too (a team's planning is nogil)
+                    acts = b.map_worlds(lambda k, _env: ds[k].act())
+                    _, _, terms, truncs, _ = b.step(np.array(acts))
                     for k in np.flatnonzero(terms[:, 0] | truncs[:, 0]):
                         ds[k].reset()  # the world was reset in the step (same-step auto-reset)
 

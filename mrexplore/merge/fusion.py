@@ -24,16 +24,16 @@ from mrexplore.types import Box, Merger
 #: ``rival_perfect_cells`` of the semantic merger in the loop: off. The perfect-rival test guards
 #: a one-shot merge against b's rest lying in a's unseen part; in the loop that part gets seen
 #: and the re-check drops a pose the grown maps contradict. There it only delayed merges
-#: (docs/merging.md, "A far pose that nothing contradicts is a rival": one depot episode of
-#: 20 never merged).
+#: (docs/merging_history.md, "A far pose that nothing contradicts is a rival": one depot
+#: episode of 20 never merged).
 IN_LOOP_RIVAL_PERFECT_CELLS = 0
 #: ``min_accept_cells`` of the tracker for the semantic merger: an attempt's pose counts only
 #: when it rests on this many wall cells of both maps (``MergeResult.overlap_cells``), 250
 #: (the scale of the one-shot perfect-rival test) where the merger asks 80. Early in an episode
 #: two robots in two look-alike warehouse aisles whose maps shared no wall at all were matched
 #: on 104-164 such cells and merged wrongly; every correct first merge of 73 traced rested on
-#: 299 or more (docs/merging.md, "No merge of two look-alike aisles"). A floor on the accepted
-#: pose only: the merger still weighs smaller poses as rivals.
+#: 299 or more (docs/merging_history.md, "No merge of two look-alike aisles"). A floor on the
+#: accepted pose only: the merger still weighs smaller poses as rivals.
 IN_LOOP_MIN_ACCEPT_CELLS = 250
 #: The semantic merger's options in the loop (the env's tracker and the loop study's seeded
 #: diagnostic); options the caller gives win. The look-alike guard is the place test

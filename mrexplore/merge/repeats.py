@@ -20,7 +20,9 @@ need not show.
   three pairs of crops that share nothing were merged rack side on rack side
   (``object_hull_free``).
 
-Measured in ``docs/merging.md`` items 21 and 22.
+Their measured effects: ``docs/merging.md``; how they were chosen: ``docs/merging_history.md``
+("Repeats: a copy the search never tried, and a match on one object" and "A rack seen from
+outside, and the one post that pins a pose").
 """
 
 from __future__ import annotations

@@ -85,7 +85,7 @@ def orientation_histogram(
     (a corridor along x in one, along y in the other). The walls are blurred first (``sigma``
     cells): the staircase of a wall drawn at an angle on the grid pulls local gradients towards
     the grid axes, and the wider the blur the less (sigma 1.5 left the peak 2-3 degrees off on
-    half of our lidar map pairs, 2.5 on a quarter; see docs/merging.md).
+    half of our lidar map pairs, 2.5 on a quarter; see docs/merging_history.md).
     """
     return direction_histogram(wall_normals(wall, sigma), bins, period_deg)
 
@@ -133,7 +133,7 @@ def hough_pool(shape_a: tuple[int, int], shape_b: tuple[int, int], max_cells: in
     """The pooling factor of :func:`segment_histogram` for two maps: 2 when the larger one has
     more than ``max_cells`` cells, else 1 (``max_cells`` 0: always 1). Never more than 2: walls
     pooled 3 x 3 put a 1000-cell floor's candidate 0.2 degrees off, and its merge was lost
-    (docs/merging.md, "Speed, and large maps").
+    (docs/merging_history.md, "Speed, and large maps").
 
     >>> hough_pool((500, 500), (400, 600), 409_600), hough_pool((1000, 1000), (10, 10), 409_600)
     (1, 2)

@@ -470,8 +470,8 @@ class _SharedSpace:
 
 
 # --- the rules' settings that are not options: one value each, chosen and measured on the
-# tuning worlds (why each is what it is: docs/merging.md, "What changed in this version, and
-# what each change bought"). Read where they are used, so a test or a bench ablation may set
+# tuning worlds (what each does and its measured effect: docs/merging.md; how each was chosen:
+# docs/merging_history.md). Read where they are used, so a test or a bench ablation may set
 # one for a run (``mrexplore bench merge --semantic-variant SLACK_CELLS=0``). ----------------
 #: Contradicting wall cells (beyond the best's) that beat a rival, with ``MIN_MARGIN``'s index: a
 #: wall's worth, not speckle.
@@ -1101,7 +1101,8 @@ def _judge(pair: _Pair, found: _Found, o: SemanticOptions, info: dict[str, Any])
         # The polished pose stands in for the best, so it must pass the overlap floor every
         # hypothesis passed: a pose that buys consistency by leaving b's walls over a's unknown
         # is not the same match (a twin-wing pose went from 18 % to 8 % of b's walls and was
-        # accepted, wrongly; docs/merging.md).
+        # accepted, wrongly; docs/merging_history.md, "The consistency polish keeps the
+        # overlap floor").
         # The best of 125 nearby poses is consistent by selection as well as by place, so it
         # must clear the bar by a margin (a twin-wing pose polished from 0.949 to 0.971 was
         # merged 123 cells off; the correct polished poses of the bench reach 0.98-1.00).
@@ -1118,7 +1119,8 @@ def _judge(pair: _Pair, found: _Found, o: SemanticOptions, info: dict[str, Any])
     # mostly hanging over a's unknown) agrees perfectly with little, which any corridor end or
     # room corner does by coincidence; it does not make the best ambiguous. (Walls only, not the
     # shared-space credit of the ranking: with the credit, a pose laid on one of a warehouse's
-    # repeated rack rows lost its rivals and merged wrongly in the loop; docs/merging.md.)
+    # repeated rack rows lost its rivals and merged wrongly in the loop; docs/merging_history.md,
+    # the second pass.)
     # A far pose the maps do not contradict at all, on 12.5 m of wall or more, is a rival
     # however much more the best explains: b's rest may lie in a's unseen part (a warehouse
     # shelf row explained 3x as much as the truth and was merged 342 cells off).
@@ -1183,7 +1185,7 @@ def _rule_unique(j: _Judged) -> str | None:
     is beaten by ``min_margin`` in index and ``MIN_EVIDENCE_CELLS`` more contradicting wall
     cells, or ruled out by one object the maps show (a notch, a post:
     ``MIN_EVIDENCE_CELLS`` wall cells in one group), while noise contradicts in scattered
-    cells (docs/merging.md, "A rival ruled out by one object")."""
+    cells (docs/merging_history.md, "A rival ruled out by one object")."""
     o, best = j.o, j.best
     if not j.rivals:
         return None

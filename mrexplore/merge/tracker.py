@@ -94,8 +94,8 @@ MergeFn = Callable[[Int8Grid, Int8Grid], MergeResult]
 GUIDED_MIN_COMMON_M2 = 5.0
 
 
-# --- the in-loop rules' settings that are not options: one value each (measured:
-# docs/merging.md, "What changed in this version, and what each change bought"). Read where
+# --- the in-loop rules' settings that are not options: one value each (what each does and its
+# measured effect: docs/merging.md; how each was chosen: docs/merging_history.md). Read where
 # used, so a test may set one for a run. ----------------------------------------------------
 #: A re-check replaces the kept transform only when the new one's score beats the kept one's on the
 #: same maps by this: no flip-flopping.
@@ -287,8 +287,8 @@ class TrackerOptions(Options):
             instead of breaking it (it does not extend the run). A rival it reported is
             remembered and must be ruled out before the run can end in a merge
             (``RIVAL_MEMORY``). Default False: every refusal breaks the run (measured in
-            ``docs/merging.md``, "Where the first merge waits"). Semantic merger only (it
-            reports whether its best pose was consistent).
+            ``docs/merging_history.md``, "Where the first merge waits"). Semantic merger only
+            (it reports whether its best pose was consistent).
         merge_latency_steps: an attempt or re-check started at step t is applied at step
             t + this, computed meanwhile in a worker thread on copies of the maps, so no step
             waits for the merger (default 0: computed and applied in the step that starts it).
@@ -306,8 +306,8 @@ class TrackerOptions(Options):
         RECHECK_MIN_RUN_CELLS: in that agreement, contradicting cells count only in 8-connected
             groups of at least this many (default 5: the semantic merger's ``MIN_RUN_CELLS``;
             a wall laid across open space, not speckle). Slack 0 and runs of 1: a drop judges
-            the raw acceptance index (why not: ``docs/merging.md``, "The re-check judges a
-            kept transform as acceptance judged it").
+            the raw acceptance index (why not: ``docs/merging_history.md``, "The re-check
+            judges a kept transform as acceptance judged it").
         RELOCATE_TOL_CELLS: a re-check that finds the kept transform contradicted keeps the
             pair merged, with the merger's new transform, when the merger accepts one whose
             placement of b's known box is within this many cells of the kept one's (default
@@ -324,8 +324,8 @@ class TrackerOptions(Options):
             ``DRIFT_SLACK_CELLS`` (default 6, 0.3 m at 0.05 m) beyond the tolerance taken as one
             wall, is at least ``DRIFT_KEEP_ABOVE`` (default 0.9): odometry drift displaces
             walls by that much over a long episode, while a look-alike place lays walls across
-            open space (measurements: ``docs/merging.md``, "A merge that drift has bent is
-            kept"). 0 cells = off.
+            open space (measurements: ``docs/merging_history.md``, "A merge that drift has
+            bent is kept"). 0 cells = off.
         PRIOR_RADIUS_CELLS, PRIOR_TURN_DEG: the region around a sighting's guess (``update``'s
             ``sightings``) in which a guided attempt looks: poses that put the centre of j's
             walls within this many cells of where the guess puts it, turned by at most this

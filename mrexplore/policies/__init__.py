@@ -17,7 +17,8 @@ a frontier-length term in the utility (``size_weight`` :data:`SIZE_WEIGHT`), the
 counterpart of the shipped goal chooser's rule (``docs/goal_policy.md``).
 ``coordinated-frontier-verify`` adds, before a merge, utility for frontiers where the merger's
 candidate transforms put a teammate's map (``verify_weight`` :data:`VERIFY_WEIGHT`: active
-disambiguation, ``docs/merging.md``, "Going where the merger's candidates can be told apart").
+disambiguation, ``docs/merging_history.md``, "Going where the merger's candidates can be told
+apart").
 """
 
 from __future__ import annotations

@@ -714,8 +714,8 @@ class CoordinatedFrontierPolicy(TeamPolicy):
             frontier whose surroundings the teammate has mapped under one of the merger's
             candidate transforms (:func:`verification_value` x this; 0: off, the default).
             Going there gives the merger the evidence that confirms or rules out a candidate
-            (active disambiguation; ``docs/merging.md``, "Going where the merger's candidates can
-            be told apart").
+            (active disambiguation; ``docs/merging_history.md``, "Going where the merger's
+            candidates can be told apart").
         **options: :class:`FrontierExplorer` options for every robot.
 
     Robots are handled in sorted name order ("in turn"); a robot that re-plans sees the current

@@ -646,7 +646,7 @@ def merge_semantic(
       of a symmetric arena apart; noise contradicts in scattered cells);
     - shared knowledge: ``min_overlap`` (0.15) of b's wall cells on a's known cells,
       ``MIN_OVERLAP_CELLS`` (80), ``min_common_m2`` (10.0) m^2 known in both at
-      ``resolution_m`` (0.05) m/cell (the every-step tracker asks for 20 m^2: a room);
+      ``resolution_m`` (0.05) m/cell (0 in the loop: the place test waits for a third place);
     - ``room_match_m2`` (20.0; 0 = off) and ``ROOM_MATCH_SHARE`` (0.3): without a ``prior``,
       refuse a pose whose shared known space is under 20 m^2 **and** under 0.3 of the smaller
       map's known space: a room-sized match in maps of several rooms may be a look-alike room

@@ -180,6 +180,17 @@ other_steps() {
     --variants semantic sighting --jobs 2 --out "$out/loop_paper_like_test_sighting" --force
   mrexplore bench loop --family office_row --part test --worlds 20 --seeds 5 \
     --variants semantic sighting --jobs 2 --out "$out/loop_office_row_test_sighting" --force
+  # the second test part (world seeds 200000..; opened for the re-check's rival test, chosen
+  # after the test part was read): the merger, sightings, the room oracle and never merging;
+  # and the merger without the re-check's rival test, on the same episodes
+  mrexplore bench loop --family paper_like --part test2 --worlds 20 --seeds 5 \
+    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_paper_like_test2" --force
+  mrexplore bench loop --family paper_like --part test2 --worlds 20 --seeds 5 --variants semantic \
+    --merge-options OUTRANKED_DROP=false --jobs 2 --out "$out/loop_paper_like_test2_before" --force
+  mrexplore bench loop --family office_row --part test2 --worlds 20 --seeds 5 \
+    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_office_row_test2" --force
+  mrexplore bench loop --family office_row --part test2 --worlds 20 --seeds 5 --variants semantic \
+    --merge-options OUTRANKED_DROP=false --jobs 2 --out "$out/loop_office_row_test2_before" --force
   # the four fixed worlds with the place test, beside the room oracle
   mrexplore bench loop --seeds 20 --variants semantic oracle_room --jobs 2 \
     --out "$out/loop_fixed_worlds" --force

@@ -160,6 +160,23 @@ def rival_rule(merger: Any, merge_options: Mapping[str, Any]) -> SemanticOptions
     return SemanticOptions.from_kwargs()
 
 
+Offsets = tuple[tuple[int, int], tuple[int, int]]
+
+
+def _to_crop(T: Transform, offsets: Offsets) -> Transform:
+    """A pose in canvas cells (b -> a) in the cells of the crops whose cell (0, 0) is at
+    ``offsets`` ((col, row) of a's crop, of b's) in the canvases; by chain, not @ (BLAS): the
+    same bits on every CPU."""
+    (ca, ra), (cb, rb) = offsets
+    return chain(translation(-ca, -ra), T, translation(cb, rb))
+
+
+def _to_canvas(X: Any, offsets: Offsets) -> Transform:
+    """The inverse of :func:`_to_crop`: a pose in crop cells in canvas cells."""
+    (ca, ra), (cb, rb) = offsets
+    return chain(translation(ca, ra), np.asarray(X, dtype=np.float64), translation(-cb, -rb))
+
+
 def _same_place_cells() -> float:
     """How near (cells) a re-check's pose must lie to the kept one to be the same place: the
     drift a refit absorbs (``RELOCATE_TOL_CELLS``), and never under a rival's ``FAR_CELLS``."""
@@ -589,8 +606,8 @@ class MapMergeTracker:
         old_now = held_now = drift_held = None
         if kind == "recheck":
             assert T_old is not None
-            T_crop = chain(translation(-ca, -ra), T_old, translation(cb, rb))
-            codes_a, codes_b = MapCodes(a), MapCodes(b)  # shared by both verifiers
+            T_crop = _to_crop(T_old, offsets)
+            codes_a, codes_b = MapCodes(a), MapCodes(b)  # shared by every verifier below
             old_now = Verifier(codes_a, codes_b)(T_crop).score
             held_now = old_now
             if RECHECK_SLACK_CELLS > 0 or RECHECK_MIN_RUN_CELLS > 1:
@@ -609,7 +626,7 @@ class MapMergeTracker:
         if pair is not None:
             res = pair(i, j, a, b, (ca, ra), (cb, rb))
         elif guess is not None and prior_merge is not None and prior_merge.method == "semantic":
-            T_guess = chain(translation(-ca, -ra), guess, translation(cb, rb))
+            T_guess = _to_crop(guess, offsets)
             prior = PosePrior(T_guess, PRIOR_RADIUS_CELLS, PRIOR_TURN_DEG)
             # The shared-space floor guards against a look-alike room elsewhere, which the
             # sighting's region already excludes: a guided attempt asks a few square metres.
@@ -626,53 +643,39 @@ class MapMergeTracker:
             and prior_merge.method == "semantic"
         ):
             # the kept place is one of the hypotheses, refitted to the grown maps like the rest
-            assert T_old is not None
-            T_kept = chain(translation(-ca, -ra), T_old, translation(cb, rb))
-            res = prior_merge(a, b, extra_hypotheses=[T_kept])
+            res = prior_merge(a, b, extra_hypotheses=[T_crop])
         else:
             res = self._merge(a, b)
         T = None
         if res.matched and res.transform is not None:
-            # crop -> canvas cells by chain, not @ (BLAS): the same bits on every CPU
-            T = chain(translation(ca, ra), res.transform, translation(-cb, -rb))
+            T = _to_canvas(res.transform, offsets)
         if kind != "attempt":
             refit = None
             contradicted = held_now is not None and held_now < self.options.drop_below
             if T is None and T_old is not None and REFIT_REFUSED and contradicted:
-                refit = self._drift_refit(res, T_old, (ca, ra), (cb, rb), box_j)
+                refit = self._drift_refit(res, T_old, offsets, box_j)
             outranked = (
                 OUTRANKED_DROP
                 and T_old is not None
-                and self._outranked(a, b, offsets, res, T_old, box_j)
+                and self._outranked(Verifier(codes_a, codes_b), offsets, res, T_old, box_j)
             )
             return _Outcome(res, T, old_now, held_now, drift_held, refit=refit, outranked=outranked)
         ev = res.evidence
-        found = tuple(
-            chain(
-                translation(ca, ra),
-                np.asarray(R.transform, dtype=np.float64),
-                translation(-cb, -rb),
-            )
-            for R in (() if ev is None else ev.rivals)
-        )
+        found = tuple(_to_canvas(R.transform, offsets) for R in (() if ev is None else ev.rivals))
         standing = None
         if T is not None and rivals:
-            standing = tuple(self._standing(a, b, offsets, T, rivals, box_j))
+            verify = Verifier(MapCodes(a), MapCodes(b))
+            standing = tuple(self._standing(verify, offsets, T, rivals, box_j))
         best_T = None
         if ev is not None and ev.best is not None:
-            best_T = chain(
-                translation(ca, ra),
-                np.asarray(ev.best.transform, dtype=np.float64),
-                translation(-cb, -rb),
-            )
+            best_T = _to_canvas(ev.best.transform, offsets)
         return _Outcome(res, T, old_now, held_now, rivals=found, standing=standing, best=best_T)
 
     def _drift_refit(
         self,
         res: MergeResult,
         T_old: Transform,
-        off_a: tuple[int, int],
-        off_b: tuple[int, int],
+        offsets: Offsets,
         box_j: Box,
     ) -> Transform | None:
         """The pose a refused re-check keeps pair (i, j) merged at, or None (drop).
@@ -689,20 +692,12 @@ class MapMergeTracker:
         if float(ev.consistency) < self.options.drop_below:
             return None
         agreement = ev.best.agreement
-
-        def canvas(X: Any) -> Transform:
-            return chain(
-                translation(*off_a),
-                np.asarray(X, dtype=np.float64),
-                translation(-off_b[0], -off_b[1]),
-            )
-
-        T_best = canvas(ev.best.transform)
+        T_best = _to_canvas(ev.best.transform, offsets)
         if not self._same(T_old, T_best, box_j, RELOCATE_TOL_CELLS):
             return None
         margin = self._rival_rule.min_margin
         for R, ag in ev.rivals:
-            if self._same(T_old, canvas(R), box_j, RELOCATE_TOL_CELLS):
+            if self._same(T_old, _to_canvas(R, offsets), box_j, RELOCATE_TOL_CELLS):
                 continue  # the same place, refitted otherwise: no rival
             if agreement.score - ag.score < margin:
                 return None  # another place explains the maps about as well
@@ -710,15 +705,14 @@ class MapMergeTracker:
 
     def _outranked(
         self,
-        a: Int8Grid,
-        b: Int8Grid,
-        offsets: tuple[tuple[int, int], tuple[int, int]],
+        verify: Verifier,
+        offsets: Offsets,
         res: MergeResult,
         T_old: Transform,
         box_j: Box,
     ) -> bool:
-        """Do the grown maps (cropped ``a``, ``b``) prefer another place to the kept one
-        (``T_old``, canvas cells)? Yes when the merger's best pose is another place, consistent
+        """Do the grown maps (the crops ``verify`` compares) prefer another place to the kept
+        one (``T_old``, canvas cells)? Yes when the merger's best pose is another place, consistent
         with the maps, and neither the kept place (as kept, or at any refit of it among the
         merger's hypotheses: the semantic merger is handed it) nor any other rival the merger
         reports stands against it as a rival of an accepted pose must not
@@ -728,54 +722,39 @@ class MapMergeTracker:
         ev = res.evidence
         if ev is None or ev.best is None or not ev.consistent:
             return False  # no place the merger finds consistent with the maps
-
-        def canvas(X: Any) -> Transform:
-            return chain(
-                translation(*offsets[0]),
-                np.asarray(X, dtype=np.float64),
-                translation(-offsets[1][0], -offsets[1][1]),
-            )
-
         near = _same_place_cells()
-        best = canvas(ev.best.transform)
+        best = _to_canvas(ev.best.transform, offsets)
         if self._same(T_old, best, box_j, near):
             return False
-        refits = [
-            H for h in ev.hypotheses if self._same(T_old, H := canvas(h.transform), box_j, near)
-        ]
-        others = [canvas(r.transform) for r in ev.rivals]
-        return not self._standing(a, b, offsets, best, [T_old, *refits, *others], box_j)
+        poses = [_to_canvas(h.transform, offsets) for h in ev.hypotheses]
+        refits = [H for H in poses if self._same(T_old, H, box_j, near)]
+        others = [_to_canvas(r.transform, offsets) for r in ev.rivals]
+        return not self._standing(verify, offsets, best, [T_old, *refits, *others], box_j)
 
     def _standing(
         self,
-        a: Int8Grid,
-        b: Int8Grid,
-        offsets: tuple[tuple[int, int], tuple[int, int]],
+        verify: Verifier,
+        offsets: Offsets,
         T: Transform,
         rivals: Sequence[Transform],
         box_j: Box,
     ) -> list[Transform]:
         """The remembered ``rivals`` (canvas cells) that still stand against the accepted ``T``
-        on the cropped maps ``a``, ``b``: far from it, explaining at least half as much, not
+        on the cropped maps ``verify`` compares: far from it, explaining at least half as much, not
         beaten by the merger's margin (raw index, contradicting wall cells) and not ruled out by
         one object (:func:`~mrexplore.merge.semantic.rival_structure`). Pure."""
-        (ca, ra), (cb, rb) = offsets
-        verify = Verifier(MapCodes(a), MapCodes(b))
-
-        def crop(X: Transform) -> Transform:
-            return chain(translation(-ca, -ra), X, translation(cb, rb))
-
-        T_crop = crop(T)
+        T_crop = _to_crop(T, offsets)
         best = verify(T_crop)
 
         def stands(R: Transform) -> bool:
             if self._same(R, T, box_j, _semantic.FAR_CELLS):
                 return False  # the same place
-            other = verify(crop(R))
+            R_crop = _to_crop(R, offsets)
+            other = verify(R_crop)
             if not stands_as_rival(best, other, verify.cells_per_sample, self._rival_rule):
                 return False
             margin = best.score - other.score
-            ruled_out = rival_structure(verify, T_crop, crop(R), margin, self._rival_rule)
+            ruled_out = rival_structure(verify, T_crop, R_crop, margin, self._rival_rule)
             return ruled_out < _semantic.MIN_EVIDENCE_CELLS
 
         return [R for R in rivals if stands(R)]

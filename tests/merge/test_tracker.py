@@ -15,7 +15,15 @@ from mrexplore.errors import ConfigError, GridError
 from mrexplore.grid import OCCUPIED as OCC
 from mrexplore.grid import UNKNOWN, chain, invert_transform
 from mrexplore.merge import MapMergeTracker, MergeResult, TrackerOptions
-from mrexplore.merge.common import Agreement, MergeEvidence, WeighedPose, known_bbox, translation
+from mrexplore.merge.common import (
+    Agreement,
+    MapCodes,
+    MergeEvidence,
+    Verifier,
+    WeighedPose,
+    known_bbox,
+    translation,
+)
 from mrexplore.studies.merge_cases import rotate_map
 from mrexplore.truth import merge_error
 
@@ -808,7 +816,8 @@ def test_a_remembered_rival_ruled_out_by_one_object_does_not_stand(
     box = known_bbox(case.b)
     assert box is not None
     tr = MapMergeTracker(2)
-    args = (case.a, case.b, ((0, 0), (0, 0)), res.transform, [rival], box)
+    verify = Verifier(MapCodes(case.a), MapCodes(case.b))
+    args = (verify, ((0, 0), (0, 0)), res.transform, [rival], box)
     assert tr._standing(*args) == []
     # the run's own options reach the tracker's rival checks: without the structure test the
     # rival stands

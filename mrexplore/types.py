@@ -38,6 +38,21 @@ class MergeOutcome(Protocol):
     def score(self) -> float: ...
 
 
+@dataclass(frozen=True, eq=False)
+class Sighting:
+    """What robot i measured when it saw robot j (:mod:`mrexplore.environment.sighting`).
+
+    Attributes:
+        T_ij: (3, 3) the guess of the transform from j's map cells to i's map cells.
+        at_j: ``(col, row)``, continuous: where j was in its own map cells when seen, the point
+            at which the guess is exact up to the measurement's noise (elsewhere its heading
+            error and the maps' bending add up with the distance).
+    """
+
+    T_ij: Transform
+    at_j: tuple[float, float]
+
+
 @runtime_checkable
 class Merger(Protocol):
     """A map merger: ``merge(a, b)`` aligns map ``b`` to map ``a`` (both :data:`Int8Grid`).

@@ -489,10 +489,10 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         self.radio.hear(ep.transforms, sim.pose_cell)
 
     def _sightings(self, sim: Any) -> dict[tuple[int, int], Any]:
-        """This step's sightings of unmerged pairs (noise drawn from the sightings' own child
+        """This step's sightings, merged pairs too (noise drawn from the sightings' own child
         of the run's generator)."""
         assert self._sighting is not None
-        pairs = self.fusion.unmerged_pairs()
+        pairs = self.fusion.sighting_pairs()
         if not pairs:
             return {}
         return sightings(

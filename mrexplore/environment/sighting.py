@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from mrexplore.grid import Transform, chain
 from mrexplore.sensors import cast_ray_reference
+from mrexplore.types import Sighting
 
 
 @dataclass(frozen=True)
@@ -110,8 +111,9 @@ def sightings(
     resolution_m: float,
     pairs: list[tuple[int, int]],
     rng: np.random.Generator,
-) -> dict[tuple[int, int], Transform]:
-    """This step's guesses ``T_ij`` for the ``pairs`` (i < j) whose robots see each other.
+) -> dict[tuple[int, int], Sighting]:
+    """This step's sightings (guess ``T_ij`` and where j was in its map) for the ``pairs``
+    (i < j) whose robots see each other.
 
     Args:
         sensor: the sensor.
@@ -133,5 +135,6 @@ def sightings(
         if not sensor.visible(walls, (float(ci[0]), float(ci[1])), (float(cj[0]), float(cj[1]))):
             continue
         z = sensor.measure(true_poses[i], true_poses[j], rng)
-        out[(i, j)] = guess_from_sighting(est_cells[i], est_cells[j], z, resolution_m)
+        guess = guess_from_sighting(est_cells[i], est_cells[j], z, resolution_m)
+        out[(i, j)] = Sighting(guess, (float(est_cells[j][0]), float(est_cells[j][1])))
     return out

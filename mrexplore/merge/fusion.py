@@ -192,6 +192,15 @@ class FusionStage:
             if self.tracker.transform(i, j) is None
         ]
 
+    def sighting_pairs(self) -> list[tuple[int, int]]:
+        """Agent index pairs (i < j) whose sightings the tracker takes: every pair, merged or
+        not (a sighting guides an unmerged pair's attempts and checks a merged pair's pose);
+        none without a tracker."""
+        if self.tracker is None:
+            return []
+        n = len(self.agents)
+        return [(i, j) for i in range(n) for j in range(i + 1, n)]
+
     def first_merge_step(self, agent: str) -> int | None:
         """The step at which ``agent`` was first merged, or None."""
         return self._first_merge_step[agent]

@@ -26,6 +26,10 @@ Each step the caller hands over the robots' own-frame maps. The tracker
   judges the kept place as a rival of the merger's best pose (``OUTRANKED_DROP``): when the
   grown maps single out another place, consistent with them, that neither the kept place nor
   any other pose stands against, the pair moves there (the merger accepted it) or is un-merged;
+- lets a sighting bind its pair (``SIGHTING_BINDS``): robots that see each other measure the
+  transform, so a kept pose that puts the seen robot elsewhere than the sighting's region is
+  dropped and the next attempt looks only in that region; re-checks of a sighted pair look only
+  there too (a look-alike elsewhere cannot win a re-check against a rendezvous);
 - chains transforms through merged pairs (0-1 and 1-2 merged => 0-2 known);
 - hands the pixels to :class:`~mrexplore.merge.compositor.MapCompositor`: change detection,
   each teammate's map warped into i's frame, and robot i's fused map ("occupied beats free
@@ -45,7 +49,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor, Future, ThreadPoolExecutor
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import Any, ClassVar
 
 import numpy as np
@@ -85,7 +89,7 @@ from mrexplore.options import (
     positive,
     validate,
 )
-from mrexplore.types import Box, Merger
+from mrexplore.types import Box, Merger, Sighting
 
 #: A merge function ``(a, b) -> MergeResult`` (a named method, or a Merger's ``merge``).
 MergeFn = Callable[[Int8Grid, Int8Grid], MergeResult]
@@ -121,6 +125,10 @@ DRIFT_KEEP_ABOVE: float = 0.9
 #: on the current maps: the pair lets it go when the maps single out another place
 #: (:meth:`MapMergeTracker._outranked`; False: off, the kept place judged by ``drop_below`` only).
 OUTRANKED_DROP: bool = True
+#: A sighting binds its pair: a kept pose outside the latest sighting's region is dropped (the
+#: next attempt looks in the region), and re-checks look only inside it (False: sightings guide
+#: the attempts of unmerged pairs only).
+SIGHTING_BINDS: bool = True
 #: A sighting-guided attempt looks within this many cells of the guess (2 m at 0.05 m).
 PRIOR_RADIUS_CELLS: float = 40.0
 #: A sighting-guided attempt looks within this many degrees of the guess's heading.
@@ -208,7 +216,7 @@ class _Outcome:
     # where the kept transform does, within the maps' noise and without a far rival (None:
     # not so, or the merger reports no best pose)
     refit: Transform | None = None
-    # attempt: the merger's best pose (canvas cells), accepted or not (None: not reported)
+    # the merger's best pose (canvas cells), accepted or not (None: not reported)
     best: Transform | None = None
     # re-check: the merger's best pose lies far from the kept transform and the kept one would
     # not stand as a rival to it on these maps (the maps now prefer another place)
@@ -348,6 +356,9 @@ class TrackerOptions(Options):
             walls within this many cells of where the guess puts it, turned by at most this
             many degrees (defaults 40 cells, 2 m at 0.05 m, and 10 degrees; the semantic
             merger's :class:`~mrexplore.merge.PosePrior`).
+        SIGHTING_BINDS: a sighting of a merged pair drops a kept pose outside its region, and a
+            sighted pair's re-checks look only in the latest sighting's region (default True;
+            False: sightings guide unmerged pairs' attempts only).
         RIVAL_MEMORY: rivals remembered per unmerged pair (default 8; 0 = none): a pose an
             attempt found nearly as good as its best, far from it. A later attempt's pose is
             accepted only when the maps now rule out every remembered rival (it explains less
@@ -506,8 +517,8 @@ class MapMergeTracker:
         self._best: dict[tuple[int, int], Transform] = {}
         # (i, j) -> known cells of both maps at the last merge attempt
         self._last_attempt_known: dict[tuple[int, int], int] = {}
-        # (i, j) -> the latest sighting's guess of T_ij (canvas cells)
-        self._sighted: dict[tuple[int, int], Transform] = {}
+        # (i, j) -> the latest sighting of the pair (canvas cells)
+        self._sighted: dict[tuple[int, int], Sighting] = {}
         self._results: dict[tuple[int, int], MergeResult] = {}
         self._paths: dict[tuple[int, int], Transform | None] | None = None
         self._groups: dict[int, set[int]] = {}  # robot -> its merged group, kept with _paths
@@ -544,9 +555,11 @@ class MapMergeTracker:
                 array passed in ``maps``.
             sightings: ``{(i, j): T_ij}`` (i < j, canvas cells): guesses of the transform from
                 robots that saw each other this step (:mod:`mrexplore.environment.sighting`).
-                The latest is kept per unmerged pair, and its attempts look only near it (the
+                The latest is kept per pair, and its attempts look only near it (the
                 semantic merger; other mergers ignore it); a pair's first sighting makes it due
-                for an attempt at once, whatever its maps' growth.
+                for an attempt at once, whatever its maps' growth. With ``SIGHTING_BINDS`` a
+                merged pair's sighting drops a kept pose outside its region, and its re-checks
+                look only near it.
         """
         if len(maps) != self.n:
             raise GridError(f"MapMergeTracker.update: expected {self.n} maps, got {len(maps)}")
@@ -570,17 +583,55 @@ class MapMergeTracker:
         self._apply_due(step)
         if not attempt:
             return
-        for (i, j), T in (sightings or {}).items():
-            if self.transform(i, j) is None:
-                if (i, j) not in self._sighted:
-                    self._last_attempt_known.pop((i, j), None)
-                self._sighted[(i, j)] = np.asarray(T, dtype=np.float64).copy()
+        for (i, j), seen in (sightings or {}).items():
+            self._sight(i, j, self._as_sighting(j, seen), step)
         if step % self.options.merge_every == 0:
             self._attempt_merges(step)
         if self.options.recheck_every and step % self.options.recheck_every == 0 and step > 0:
             self._recheck(step)
         if self.options.merge_latency_steps and self._queue:
             self._start(*self._queue.pop(0), step)  # at most one per step
+
+    def _as_sighting(self, j: int, seen: Sighting | Transform) -> Sighting:
+        """A sighting; a bare guess ``T_ij`` is taken as exact at the centre of j's known box."""
+        if isinstance(seen, Sighting):
+            return Sighting(np.asarray(seen.T_ij, dtype=np.float64).copy(), seen.at_j)
+        box = self._px.bbox(j)
+        r0, r1, c0, c1 = box if box is not None else (0, 0, 0, 0)
+        return Sighting(np.asarray(seen, dtype=np.float64).copy(), ((c0 + c1) / 2, (r0 + r1) / 2))
+
+    def _sight(self, i: int, j: int, seen: Sighting, step: int) -> None:
+        """Take a sighting of pair (i, j): kept for the pair's attempts and, with
+        ``SIGHTING_BINDS``, to judge its poses; a kept pose it contradicts is dropped."""
+        if self.transform(i, j) is None:
+            if (i, j) not in self._sighted:
+                self._last_attempt_known.pop((i, j), None)  # due for an attempt at once
+            self._sighted[(i, j)] = seen
+            return
+        if not SIGHTING_BINDS:
+            return
+        self._sighted[(i, j)] = seen
+        kept = self._edges.get((i, j))
+        if kept is None or not self._seen_elsewhere(i, j, kept):
+            return
+        # The robots saw each other where the kept pose does not put them: a look-alike place.
+        first = self._contradicted.pop((i, j), step)
+        self.drops.append(DropRecord(i, j, first, step))
+        self._unmerge(i, j)
+        self._pending.pop((i, j), None)
+        self._last_attempt_known.pop((i, j), None)
+
+    def _seen_elsewhere(self, i: int, j: int, T: Transform) -> bool:
+        """Does pose ``T_ij`` (canvas cells) put robot j farther than ``PRIOR_RADIUS_CELLS``
+        from where robot i last saw it (``SIGHTING_BINDS``; False without a sighting)? Only the
+        position at the sighting is judged: there the guess is exact up to the measurement's
+        noise, while its heading differs from a kept rigid pose's by the maps' bending."""
+        seen = self._sighted.get((i, j)) if SIGHTING_BINDS else None
+        if seen is None:
+            return False
+        at = np.array([seen.at_j], dtype=np.float64)
+        (x1, y1), (x2, y2) = map_points(at, T), map_points(at, seen.T_ij)
+        return bool(np.hypot(x1 - x2, y1 - y2)[0] > PRIOR_RADIUS_CELLS)
 
     def _linked(self, i: int, j: int) -> bool:
         return self._links is None or bool(self._links[i, j] and self._links[j, i])
@@ -649,6 +700,9 @@ class MapMergeTracker:
         T = None
         if res.matched and res.transform is not None:
             T = _to_canvas(res.transform, offsets)
+        best_T = None
+        if res.evidence is not None and res.evidence.best is not None:
+            best_T = _to_canvas(res.evidence.best.transform, offsets)
         if kind != "attempt":
             refit = None
             contradicted = held_now is not None and held_now < self.options.drop_below
@@ -659,16 +713,15 @@ class MapMergeTracker:
                 and T_old is not None
                 and self._outranked(Verifier(codes_a, codes_b), offsets, res, T_old, box_j)
             )
-            return _Outcome(res, T, old_now, held_now, drift_held, refit=refit, outranked=outranked)
+            return _Outcome(
+                res, T, old_now, held_now, drift_held, refit=refit, outranked=outranked, best=best_T
+            )
         ev = res.evidence
         found = tuple(_to_canvas(R.transform, offsets) for R in (() if ev is None else ev.rivals))
         standing = None
         if T is not None and rivals:
             verify = Verifier(MapCodes(a), MapCodes(b))
             standing = tuple(self._standing(verify, offsets, T, rivals, box_j))
-        best_T = None
-        if ev is not None and ev.best is not None:
-            best_T = _to_canvas(ev.best.transform, offsets)
         return _Outcome(res, T, old_now, held_now, rivals=found, standing=standing, best=best_T)
 
     def _drift_refit(
@@ -770,7 +823,8 @@ class MapMergeTracker:
             return  # dropped or replaced since it was queued
         (a, oa), (b, ob) = ci, cj
         rivals = [R.copy() for R in self._rivals.get((i, j), [])] if kind == "attempt" else []
-        guess = self._sighted.get((i, j)) if kind == "attempt" else None
+        seen = self._sighted.get((i, j)) if kind == "attempt" else None
+        guess = None if seen is None else seen.T_ij
         if self.options.merge_latency_steps == 0:
             out = self._compute(kind, i, j, a, b, (oa, ob), T_old, rivals, guess)
             self._apply(_Job(kind, i, j, step, self._px.bbox(j), T_old, out))
@@ -844,6 +898,8 @@ class MapMergeTracker:
         if self.transform(i, j) is not None:
             return  # connected meanwhile (through a chain of other pairs)
         pending = self._pending.get((i, j))
+        if out.T is not None and self._seen_elsewhere(i, j, out.T):
+            out = replace(out, T=None)  # the robots were seen elsewhere: a refusal
         standing = self._remember_rivals(i, j, out)
         consistent = out.result is not None and (out.T is not None or _consistent(out.result))
         if consistent and out.best is not None:
@@ -946,9 +1002,10 @@ class MapMergeTracker:
         if kept is None or T_old is None or not np.array_equal(kept, T_old):
             return  # dropped or replaced since the re-check started
         assert out.old_now is not None and out.held_now is not None
-        if out.outranked:
+        if out.outranked and not (out.best is not None and self._seen_elsewhere(i, j, out.best)):
             # The grown maps prefer another place by the merger's margins: un-merge, or move to
-            # that place at once when the merger accepted it on these maps.
+            # that place at once when the merger accepted it on these maps (not a place where
+            # the robots were not seen: a sighting outranks the maps).
             first = self._contradicted.pop((i, j), step)
             self.drops.append(DropRecord(i, j, first, step))
             moved = out.T is not None and not self._same(T_old, out.T, bbox_j, _same_place_cells())
@@ -985,7 +1042,9 @@ class MapMergeTracker:
         self._contradicted.pop((i, j), None)
         if out.result is None or out.T is None:
             return
-        if out.result.score >= out.old_now + REPLACE_MARGIN:
+        if out.result.score >= out.old_now + REPLACE_MARGIN and not self._seen_elsewhere(
+            i, j, out.T
+        ):
             self._replace_edge(i, j, out.T, out.result.score)
 
     def _unmerge(self, i: int, j: int) -> None:

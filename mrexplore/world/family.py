@@ -10,8 +10,9 @@ with ``seed = PART_FIRST_SEED[part] + index``: the tune part is world seeds 0, 1
 (:data:`TUNE_FIRST_SEED`), the test part world seeds 100_000, 100_001, ...
 (:data:`TEST_FIRST_SEED`), and a second test part ``test2``, world seeds 200_000, ...
 (:data:`TEST2_FIRST_SEED`), kept closed for a rule chosen after the test part's results were
-read; an index is below :data:`PART_SIZE`, so the parts never share a seed. Nobody tunes on a
-test part. A world is named by the spec
+read, and a third ``test3``, world seeds 300_000, ... (:data:`TEST3_FIRST_SEED`), kept closed
+for a rule chosen after ``test2`` was read; an index is below :data:`PART_SIZE`, so the parts
+never share a seed. Nobody tunes on a test part. A world is named by the spec
 ``"family:<family>/<part>/<index>"`` (:func:`family_spec`), which
 :func:`mrexplore.world.load_world` resolves; its :class:`~mrexplore.world.World` is named
 ``"<family>/<part>/<index:04d>"``.
@@ -97,19 +98,22 @@ __all__ = [
 #: The spec prefix: ``"family:paper_like/test/7"``.
 FAMILY_PREFIX = "family:"
 #: The parts of every family, by world seed.
-PARTS: tuple[str, ...] = ("tune", "test", "test2")
+PARTS: tuple[str, ...] = ("tune", "test", "test2", "test3")
 #: First world seed of the tune part (world seeds 0, 1, 2, ...).
 TUNE_FIRST_SEED = 0
 #: First world seed of the test part (world seeds 100_000, 100_001, ...).
 TEST_FIRST_SEED = 100_000
 #: First world seed of the second test part (world seeds 200_000, 200_001, ...).
 TEST2_FIRST_SEED = 200_000
+#: First world seed of the third test part (world seeds 300_000, 300_001, ...).
+TEST3_FIRST_SEED = 300_000
 #: Worlds per part at most: indices 0 .. PART_SIZE - 1, so the parts' seeds never meet.
 PART_SIZE = 100_000
 PART_FIRST_SEED: dict[str, int] = {
     "tune": TUNE_FIRST_SEED,
     "test": TEST_FIRST_SEED,
     "test2": TEST2_FIRST_SEED,
+    "test3": TEST3_FIRST_SEED,
 }
 #: Largest floor, metres: the long side and the short side.
 MAX_LONG_M = 35.0

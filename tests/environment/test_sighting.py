@@ -37,10 +37,12 @@ def test_an_exact_sighting_gives_the_true_transform_between_the_maps() -> None:
     seen = 0
     for _ in range(150):
         env.step({a: int(rng.integers(3)) for a in env.agents})
-        guess = _sight(env, EXACT, rng).get((0, 1))
-        if guess is not None:
+        got = _sight(env, EXACT, rng).get((0, 1))
+        if got is not None:
             seen += 1
-            np.testing.assert_allclose(guess, env.episode.sim.true_transform(0, 1), atol=1e-9)
+            sim = env.episode.sim
+            np.testing.assert_allclose(got.T_ij, sim.true_transform(0, 1), atol=1e-9)
+            assert got.at_j == pytest.approx(tuple(sim.pose_cell(1)[:2]))
     assert seen > 10
 
 
@@ -79,7 +81,8 @@ def test_a_noisy_sighting_is_near_the_truth_and_the_same_for_the_same_seed() -> 
         if first is not None:
             break
     assert first is not None and again is not None
-    np.testing.assert_array_equal(first, again)
+    np.testing.assert_array_equal(first.T_ij, again.T_ij)
+    first = first.T_ij
     T = env.episode.sim.true_transform(0, 1)
     turn = np.degrees(abs(np.arctan2(first[1, 0], first[0, 0]) - np.arctan2(T[1, 0], T[0, 0])))
     assert 0.0 < turn < 15.0  # 0.05 rad std: within 3 sigma

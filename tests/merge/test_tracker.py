@@ -26,6 +26,7 @@ from mrexplore.merge.common import (
 )
 from mrexplore.studies.merge_cases import rotate_map
 from mrexplore.truth import merge_error
+from mrexplore.types import Sighting
 
 
 def _canvas(
@@ -924,3 +925,94 @@ def test_a_kept_pose_the_grown_maps_rank_below_another_place_gives_way(
         assert err is None and len(tr.drops) == 1
     else:
         assert err is not None and err > 30 and not tr.drops
+
+
+def _sighted_at(T: np.ndarray, cb: np.ndarray) -> Sighting:
+    """A sighting whose guess is ``T`` (canvas cells), robot 1 seen at its known box's centre."""
+    r0, r1, c0, c1 = known_bbox(cb)  # type: ignore[misc]
+    return Sighting(T, ((c0 + c1) / 2.0, (r0 + r1) / 2.0))
+
+
+@pytest.mark.parametrize(
+    ("seen", "on", "kept"),
+    [
+        ("truth", True, False),  # seen where the kept look-alike does not put it: dropped
+        ("truth", False, True),  # the rule off: a merged pair's sightings are ignored
+        ("turned", True, True),  # seen where the kept pose puts it, turned: maps bend, kept
+        ("shifted", True, True),  # a metre off (the sighting's region is 2 m): kept
+    ],
+)
+def test_a_sighting_binds_a_merged_pair(
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray],
+    seen: str,
+    on: bool,
+    kept: bool,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Robots that see each other measure where the other one is: a kept pose that puts the
+    seen robot more than the sighting's region (``PRIOR_RADIUS_CELLS``) from there is a wrong
+    place and is dropped; only the position at the sighting is judged, not the heading, which a
+    kept rigid pose of bent maps differs from by the bending."""
+    from mrexplore.merge.semantic import _turn_about
+
+    ca, cb, T_true = robots
+    wrong = translation(60.0, 0.0) @ T_true
+    merger = _ScriptedWithBest([(_in_crops(ca, cb, wrong), _in_crops(ca, cb, wrong))])
+    tr = MapMergeTracker(2, merger=merger.merge, merge_every=1, recheck_every=0, confirmations=1)
+    monkeypatch.setattr(tracker_module, "SIGHTING_BINDS", on)
+    tr.update([ca, cb], step=0)
+    assert tr.merged(0)
+    at = _sighted_at(T_true, cb).at_j
+    guesses = {
+        "truth": T_true,
+        "turned": chain(wrong, _turn_about(15.0, at[0], at[1])),
+        "shifted": chain(translation(20.0, 0.0), wrong),
+    }
+    # the scripted merger answers the look-alike again: no attempt moves the pair
+    tr.update([ca, cb], step=1, sightings={(0, 1): Sighting(guesses[seen], at)})
+    assert tr.merged(0) is kept
+    assert len(tr.drops) == (0 if kept else 1)
+
+
+def test_a_sighted_pair_attempt_does_not_take_a_pose_away_from_the_sighting(
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An attempt's pose that puts the seen robot elsewhere than its sighting is refused (here a
+    merger that ignores the sighting's guess answers the look-alike first)."""
+    ca, cb, T_true = robots
+    truth, wrong = _in_crops(ca, cb, T_true), _in_crops(ca, cb, translation(60.0, 0.0) @ T_true)
+    merger = _ScriptedWithBest([(wrong, wrong), (truth, truth)])
+    tr = MapMergeTracker(2, merger=merger.merge, merge_every=1, recheck_every=0, confirmations=1)
+    _constants(monkeypatch, retry_growth=0.0)
+    tr.update([ca, cb], step=1, sightings={(0, 1): _sighted_at(T_true, cb)})  # refused
+    assert not tr.merged(0)
+    tr.update([ca, cb], step=2)  # the true place: merged
+    T = tr.transform(0, 1)
+    assert T is not None and merge_error(T, T_true, cb)[0] < 0.5
+
+
+@pytest.mark.parametrize("on", [True, False])
+def test_a_recheck_does_not_move_a_sighted_pair_away_from_the_sighting(
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray], on: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A sighting outranks the maps: a re-check whose maps single out another place (which
+    would move the pair, see the test above on ``OUTRANKED_DROP``) keeps the pose the robots
+    were seen at. The place kept here is not the truth: the maps and the sighting disagree, and
+    the sighting wins."""
+    ca, cb, T_true = robots
+    truth = _in_crops(ca, cb, T_true)
+    shifted = translation(60.0, 0.0) @ T_true
+    there = _in_crops(ca, cb, shifted)
+    merger = _ScriptedWithBest([(there, there), (truth, truth)])
+    tr = MapMergeTracker(
+        2, merger=merger.merge, merge_every=1, recheck_every=3, confirmations=1, drop_below=0.0
+    )
+    monkeypatch.setattr(tracker_module, "SIGHTING_BINDS", on)
+    tr.update([ca, cb], step=1)
+    tr.update([ca, cb], step=2, sightings={(0, 1): _sighted_at(shifted, cb)})
+    assert tr.merged(0)
+    tr.update([ca, cb], step=3)  # the re-check
+    T = tr.transform(0, 1)
+    assert T is not None
+    assert (merge_error(T, shifted, cb)[0] < 0.5) is on
+    assert (merge_error(T, T_true, cb)[0] < 0.5) is not on

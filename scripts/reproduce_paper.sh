@@ -6,22 +6,20 @@
 #      merge_large.{json,md}: large maps (500-900 cells a side, 300 cases), with and without
 #      the pooled rotation spectrum of large maps; merge_aliased.{json,md}: crops of repetitive
 #      real maps that do not overlap (the right answer is a refusal); merge_heldout.{json,md}:
-#      the default merger on ten seeds no rule was chosen on (13-22), with and without the
-#      wall-area rule and the polish margin; merge_heldout2.{json,md}: ten more (23-32), kept
-#      unseen until the polish margin (chosen on 13-22) was judged on them;
-#      merge_heldout3.{json,md}: ten more (33-42, aliased pairs too), unseen until the slide
-#      test was judged on them, with and without it; merge_heldout4.{json,md}: ten more
-#      (53-62), unseen until the repeat rivals and the one-object rule (chosen on 0-9, 12 and
-#      33-52) were judged on them, with and without both; merge_heldout5.{json,md}: ten more
-#      (73-82), unseen until the outside-object rule (chosen on 0-9, 12 and the aliased pairs
-#      of 13-72) was judged on them, with and without it and the lone-pin test (chosen on
-#      73-82's wrong merges); merge_heldout6.{json,md}: ten more (83-92), unseen until the
-#      lone-pin test was judged on them; merge_heldout7.{json,md}: ten more (113-122), unseen
-#      until the room-match rule (chosen on a wrong merge of seeds 103-112) was judged on
-#      them, with and without it; merge_heldout8.{json,md}: ten more (123-132), unseen
-#      until the structure test was judged on them, with and without it;
-#      merge_aliased_heldout.{json,md}: 1,800 disjoint
-#      aliased pairs of seeds 83-142, with and without both; merge_slide.{json,md}: the slide test
+#      the default merger on held-out seeds, opened ten at a time, each block unseen until a
+#      rule chosen elsewhere was judged on it, with and without that rule; one row per block
+#      (its seeds column) and variant. The blocks run into a temporary folder and one step
+#      combines them (bench merge --combine). 13-22: no rule was chosen on them, with and
+#      without the wall-area rule and the polish margin; 23-32: the polish margin (chosen on
+#      13-22); 33-42 (aliased pairs too, as in every block up to 123-132): the slide test;
+#      53-62: the repeat rivals and the one-object rule (chosen on 0-9, 12 and 33-52);
+#      73-82: the outside-object rule (chosen on 0-9, 12 and the aliased pairs of 13-72) and
+#      the lone-pin test (chosen on 73-82's wrong merges); 83-92: the lone-pin test;
+#      113-122: the room-match rule (chosen on a wrong merge of seeds 103-112); 123-132: the
+#      structure test; 133-142 (no aliased pairs): the guard for today's maps (room_match_m2
+#      20, chosen on seeds 0-9 and 12) against the former 15; merge_aliased_heldout.{json,md}:
+#      1,800 disjoint aliased pairs of seeds 83-142, with and without the outside-object rule
+#      and the lone-pin test; merge_slide.{json,md}: the slide test
 #      (off by default) on the cases of merge_seeds and seeds 0-9 and 12's aliased pairs;
 #      merge_seeded.{json,md}: the default beside the diagnostic `seeded` (the true pose handed
 #      in as one more hypothesis) on the 1,320 cases of merge_seeds: search misses vs refusals;
@@ -29,10 +27,8 @@
 #      PosePrior, as a user who knows roughly where the maps overlap would give it);
 #      merge_lidar_mapper.{json,md}: the lidar family's pairs made with the former default maps,
 #      whose walls grazing beams erase (map_l_occ=1.4, with the former room_match_m2 15;
-#      docs/mapper.md); merge_heldout9.{json,md} and merge_lidar_mapper_heldout.{json,md}: seeds
-#      133-142, unseen until the guard for today's maps (room_match_m2 20, chosen on seeds 0-9
-#      and 12) was judged on them, with the former value 15, and the lidar family with the
-#      former maps
+#      docs/mapper.md); merge_lidar_mapper_heldout.{json,md}: the same on seeds 133-142 (the
+#      held-out block that judged the guard for today's maps)
 #   2. loop_study.{json,md}: merging in the exploration loop against an oracle merger;
 #      loop_exact.{json,md}: the same with exact odometry (a merge error is then a wrong place);
 #      loop_nav.{json,md}: the navigation task (exact odometry) against the oracle;
@@ -77,6 +73,8 @@ out=docs/results
 # symmetric cases is most of their time): saved once per run, removed at the end.
 cache="$(mktemp -d)"
 trap 'rm -rf "$cache"' EXIT
+# The held-out blocks of merge_heldout, one file per run, until one step combines them.
+blocks="$cache/heldout_blocks"
 bench_merge() { mrexplore bench merge --case-cache "$cache" "$@"; }
 merge_steps() {
   bench_merge --n 30 --families symmetric,real,noisy,lidar --out "$out/merge_table" --force
@@ -100,24 +98,24 @@ merge_steps() {
     --out "$out/merge_aliased" --force
   bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
     --seeds 13-22 --semantic-variant min_wall_area_m2=0 --semantic-variant POLISH_MARGIN=0 \
-    --out "$out/merge_heldout" --force
+    --out "$blocks/13-22"
   bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
-    --seeds 23-32 --semantic-variant POLISH_MARGIN=0 --out "$out/merge_heldout2" --force
+    --seeds 23-32 --semantic-variant POLISH_MARGIN=0 --out "$blocks/23-32"
   bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
-    --seeds 33-42 --semantic-variant slide_test=true --out "$out/merge_heldout3" --force
+    --seeds 33-42 --semantic-variant slide_test=true --out "$blocks/33-42"
   bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
     --seeds 53-62 --semantic-variant REPEAT_RIVALS=0,min_object_m2=0 \
-    --out "$out/merge_heldout4" --force
+    --out "$blocks/53-62"
   bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
     --seeds 73-82 --semantic-variant OBJECT_HULL_FREE=0 --semantic-variant LONE_PIN_TEST=false \
-    --semantic-variant OBJECT_HULL_FREE=0,LONE_PIN_TEST=false --out "$out/merge_heldout5" --force
+    --semantic-variant OBJECT_HULL_FREE=0,LONE_PIN_TEST=false --out "$blocks/73-82"
   bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
     --seeds 83-92 --semantic-variant LONE_PIN_TEST=false \
-    --semantic-variant OBJECT_HULL_FREE=0,LONE_PIN_TEST=false --out "$out/merge_heldout6" --force
+    --semantic-variant OBJECT_HULL_FREE=0,LONE_PIN_TEST=false --out "$blocks/83-92"
   bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
-    --seeds 113-122 --semantic-variant room_match_m2=0 --out "$out/merge_heldout7" --force
+    --seeds 113-122 --semantic-variant room_match_m2=0 --out "$blocks/113-122"
   bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar,aliased \
-    --seeds 123-132 --semantic-variant STRUCTURE_TEST=false --out "$out/merge_heldout8" --force
+    --seeds 123-132 --semantic-variant STRUCTURE_TEST=false --out "$blocks/123-132"
   bench_merge --methods semantic --n 30 --families aliased --seeds 83-142 \
     --semantic-variant OBJECT_HULL_FREE=0 --semantic-variant LONE_PIN_TEST=false \
     --semantic-variant OBJECT_HULL_FREE=0,LONE_PIN_TEST=false \
@@ -132,7 +130,11 @@ merge_steps() {
     --lidar-options map_l_occ=1.4 --semantic-variant room_match_m2=15 \
     --out "$out/merge_lidar_mapper" --force
   bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar \
-    --seeds 133-142 --semantic-variant room_match_m2=15 --out "$out/merge_heldout9" --force
+    --seeds 133-142 --semantic-variant room_match_m2=15 --out "$blocks/133-142"
+  mrexplore bench merge --combine "$blocks/13-22.json" "$blocks/23-32.json" \
+    "$blocks/33-42.json" "$blocks/53-62.json" "$blocks/73-82.json" "$blocks/83-92.json" \
+    "$blocks/113-122.json" "$blocks/123-132.json" "$blocks/133-142.json" \
+    --out "$out/merge_heldout" --force
   bench_merge --methods semantic --n 30 --families lidar --seeds 133-142 \
     --lidar-options map_l_occ=1.4 --semantic-variant room_match_m2=15 \
     --out "$out/merge_lidar_mapper_heldout" --force

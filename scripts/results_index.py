@@ -32,8 +32,13 @@ ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "docs" / "results"
 INDEX_NAME = "index.md"
 REPRODUCE = ROOT / "scripts" / "reproduce_paper.sh"
-#: Variables of reproduce_paper.sh, as the paths they stand for (relative to the repository).
-SCRIPT_VARS = {"$out": "docs/results", "$ev": "docs/results/goal_policy_eval"}
+#: Variables of reproduce_paper.sh, as the paths they stand for (relative to the repository);
+#: BLOCKS is the temporary folder where the blocks of a combined study are run.
+SCRIPT_VARS = {
+    "$out": "docs/results",
+    "$ev": "docs/results/goal_policy_eval",
+    "$blocks": "BLOCKS",
+}
 SIDE_FILES = (".md", ".csv", ".png")
 
 HEADER = """# Results index
@@ -193,12 +198,31 @@ def describe_merge(doc: Mapping[str, Any]) -> tuple[str, str]:
     )
     variants = _unique(r["options"] for r in rows if r["options"] != "-")
     seeds = {int(m.group(1)) for r in rows for c in r["cases"] if (m := _SEED.search(c["case"]))}
-    per_family = {f: max(int(r["n"]) for r in rows if r["family"] == f) for f in families}
+    # a combined study's rows carry their block (``seeds``): its families' cases add up
+    blocks = _unique(str(r.get("seeds", "")) for r in rows)
+    per_family = {
+        f: sum(
+            max(
+                (int(r["n"]) for r in rows if r["family"] == f and r.get("seeds", "") == b),
+                default=0,
+            )
+            for b in blocks
+        )
+        for f in families
+    }
     what = (
         f"one-shot merges: families {', '.join(f'{f} ({n})' for f, n in per_family.items())}; "
         f"methods {', '.join(methods)}"
     )
-    if variants:
+    if doc.get("blocks"):
+        what += (
+            f"; {len(doc['blocks'])} blocks of seeds, a row per block and variant: "
+            + "; ".join(
+                f"{b['seeds']} ({', '.join(b['variants']) or 'default only'})"
+                for b in doc["blocks"]
+            )
+        )
+    elif variants:
         what += f"; variants {'; '.join(variants)}"
     what += f"; seeds {_seeds(seeds) if seeds else '0'}"
     parts: list[str] = []
@@ -316,11 +340,28 @@ def render(results: Path = RESULTS, script: Path = REPRODUCE) -> str:
             f"[{p.relative_to(results).as_posix()}]({p.relative_to(results).as_posix()})"
             for p in files
         )
-        cmd = f"`{command}`" if command else "not in `scripts/reproduce_paper.sh`"
+        cmd = _command_cell(command, commands) if command else "not in `scripts/reproduce_paper.sh`"
         lines.append(
             f"| **{_cell(name)}** | {_cell(what)} | {_cell(cmd)} | {_cell(headline)} | {links} |\n"
         )
     return "".join(lines)
+
+
+def _command_cell(command: str, commands: Mapping[str, str]) -> str:
+    """The command column: a combining step (``--combine A.json B.json ...``) is shown after the
+    commands that write its blocks, so the cell says everything that makes the study."""
+    argv = shlex.split(command)
+    if "--combine" not in argv:
+        return f"`{command}`"
+    inputs: list[str] = []
+    for a in argv[argv.index("--combine") + 1 :]:
+        if a.startswith("--"):
+            break
+        inputs.append(a)
+    made = [commands.get(a.removesuffix(".json")) for a in inputs]
+    steps = [f"`{c}`" for c in made if c is not None]
+    folder = " (BLOCKS: a temporary folder)" if any("BLOCKS/" in a for a in inputs) else ""
+    return "; ".join(steps) + f"; then `{command}`{folder}" if steps else f"`{command}`"
 
 
 def write_atomic(path: Path, text: str) -> None:

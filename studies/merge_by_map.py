@@ -5,10 +5,10 @@ outcome and the merger's reason) and prints, for one method's default rows (``se
 ``--method``), per family and source map: the pairs with overlap >= ``--min-overlap`` (0.4), how
 many were merged correctly, wrongly and refused, and the refusals grouped by the first words of
 their reason (the text up to its first figure or parenthesis). Methods that run with several
-detectors (``paper``, ``orb``) need ``--detector``. Cases of several files add up, so the seeds of
-every held-out file can be pooled:
+detectors (``paper``, ``orb``) need ``--detector``. Cases of several files add up, so the seeds the
+rules were chosen on and every held-out block can be pooled:
 
-    python studies/merge_by_map.py docs/results/merge_seeds.json docs/results/merge_heldout*.json
+    python studies/merge_by_map.py docs/results/merge_seeds.json docs/results/merge_heldout.json
 
 A refusal at high overlap is a merge the evidence may have allowed; the reasons say which rule
 (ambiguity between look-alike places, consistency, shared space, ...) and the source maps where.

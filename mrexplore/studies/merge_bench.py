@@ -17,15 +17,19 @@ Run: ``mrexplore bench merge --n 30 --out results/merge_bench``; ``--tracker`` a
 :class:`~mrexplore.merge.MapMergeTracker` per step.
 ``--seeds 0-9,12`` pools the cases of several seeds per family (one seed's 30 cases say little
 about a rate; the README's table is seed 0's).
+``--combine A.json B.json ... --out STEM`` runs nothing: it writes one study file from several
+runs, each a block of seeds (held-out seeds opened one block at a time), every row kept as its
+run wrote it and labelled with its block's ``seeds`` (:func:`combine_blocks`).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -396,26 +400,161 @@ def seeded_summary(
 
 def to_markdown(rows: Sequence[dict[str, Any]]) -> str:
     """One Markdown table per family (with :func:`seeded_summary` when it holds a ``seeded``
-    row beside the default one)."""
+    row beside the default one). Rows of a combined file (:func:`combine_blocks`) get a
+    ``seeds`` column first, and each family a line totalling the default rows of its blocks."""
+    blocked = any("seeds" in r for r in rows)
+    columns = ("seeds", *COLUMNS) if blocked else COLUMNS
+    headers = ("seeds", *HEADERS) if blocked else HEADERS
     out = []
     for fam in dict.fromkeys(r["family"] for r in rows):
         sel = [r for r in rows if r["family"] == fam]
         n = sel[0]["n"] if sel else 0
         lo = sel[0].get("lidar_options") if sel else None
         with_ = "; maps made with " + ",".join(f"{k}={v}" for k, v in lo.items()) if lo else ""
-        out.append(f"### {fam} ({n} cases{with_})\n")
-        out.append("| " + " | ".join(HEADERS) + " |")
-        out.append("|" + "---|" * len(HEADERS))
+        each = " in each row" if blocked else ""
+        out.append(f"### {fam} ({n} cases{each}{with_})\n")
+        out.append("| " + " | ".join(headers) + " |")
+        out.append("|" + "---|" * len(headers))
         for r in sel:
-            out.append("| " + " | ".join(str(r[c]) for c in COLUMNS) + " |")
-        default = [r for r in sel if r["method"] == "semantic" and r["options"] == "-"]
-        overlapping = default and any(c["overlap"] >= 0.4 for c in default[0]["cases"])
-        for other in [r for r in sel if r["method"] in ("seeded", "guided")]:
-            if overlapping and other["options"] == "-":
-                out.append("")
-                out.append(seeded_summary(default[0], other))
+            out.append("| " + " | ".join(str(r[c]) for c in columns) + " |")
+        for block in dict.fromkeys(r.get("seeds") for r in sel):
+            here = [r for r in sel if r.get("seeds") == block]
+            default = [r for r in here if r["method"] == "semantic" and r["options"] == "-"]
+            overlapping = default and any(c["overlap"] >= 0.4 for c in default[0]["cases"])
+            for other in [r for r in here if r["method"] in ("seeded", "guided")]:
+                if overlapping and other["options"] == "-":
+                    out.append("")
+                    out.append(seeded_summary(default[0], other))
+        if blocked:
+            out.append("")
+            out.append(_block_totals(sel))
         out.append("")
     return "\n".join(out)
+
+
+def _block_totals(rows: Sequence[Mapping[str, Any]]) -> str:
+    """One sentence: the default semantic rows of one family, added up over their blocks."""
+    default = [r for r in rows if r["method"] == "semantic" and r["options"] == "-"]
+    if not default:
+        return "No default semantic row in these blocks."
+    total = {k: sum(int(r[k]) for r in default) for k in ("n", "correct", "wrong", "imprecise")}
+    refused = sum(int(r["refused"]) for r in default)
+    at40 = [str(r["correct_overlap40"]).partition("/") for r in default]
+    got, of = sum(int(a) for a, _, _ in at40), sum(int(b) for _, _, b in at40)
+    return (
+        f"The default (`-`) over its {len(default)} blocks: {total['correct']} correct, "
+        f"{total['wrong']} WRONG, {total['imprecise']} imprecise, {refused} refused of "
+        f"{total['n']}; correct at overlap >= 40 %: {got}/{of}."
+    )
+
+
+def format_seeds(seeds: Iterable[int]) -> str:
+    """Seeds as ranges, the form :func:`parse_seeds` reads.
+
+    >>> format_seeds([14, 13, 15, 22, 30, 31])
+    '13-15,22,30-31'
+    """
+    runs: list[list[int]] = []
+    for v in sorted(set(seeds)):
+        if runs and v == runs[-1][1] + 1:
+            runs[-1][1] = v
+        else:
+            runs.append([v, v])
+    return ",".join(str(a) if a == b else f"{a}-{b}" for a, b in runs)
+
+
+#: Every bench case's name ends with the seed that made it: ``"nav2/depot.yaml#3 (seed 73)"``.
+_CASE_SEED = re.compile(r"\(seed (\d+)\)\s*$")
+
+
+def block_seeds(rows: Sequence[Mapping[str, Any]]) -> list[int]:
+    """The seeds of a run's cases, read from the cases' names (sorted, each once)."""
+    found = {
+        int(m.group(1)) for r in rows for c in r["cases"] if (m := _CASE_SEED.search(c["case"]))
+    }
+    return sorted(found)
+
+
+def combine_blocks(blocks: Sequence[tuple[str, Mapping[str, Any]]]) -> dict[str, Any]:
+    """One study from several runs of the bench on disjoint seeds (blocks), in the order given.
+
+    Every row of every block is kept as its run wrote it (figures, timings, cases), with a
+    ``seeds`` field first naming its block (``"13-22"``, read from the case names); the rows'
+    ``options`` already name the variant. ``blocks`` in the result lists each block's seeds,
+    families and variants. The blocks may differ in families and variants (each ran what it
+    was opened for); they may not share a seed, hold timings a row cannot carry (``--sizes``,
+    ``--tracker``) or be combined files already.
+
+    Args:
+        blocks: ``(name, document)`` per run, the name (its file) used in error messages.
+
+    Raises:
+        ConfigError: a document that is not a bench result with per-case records, or one of
+            the conditions above.
+    """
+    if not blocks:
+        raise ConfigError("--combine: give the JSON files of the blocks")
+    rows: list[dict[str, Any]] = []
+    listed: list[dict[str, Any]] = []
+    owner: dict[int, str] = {}
+    for name, doc in blocks:
+        if not isinstance(doc, Mapping) or not isinstance(doc.get("rows"), list):
+            raise ConfigError(f"--combine: {name} is not a merge bench result (no 'rows')")
+        extra = sorted(k for k in doc if k not in ("rows", "blocks"))
+        if "blocks" in doc or any("seeds" in r for r in doc["rows"]):
+            raise ConfigError(f"--combine: {name} is a combined file already; give its blocks")
+        if extra:
+            raise ConfigError(
+                f"--combine: {name} holds {', '.join(extra)}, which a combined file would drop; "
+                "give runs made without --sizes and --tracker"
+            )
+        missing = sorted(
+            {c for r in doc["rows"] for c in (*COLUMNS, "family", "cases") if c not in r}
+        )
+        if not doc["rows"] or missing:
+            raise ConfigError(
+                f"--combine: {name} has no rows"
+                if not doc["rows"]
+                else f"--combine: the rows of {name} lack {', '.join(missing)}"
+            )
+        seeds = block_seeds(doc["rows"])
+        if not seeds:
+            raise ConfigError(f"--combine: no '(seed N)' in the case names of {name}")
+        shared = sorted(s for s in seeds if s in owner)
+        if shared:
+            raise ConfigError(
+                f"--combine: {name} and {owner[shared[0]]} share seeds {format_seeds(shared)}; "
+                "a block may be counted once"
+            )
+        owner.update(dict.fromkeys(seeds, name))
+        label = format_seeds(seeds)
+        rows += [{"seeds": label, **r} for r in doc["rows"]]
+        listed.append(
+            {
+                "seeds": label,
+                "families": list(dict.fromkeys(r["family"] for r in doc["rows"])),
+                "variants": [
+                    o for o in dict.fromkeys(r["options"] for r in doc["rows"]) if o != "-"
+                ],
+            }
+        )
+    return {"blocks": listed, "rows": rows}
+
+
+def combined_markdown(doc: Mapping[str, Any]) -> str:
+    """The Markdown of a :func:`combine_blocks` result: what a row is, the blocks, the tables."""
+    lines = [
+        f"{len(doc['blocks'])} blocks of seeds, each one run of `mrexplore bench merge`; a row is "
+        "one block (`seeds`) run with one variant of the merger (`options`; `-` is the default). "
+        "Every figure is its block's own, as its run wrote it.",
+        "",
+        "| seeds | families | variants beside the default |",
+        "|---|---|---|",
+    ]
+    for b in doc["blocks"]:
+        variants = "; ".join(b["variants"]) or "-"
+        lines.append(f"| {b['seeds']} | {', '.join(b['families'])} | {variants} |")
+    return "\n".join(lines) + "\n\n" + to_markdown(doc["rows"])
 
 
 def size_timing(sizes: Sequence[int], n: int = 10, seed: int = 0) -> list[dict[str, Any]]:
@@ -600,7 +739,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         "and maps (making the lidar and symmetric cases is most of a run's time); a directory "
         "of your own, made if missing (it holds pickles)",
     )
+    p.add_argument(
+        "--combine",
+        nargs="+",
+        default=None,
+        metavar="BLOCK.json",
+        help="run nothing: write --out as one study of these runs (blocks of seeds), every row "
+        "kept and labelled with its block's seeds",
+    )
     args = p.parse_args(list(argv) if argv is not None else None)
+    if args.combine is not None:
+        return _combine_main(p, args)
     import cv2
 
     cv2.setNumThreads(1)  # one core, as the targets are stated
@@ -696,4 +845,43 @@ def main(argv: Sequence[str] | None = None) -> int:
         write_text(stem.with_suffix(".json"), json.dumps({"rows": rows, **extra}, indent=1))
         write_text(stem.with_suffix(".md"), md + "\n")
         print(f"wrote {stem.with_suffix('.json')} and {stem.with_suffix('.md')}")
+    return 0
+
+
+#: Options that make cases: meaningless beside --combine, which runs none.
+_RUN_OPTIONS = (
+    "n", "seed", "seeds", "methods", "detectors", "families", "tracker", "sizes",
+    "semantic_variant", "lidar_options", "case_cache",
+)  # fmt: skip
+
+
+def _combine_main(p: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    """``--combine``: read the blocks, check them, write ``--out`` (.json and .md)."""
+    try:
+        given = [o for o in _RUN_OPTIONS if getattr(args, o) != p.get_default(o)]
+        if given:
+            flags = ", ".join("--" + o.replace("_", "-") for o in given)
+            raise ConfigError(f"--combine runs no cases: drop {flags}")
+        if not args.out:
+            raise ConfigError("--combine needs --out STEM (the study file to write)")
+        stem = Path(args.out)
+        outputs = [stem.with_suffix(".json"), stem.with_suffix(".md")]
+        check_outputs(outputs, inputs=args.combine, force=args.force, what="--out")
+        blocks = []
+        for f in args.combine:
+            try:
+                blocks.append((f, json.loads(Path(f).read_text())))
+            except (OSError, ValueError) as exc:
+                raise ConfigError(f"--combine: cannot read {f}: {exc}") from exc
+        doc = combine_blocks(blocks)
+    except MrexploreError as e:
+        print(f"mrexplore bench merge: error: {e}", file=sys.stderr)
+        return 2
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    write_text(outputs[0], json.dumps(doc, indent=1))
+    write_text(outputs[1], combined_markdown(doc) + "\n")
+    print(
+        f"wrote {outputs[0]} and {outputs[1]} "
+        f"({len(doc['blocks'])} blocks, {len(doc['rows'])} rows)"
+    )
     return 0

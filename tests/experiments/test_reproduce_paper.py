@@ -44,10 +44,14 @@ def _run(
 
 
 def _outputs() -> list[str]:
-    """The ``--out`` of every step the script holds, with its variables filled in."""
+    """The ``--out`` of every step the script holds, with its variables filled in (``$blocks``,
+    a temporary folder, as ``BLOCKS``)."""
     outs = re.findall(r'--out "([^"]+)"', SCRIPT.read_text())
     ev = "docs/results/goal_policy_eval"
-    return [o.replace("$ev", ev).replace("$out", "docs/results") for o in outs]
+    return [
+        o.replace("$ev", ev).replace("$out", "docs/results").replace("$blocks", "BLOCKS")
+        for o in outs
+    ]
 
 
 def test_every_step_runs_once(tmp_path: Path) -> None:
@@ -55,19 +59,31 @@ def test_every_step_runs_once(tmp_path: Path) -> None:
     assert done.returncode == 0, done.stderr
     ran = [m.group(1) for c in calls if (m := re.search(r"--out (\S+)", c))]
     assert len(ran) == len(calls)  # every step names its output
-    assert sorted(ran) == sorted(_outputs()) and len(set(ran)) == len(ran) >= 30
-    merges = [c for c in calls if c.startswith("bench merge --case-cache")]
-    assert len(merges) == sum(o.split("/")[-1].startswith("merge_") for o in ran)
+    blocks = {o.rsplit("/", 1)[0] for o in ran if not o.startswith("docs/")}
+    assert len(blocks) == 1  # the held-out blocks share one temporary folder
+    (folder,) = blocks
+    named = [o.replace(folder, "BLOCKS") for o in ran]
+    assert sorted(named) == sorted(_outputs()) and len(set(ran)) == len(ran) >= 30
+    runs = [c for c in calls if c.startswith("bench merge --case-cache")]
+    assert len(runs) == sum(o.startswith("BLOCKS/") or "/merge_" in o for o in named) - 1
+    # the combining step comes after its blocks and reads exactly them
+    (combine,) = [i for i, c in enumerate(calls) if c.startswith("bench merge --combine")]
+    block_steps = [i for i, o in enumerate(named) if o.startswith("BLOCKS/")]
+    assert len(block_steps) >= 9 and max(block_steps) < combine
+    assert calls[combine].split("--combine ")[1].split(" --out")[0].split() == [
+        ran[i] + ".json" for i in block_steps
+    ]
+    assert named[combine] == "docs/results/merge_heldout"
     # the merge group's output is printed once, when it ends
-    assert done.stdout.count("ran bench merge") == len(merges)
+    assert done.stdout.count("ran bench merge") == len(runs) + 1
 
 
-@pytest.mark.parametrize("step", ["merge_heldout3", "loop_exact"])
+@pytest.mark.parametrize("step", ["--seeds 33-42", "--combine", "loop_exact"])
 def test_a_failing_step_fails_the_script(tmp_path: Path, step: str) -> None:
     done, calls = _run(tmp_path, "--force", fail_on=step)
     assert done.returncode != 0
     assert any(step in c for c in calls)
-    if step.startswith("merge"):
+    if not step.startswith("loop"):
         assert "a merge step failed" in done.stderr
 
 

@@ -32,7 +32,12 @@ from mrexplore.experiments.evaluate import (
     evaluate_policies,
     write_evaluation,
 )
-from mrexplore.experiments.train_setup import final_eval_seed_count, training_world
+from mrexplore.experiments.train_setup import (
+    final_eval_seed_count,
+    rollout_steps,
+    rounded_timesteps,
+    training_world,
+)
 from mrexplore.experiments.trained import ALGOS, TrainedTeamPolicy, algo_class
 from mrexplore.io_safety import atomic_path, check_out_dir, write_text
 from mrexplore.options import integer_argument
@@ -147,6 +152,11 @@ def train(
     optimizer moments, which an inference ``model.zip`` does not keep) instead of a random
     network. ``timesteps`` then counts the new steps only; ``config.yaml`` records the file and
     its SHA-256.
+
+    stable-baselines3 stops only after a whole rollout (``n_steps`` x env slots for PPO and
+    A2C, ``train_freq`` x slots for DQN), so ``timesteps`` is rounded up to one: the run
+    prints the number when it differs, and ``config.yaml`` records it as ``timesteps`` (the
+    number asked for as ``timesteps_asked``).
 
     Every argument is checked, and ``out`` refused when it is a file or a non-empty folder
     (without ``force``), before any work. ``final_eval_seeds=None`` scales the final
@@ -274,6 +284,18 @@ def train(
     )
     if init_file is not None:
         _load_weights(model, init_file)
+    # SB3 stops only after a whole rollout: say so now, and record the steps the run takes
+    per_rollout, made_of = rollout_steps(model)
+    asked, timesteps = timesteps, rounded_timesteps(timesteps, per_rollout)
+    if timesteps != asked:
+        at = list(config).index("timesteps")
+        items = list(config.items())
+        items[at : at + 1] = [("timesteps", timesteps), ("timesteps_asked", asked)]
+        config = dict(items)
+        print(
+            f"train: --timesteps {asked:,} rounds up to {timesteps:,}: {algo} collects whole "
+            f"rollouts of {per_rollout:,} steps ({made_of}); config.yaml records {timesteps:,}"
+        )
     # written once the start is known good: a refused --init-from leaves no config behind
     write_text(out / "config.yaml", yaml.safe_dump(config, sort_keys=False))
     eval_env = {**env_opts, "task": "explore"}
@@ -388,7 +410,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--world", default=None, help="a generator name (trained on fresh worlds) or a world spec"
     )
     p.add_argument("--n-robots", type=int, default=None)
-    p.add_argument("--timesteps", type=int, default=1_000_000, help="at least 1")
+    p.add_argument(
+        "--timesteps",
+        type=int,
+        default=1_000_000,
+        help="at least 1; sb3 rounds it up to whole rollouts (n_steps x env slots), which the "
+        "run prints and config.yaml records",
+    )
     p.add_argument(
         "--out",
         default=None,

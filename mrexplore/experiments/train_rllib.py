@@ -110,6 +110,9 @@ def train_rllib(
 ) -> dict[str, Any]:
     """Train the shared policy for at least ``timesteps`` env steps; returns the config.
 
+    RLlib stops after a whole training batch, so the run may take more steps than asked:
+    ``config.yaml`` then records the steps taken as ``timesteps`` (and ``timesteps_asked``).
+
     Then evaluates it against the frontier baselines on held-out seeds, as ``train`` does for
     SB3 (``eval.json``, ``eval.png``; ``final_eval_seeds=None`` scales the count to the run,
     0 skips it); ``mrexplore evaluate`` and ``task-time --policy`` take the folder too.
@@ -212,6 +215,17 @@ def train_rllib(
     finally:
         if started:
             ray.shutdown()
+    if steps != timesteps:  # RLlib stops after a whole training batch: record what it took
+        if progress:
+            print(
+                f"train: --timesteps {timesteps:,} took {steps:,} env steps (whole training "
+                f"batches); config.yaml records {steps:,}"
+            )
+        items = list(config.items())
+        at = [k for k, _ in items].index("timesteps")
+        items[at : at + 1] = [("timesteps", steps), ("timesteps_asked", timesteps)]
+        config = dict(items)
+        write_text(out / "config.yaml", yaml.safe_dump(config, sort_keys=False))
     doc = {"config": config, "history": history, "checkpoint": str(checkpoint)}
     write_text(out / "train.json", json.dumps(doc, indent=2, default=str))
     if final_seeds > 0:

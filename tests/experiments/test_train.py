@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -49,11 +50,11 @@ def _tiny_yaml(tmp_path: Path, algo: str) -> Path:
 
 @pytest.mark.parametrize("algo", ["ppo", "a2c", "dqn"])
 @pytest.mark.expensive
-def test_tiny_training_run_writes_reloads_and_evaluates(tmp_path: Path, algo: str) -> None:
+def test_tiny_training_run_writes_reloads_and_evaluates(tmp_path: Path, algo: str, capsys) -> None:  # type: ignore[no-untyped-def]
     out = tmp_path / "policy"
     config = train(
         algo=algo,
-        timesteps=96,
+        timesteps=100,
         out=out,
         seed=3,
         hyperparams_file=_tiny_yaml(tmp_path, algo),
@@ -67,6 +68,14 @@ def test_tiny_training_run_writes_reloads_and_evaluates(tmp_path: Path, algo: st
     # config.yaml round-trips to exactly the settings the run used (seed included)
     assert yaml.safe_load((out / "config.yaml").read_text()) == config
     assert config["seed"] == 3 and config["algo"] == algo and config["env"] == TINY_ENV
+    # SB3 stops after whole rollouts (2 slots): the run says so and records the steps it took
+    per_rollout = {"ppo": 32 * 2, "a2c": 8 * 2, "dqn": 4 * 2}[algo]
+    took = -(-100 // per_rollout) * per_rollout
+    assert config["timesteps"] == took and config["timesteps_asked"] == 100
+    said = capsys.readouterr().out
+    assert f"--timesteps 100 rounds up to {took}" in said and f"{per_rollout} steps" in said
+    training = json.loads((out / "eval.json").read_text())["training"]
+    assert training["throughput"]["timesteps"] == took
     # reload and act on a real observation
     penv = mrexplore.parallel_env(**{**TINY_ENV, "world": "small_office"})
     obs, _ = penv.reset(seed=0)

@@ -87,7 +87,11 @@ def test_rllib_backend_trains_with_an_env_runner_and_saves_the_shared_policy(
     # 20 s episodes of coverage reward: one robot's return is the team's; RLlib's sums both
     assert last["team_return_mean"] is not None
     assert last["rllib_episode_return_mean"] == pytest.approx(2 * last["team_return_mean"])
-    assert yaml.safe_load((out / "config.yaml").read_text())["env_runners"] == 1
+    config = yaml.safe_load((out / "config.yaml").read_text())
+    assert config["env_runners"] == 1
+    # the steps taken are recorded, with the number asked when they differ
+    assert config["timesteps"] == last["env_steps"]
+    assert config.get("timesteps_asked", 300) == 300
     module = RLModule.from_checkpoint(
         out / "checkpoint" / "learner_group" / "learner" / "rl_module" / "shared"
     )

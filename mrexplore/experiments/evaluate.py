@@ -67,14 +67,24 @@ def t_quantile_975(df: int) -> float:
     )
 
 
-def mean_ci(values: Sequence[float]) -> dict[str, Any]:
+#: Fewer values than this and the printed tables say "n too small" instead of an interval
+#: (with 2 the t quantile is 12.7: the interval says little but that more seeds are needed).
+MIN_N_FOR_CI = 3
+
+
+def mean_ci(
+    values: Sequence[float], low: float | None = None, high: float | None = None
+) -> dict[str, Any]:
     """Mean and 95 % confidence interval (Student's t) of ``values``: ``mean``, ``ci_low``,
     ``ci_high``, ``std`` (sample), ``n``. With fewer than two values the interval is unknown
-    (None).
+    (None). ``low`` / ``high``: the range the quantity can take (0 for a time, 0 and 1 for a
+    coverage); the interval is clipped to it, never reaching below what the data allow.
 
     >>> r = mean_ci([1.0, 2.0, 3.0])
     >>> r["mean"], round(r["ci_low"], 3), round(r["ci_high"], 3)
     (2.0, -0.484, 4.484)
+    >>> mean_ci([1.0, 2.0, 3.0], low=0.0)["ci_low"]
+    0.0
     """
     v = [float(x) for x in values]
     n = len(v)
@@ -83,7 +93,12 @@ def mean_ci(values: Sequence[float]) -> dict[str, Any]:
         return {"mean": mean, "ci_low": None, "ci_high": None, "std": 0.0, "n": n}
     sd = statistics.stdev(v)
     half = t_quantile_975(n - 1) * sd / math.sqrt(n)
-    return {"mean": mean, "ci_low": mean - half, "ci_high": mean + half, "std": sd, "n": n}
+    ci_low, ci_high = mean - half, mean + half
+    if low is not None:
+        ci_low = max(ci_low, low)
+    if high is not None:
+        ci_high = min(ci_high, high)
+    return {"mean": mean, "ci_low": ci_low, "ci_high": ci_high, "std": sd, "n": n}
 
 
 def time_to_coverage(result: EpisodeResult, level: float) -> float | None:
@@ -123,7 +138,7 @@ def summarise(results: Sequence[EpisodeResult], times_s: Sequence[float]) -> dic
     for t in times_s:
         cov = [coverage_at(r, t) for r in results]
         out["coverage_at"][f"{t:g}"] = {
-            **mean_ci(cov),
+            **mean_ci(cov, low=0.0, high=1.0),
             "std": statistics.pstdev(cov),
         }
     for level in COVERAGE_LEVELS:
@@ -131,7 +146,7 @@ def summarise(results: Sequence[EpisodeResult], times_s: Sequence[float]) -> dic
         reached = [time_to_coverage(r, level) for r in results]
         values = [r.task_time_s if x is None else x for x, r in zip(reached, results, strict=True)]
         out["time_to"][f"{level:g}"] = {
-            **mean_ci(values),
+            **mean_ci(values, low=0.0),
             "reached": sum(x is not None for x in reached),
             "values": values,
         }
@@ -293,8 +308,9 @@ def write_evaluation(doc: Mapping[str, Any], out_dir: Path) -> None:
 
 
 def _ci(s: Mapping[str, Any]) -> str:
-    if s.get("ci_low") is None:
-        return f"{s['mean']:.1f}"
+    """``mean [low, high]``; ``mean [n too small]`` below :data:`MIN_N_FOR_CI` values."""
+    if s.get("ci_low") is None or int(s.get("n", MIN_N_FOR_CI)) < MIN_N_FOR_CI:
+        return f"{s['mean']:.1f} [n too small]"
     return f"{s['mean']:.1f} [{s['ci_low']:.1f}, {s['ci_high']:.1f}]"
 
 

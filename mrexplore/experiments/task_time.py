@@ -765,7 +765,7 @@ def _plot(
                     x[j] + offset,
                     mean,
                     width,
-                    yerr=std,
+                    yerr=[[min(std, mean)], [std]],  # a time is never below 0 s
                     color=colour,
                     alpha=1.0 if mode == "observed" else 0.45,
                     hatch=None if mode == "observed" else "//",

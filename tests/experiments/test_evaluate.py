@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import pytest
 
@@ -80,3 +81,27 @@ def test_format_prints_what_was_measured() -> None:
     }
     text = format_evaluation(doc)
     assert "world w" in text and "2/2" in text and "paired trained - coordinated-frontier" in text
+
+
+def test_intervals_stay_within_what_the_data_allow() -> None:
+    # two very different episodes: the t interval of a time would reach far below 0 s
+    fast = _ep([0.0, 1.0, 2.0], [0.5, 0.91, 0.96])
+    slow = _ep([0.0, 20.0, 40.0], [0.1, 0.5, 0.96])
+    s = summarise([fast, slow], times_s=(10.0,))
+    t95 = s["time_to"]["0.95"]
+    assert t95["mean"] - 12.706 * t95["std"] / 2**0.5 < 0  # what the formula alone gives
+    assert t95["ci_low"] == 0.0 and t95["ci_high"] > t95["mean"]
+    cov = s["coverage_at"]["10"]
+    assert 0.0 <= cov["ci_low"] <= cov["mean"] <= cov["ci_high"] <= 1.0
+    # a difference may be negative: no bound
+    assert paired([2.0, 40.0], [30.0, 31.0])["ci_low"] < -20
+
+
+@pytest.mark.parametrize(("n", "too_small"), [(1, True), (2, True), (3, False)])
+def test_tables_say_n_too_small_below_three_seeds(n: int, too_small: bool) -> None:
+    eps = [_ep([0.0, 1.0, 2.0 + k], [0.5, 0.91, 0.96]) for k in range(n)]
+    s = summarise(eps, times_s=(1.0,))
+    doc = {"seeds": list(range(n)), "worlds": {"w": {"results": {"trained": s}}}}
+    text = format_evaluation(doc)
+    assert ("[n too small]" in text) is too_small
+    assert (re.search(r"\[\d+\.\d, \d+\.\d\]", text) is None) is too_small

@@ -9,6 +9,12 @@ from collections.abc import Sequence
 
 from mrexplore.errors import MrexploreError
 
+#: What ``--world`` means, the same for every command (``train`` and ``evaluate --worlds`` too).
+WORLD_HELP = (
+    "a shipped world's name (e.g. symmetric_office: the same map every episode), a map YAML, "
+    "or random:<generator>[?options] (a fresh world each episode, e.g. random:symmetric_office)"
+)
+
 
 def _demo(args: argparse.Namespace) -> int:
     from mrexplore.experiments.demo import run_demo
@@ -147,7 +153,7 @@ def build_parser() -> argparse.ArgumentParser:
         "the merge's error against the truth.",
     )
     d.add_argument("--out", default="demo", help="output folder (default: demo)")
-    d.add_argument("--world", default="symmetric_office", help="world name or map YAML")
+    d.add_argument("--world", default="symmetric_office", help=WORLD_HELP)
     d.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
     d.add_argument("--policy", default="coordinated-frontier", help="team policy name")
     d.add_argument("--n-robots", type=int, default=2, help="team size (default 2)")
@@ -169,7 +175,7 @@ def build_parser() -> argparse.ArgumentParser:
         "episode held a wrong merge. The seed paper's figures are printed on symmetric_office "
         "only, the shipped world built like the paper's.",
     )
-    t.add_argument("--world", default="symmetric_office", help="world name or map YAML")
+    t.add_argument("--world", default="symmetric_office", help=WORLD_HELP)
     t.add_argument("--seeds", type=int, default=20, help="number of seeds (default 20)")
     t.add_argument("--first-seed", type=int, default=1000, help="first seed (default 1000)")
     t.add_argument(

@@ -318,8 +318,14 @@ def format_evaluation(doc: Mapping[str, Any]) -> str:
     """The evaluation as text tables: per world, every policy's success rate, times to 90 % and
     95 % coverage (mean [95 % CI], how many reached it), coverage at fixed times; then the
     paired comparison with the baseline."""
-    worlds = doc.get("worlds") or {str(doc.get("env", {}).get("world")): doc}
-    lines = [f"evaluation on {len(doc['seeds'])} held-out seeds per world"]
+    env = doc.get("env", {})
+    worlds = doc.get("worlds") or {str(env.get("world")): doc}
+    cap, target = env.get("max_time_s"), env.get("target_coverage")
+    lines = [
+        f"evaluation on {len(doc['seeds'])} held-out seeds per world"
+        + (f", episodes capped at {float(cap):g} s" if cap is not None else "")
+        + (f", target coverage {float(target):.0%}" if target is not None else "")
+    ]
     for w, block in worlds.items():
         results = block["results"]
         times = list(next(iter(results.values()))["coverage_at"])
@@ -335,6 +341,13 @@ def format_evaluation(doc: Mapping[str, Any]) -> str:
             tt = " ".join(f"{c:>34}" for c in cells)
             covs = " ".join(f"{s['coverage_at'][t]['mean']:>9.1%}" for t in times)
             lines.append(f"{name:<32} {s['success_rate']:>7.0%} {tt} {covs}")
+        planners = [results[b] for b in BASELINES if b != "random" and b in results]
+        if cap is not None and planners and all(r["success_rate"] == 0 for r in planners):
+            # every score is then a censored time: the cap, not the policies, decides the table
+            lines.append(
+                f"note: no frontier planner reached the target within {float(cap):g} s on {w}: "
+                "the cap is short for this world; evaluate with a longer --max-time-s"
+            )
         for lname, comp in block.get("paired", {}).items():
             for key, p in comp.items():
                 lines.append(

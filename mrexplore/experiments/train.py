@@ -393,7 +393,8 @@ def train(
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """CLI: ``mrexplore train --algo ppo --world symmetric_office --n-robots 2 --timesteps N``.
+    """CLI: ``mrexplore train --algo ppo --world random:symmetric_office --n-robots 2
+    --timesteps N``.
 
     Writes to ``--out DIR``.
     """
@@ -407,7 +408,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     p.add_argument("--algo", default="ppo", choices=ALGOS)
     p.add_argument(
-        "--world", default=None, help="a generator name (trained on fresh worlds) or a world spec"
+        "--world",
+        default=None,
+        help="the world to train on, as every command reads it: a shipped world's name (the "
+        "same map every episode), a map YAML, or random:<generator>[?options] (a fresh world "
+        "each episode); default: the settings' world (fresh 10 x 8 m offices)",
     )
     p.add_argument("--n-robots", type=int, default=None)
     p.add_argument(

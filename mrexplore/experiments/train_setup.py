@@ -7,17 +7,38 @@ from __future__ import annotations
 
 from typing import Any
 
+from mrexplore.errors import ConfigError
+
 __all__ = ["final_eval_seed_count", "rollout_steps", "rounded_timesteps", "training_world"]
 
 
 def training_world(world: str | None, default: str) -> str:
-    """A generator name becomes ``random:<name>`` (a new world per episode); other specs stay."""
+    """The world spec a run trains on: ``world`` as every command reads it, else ``default``.
+
+    A name is the shipped world (the same map every episode), as in ``task-time``, ``demo``
+    and ``evaluate``; a fresh world per episode is spelled ``random:<generator>``. The spec is
+    checked here (an unknown name fails before any work), and a name that is also a
+    generator's gets a one-line notice saying which of the two it means.
+
+    Raises:
+        ConfigError: ``world`` names no shipped world, map file, generator or family.
+    """
     if world is None:
         return default
-    from mrexplore.world import GENERATORS
+    import numpy as np
 
+    from mrexplore.errors import MrexploreError
+    from mrexplore.world import GENERATORS, load_world
+
+    try:
+        load_world(world, rng=np.random.default_rng(0))
+    except MrexploreError as exc:
+        raise ConfigError(f"train --world: {exc}") from exc
     if world in GENERATORS:
-        return f"random:{world}"
+        print(
+            f"train: --world {world} is the shipped world {world}, the same map every "
+            f"episode; a fresh {world} per episode is --world random:{world}"
+        )
     return world
 
 

@@ -105,3 +105,18 @@ def test_tables_say_n_too_small_below_three_seeds(n: int, too_small: bool) -> No
     text = format_evaluation(doc)
     assert ("[n too small]" in text) is too_small
     assert (re.search(r"\[\d+\.\d, \d+\.\d\]", text) is None) is too_small
+
+
+@pytest.mark.parametrize("planners_finish", [True, False])
+def test_the_table_says_its_cap_and_when_the_cap_decides_it(planners_finish: bool) -> None:
+    done = _ep([0.0, 50.0, 100.0], [0.5, 0.91, 0.96], success=True)
+    cut = _ep([0.0, 75.0, 150.0], [0.2, 0.5, 0.7], success=False)
+    s = summarise([done if planners_finish else cut] * 3, times_s=(60.0,))
+    doc = {
+        "seeds": [1, 2, 3],
+        "env": {"world": "w", "max_time_s": 150.0, "target_coverage": 0.95},
+        "results": {"trained": summarise([cut] * 3, times_s=(60.0,)), "nearest-frontier": s},
+    }
+    text = format_evaluation(doc)
+    assert text.splitlines()[0].endswith("episodes capped at 150 s, target coverage 95%")
+    assert ("no frontier planner reached the target within 150 s" in text) is not planners_finish

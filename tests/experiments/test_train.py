@@ -141,6 +141,8 @@ SHIPPED = Path(__file__).resolve().parents[2] / "policies" / "ppo_symmetric_2r"
         (["--eval-seeds", "-1"], "eval_seeds must be an integer >= 1"),
         (["--final-eval-seeds", "-1"], "final_eval_seeds must be an integer >= 0"),
         (["--n-copies", "0"], "n_copies must be an integer >= 1"),
+        (["--world", "no_such_world"], "train --world: unknown world 'no_such_world'"),
+        (["--world", "random:moon"], "train --world: unknown generator 'moon'"),
     ],
 )
 def test_train_refuses_bad_numbers_before_any_work(
@@ -153,6 +155,25 @@ def test_train_refuses_bad_numbers_before_any_work(
     err = capsys.readouterr().err
     assert words in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("world", "trains_on", "notice"),
+    [
+        (None, "random:default", False),  # the settings' world
+        ("symmetric_office", "symmetric_office", True),  # a name: the shipped map, as in task-time
+        ("random:symmetric_office", "random:symmetric_office", False),  # a fresh one each episode
+        ("small_office", "small_office", False),  # shipped only: nothing to confuse it with
+    ],
+)
+def test_world_means_what_it_means_for_every_command(
+    world: str | None, trains_on: str, notice: bool, capsys
+) -> None:  # type: ignore[no-untyped-def]
+    from mrexplore.experiments.train_setup import training_world
+
+    assert training_world(world, "random:default") == trains_on
+    said = capsys.readouterr().out
+    assert ("--world random:symmetric_office" in said) is notice
 
 
 def test_train_refuses_an_existing_policy_folder(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]

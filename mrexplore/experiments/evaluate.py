@@ -18,7 +18,7 @@ import argparse
 import json
 import math
 import statistics
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -215,7 +215,6 @@ def evaluate_folder(
         OutputExistsError: ``out`` is refused (see above).
     """
     from mrexplore.environment.goal_actions import split_options
-    from mrexplore.policies import make_team_policy
 
     folder = Path(folder)
     if isinstance(n_seeds, bool) or not isinstance(n_seeds, (int, np.integer)) or n_seeds < 1:
@@ -252,29 +251,13 @@ def evaluate_folder(
         learned[f"{name}, sampled"] = lambda agents: trained
     else:
         learned[name] = lambda agents: trained
-    baselines = {b: (lambda agents, b=b: make_team_policy(b, agents)) for b in BASELINES}
     if progress:
-        n_eps = (len(learned) + len(baselines)) * len(seeds) * len(world_list)
+        n_eps = (len(learned) + len(BASELINES)) * len(seeds) * len(world_list)
         print(
             f"evaluating {folder} and {len(BASELINES)} baselines on {len(seeds)} held-out "
             f"seed(s) x {len(world_list)} world(s): {n_eps} episodes"
         )
-    by_world: dict[str, Any] = {}
-    for w in world_list:
-        results = evaluate_policies(learned, {**env_options, "world": w}, seeds, progress=progress)
-        results.update(
-            evaluate_policies(baselines, {**low_options, "world": w}, seeds, progress=progress)
-        )
-        comparison = {}
-        for lname in learned:
-            comparison[lname] = {
-                f"time_to_{level:g}": paired(
-                    results[lname]["time_to"][f"{level:g}"]["values"],
-                    results[PAIRED_BASELINE]["time_to"][f"{level:g}"]["values"],
-                )
-                for level in COVERAGE_LEVELS
-            }
-        by_world[w] = {"results": results, "paired": comparison}
+    by_world = _against_baselines(learned, env_options, low_options, world_list, seeds, progress)
     first = by_world[world_list[0]]
     doc: dict[str, Any] = {
         "policy_folder": str(folder),
@@ -285,6 +268,100 @@ def evaluate_folder(
             if len(learned) > 1
             else ("deterministic" if trained.deterministic else "sampled")
         ),
+        "paired_baseline": PAIRED_BASELINE,
+        "results": first["results"],
+        "paired": first["paired"],
+        "worlds": by_world,
+    }
+    if out_dir is not None:
+        write_evaluation(doc, out_dir)
+    print(format_evaluation(doc))
+    return doc
+
+
+def _against_baselines(
+    learned: Mapping[str, Any],
+    env_options: Mapping[str, Any],
+    low_options: Mapping[str, Any],
+    world_list: Sequence[str],
+    seeds: Sequence[int],
+    progress: bool,
+) -> dict[str, Any]:
+    """Per world: every ``learned`` factory and the baselines on ``seeds``, and each learned
+    policy paired with :data:`PAIRED_BASELINE` (the planners run on ``low_options``)."""
+    from mrexplore.policies import make_team_policy
+
+    baselines = {b: (lambda agents, b=b: make_team_policy(b, agents)) for b in BASELINES}
+    by_world: dict[str, Any] = {}
+    for w in world_list:
+        results = evaluate_policies(learned, {**env_options, "world": w}, seeds, progress=progress)
+        results.update(
+            evaluate_policies(baselines, {**low_options, "world": w}, seeds, progress=progress)
+        )
+        comparison = {
+            lname: {
+                f"time_to_{level:g}": paired(
+                    results[lname]["time_to"][f"{level:g}"]["values"],
+                    results[PAIRED_BASELINE]["time_to"][f"{level:g}"]["values"],
+                )
+                for level in COVERAGE_LEVELS
+            }
+            for lname in learned
+        }
+        by_world[w] = {"results": results, "paired": comparison}
+    return by_world
+
+
+def evaluate_team(
+    policy: Callable[[list[str]], Any],
+    env_options: Mapping[str, Any],
+    n_seeds: int = 20,
+    out: str | Path | None = None,
+    name: str = "policy",
+    worlds: Sequence[str] | None = None,
+    progress: bool = True,
+    force: bool = False,
+) -> dict[str, Any]:
+    """Any team policy against the frontier planners, as ``mrexplore evaluate`` does for a
+    policy folder: the same held-out seeds, tables, paired comparison, ``eval.json`` and plot.
+
+    For a policy no folder describes (a TorchRL or hand-written policy, a callable):
+    ``policy(agents)`` returns an object with ``reset(rng)`` and either ``act(views)`` (robot
+    views, as the planners) or ``uses_observations = True`` and ``act_obs(obs) -> {agent:
+    action}`` (the env's observations, as a trained network).
+
+    Args:
+        policy: the factory, called once per episode with the agents' names.
+        env_options: the env it acts in (``world``, ``n_robots``, ``max_time_s``, the
+            observation format it was trained on, ...); the task is exploration.
+        n_seeds: held-out seeds (from ``EVAL_SEED_BASE`` up) per world.
+        out: a new folder for ``eval.json`` and ``eval.png`` (None: write nothing).
+        name: the policy's row in the tables.
+        worlds: world specs to evaluate on (default: ``env_options["world"]``).
+
+    Raises:
+        ConfigError: ``n_seeds < 1``, a policy that is not callable, or bad env options.
+        OutputExistsError: ``out`` is a file or a non-empty folder (without ``force``).
+    """
+    from mrexplore.environment.config import EnvConfig
+    from mrexplore.environment.goal_actions import split_options
+
+    if isinstance(n_seeds, bool) or not isinstance(n_seeds, (int, np.integer)) or n_seeds < 1:
+        raise ConfigError(f"evaluate needs at least 1 seed, got {n_seeds!r}")
+    if not callable(policy):
+        raise ConfigError(f"evaluate_team: policy must be a factory policy(agents), got {policy!r}")
+    options = {**dict(env_options), "task": "explore"}
+    _, _, low_options = split_options(options)
+    EnvConfig.from_kwargs(**{k: v for k, v in low_options.items() if k != "world"})
+    out_dir = None if out is None else check_out_dir(out, force=force, what="evaluate_team")
+    world_list = [str(w) for w in worlds] if worlds else [str(options.get("world"))]
+    seeds = list(range(EVAL_SEED_BASE, EVAL_SEED_BASE + int(n_seeds)))
+    by_world = _against_baselines({name: policy}, options, low_options, world_list, seeds, progress)
+    first = by_world[world_list[0]]
+    doc: dict[str, Any] = {
+        "policy": name,
+        "env": options,
+        "seeds": seeds,
         "paired_baseline": PAIRED_BASELINE,
         "results": first["results"],
         "paired": first["paired"],

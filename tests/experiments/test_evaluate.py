@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+import json
 import math
 import re
+from pathlib import Path
 
 import pytest
 
+from mrexplore.errors import ConfigError
 from mrexplore.experiments.episode import EpisodeResult
 from mrexplore.experiments.evaluate import (
+    BASELINES,
+    evaluate_team,
     format_evaluation,
     mean_ci,
     paired,
@@ -120,3 +125,31 @@ def test_the_table_says_its_cap_and_when_the_cap_decides_it(planners_finish: boo
     text = format_evaluation(doc)
     assert text.splitlines()[0].endswith("episodes capped at 150 s, target coverage 95%")
     assert ("no frontier planner reached the target within 150 s" in text) is not planners_finish
+
+
+class _Forward:
+    """A stand-in for a policy trained elsewhere (TorchRL, ...): acts on the observations."""
+
+    uses_observations = True
+
+    def __init__(self, agents: list[str]) -> None:
+        self.agents = agents
+
+    def reset(self, rng: object) -> None:
+        pass
+
+    def act_obs(self, obs: dict) -> dict[str, int]:
+        return {a: 0 for a in obs}
+
+
+def test_any_team_policy_is_evaluated_against_the_planners(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    env = {"world": "small_office", "n_robots": 2, "max_time_s": 5.0}
+    doc = evaluate_team(_Forward, env, n_seeds=1, out=tmp_path / "e", name="mine", progress=False)
+    assert set(doc["results"]) == {"mine", *BASELINES}
+    assert set(doc["paired"]) == {"mine"} and doc["env"]["task"] == "explore"
+    assert json.loads((tmp_path / "e" / "eval.json").read_text())["policy"] == "mine"
+    assert "mine" in capsys.readouterr().out
+    with pytest.raises(ConfigError, match="factory"):
+        evaluate_team("not callable", env, n_seeds=1)  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="at least 1 seed"):
+        evaluate_team(_Forward, env, n_seeds=0)

@@ -5,18 +5,17 @@
 ``views``          occupancy shares per view block and the trail channel (the observation)
 ``scoring``        map accuracy against the truth (evaluation only)
 ``merging``        the merger's verifier count and wall ICP
+``planning``       the frontier planners: frontiers, planning grid, distances, paths, follower
 =================  ===========================================================================
-
-The planner's Dijkstra is compiled lazily in :mod:`mrexplore.policies.planning` (a policy
-need not pay the compile of the simulator's kernels).
 
 The switch: :data:`USE_NUMBA` (read at call time) chooses the compiled kernels or the
 vectorised numpy paths of :mod:`mrexplore.sensors`, :mod:`mrexplore.mapping`,
-:mod:`mrexplore.robot`, the observation builder and :mod:`mrexplore.truth`, which compute the
-same figures (the tests hold the kernels to them and to the one-ray reference
-:func:`mrexplore.sensors.cast_ray_reference`). The environment variable ``MREXPLORE_NUMBA=0``
-turns the kernels off at import, and the package then runs without numba installed (the
-merger's verifier keeps its numpy path too); CI runs a rollout that way. Each kernel is
+:mod:`mrexplore.robot`, the observation builder, :mod:`mrexplore.truth` and the planners of
+:mod:`mrexplore.policies`, which compute the same figures (the tests hold the kernels to them
+and to the one-ray reference :func:`mrexplore.sensors.cast_ray_reference`). The environment
+variable ``MREXPLORE_NUMBA=0`` turns the kernels off at import, and the package then runs
+without numba installed (the merger's verifier keeps its numpy path too); CI runs a rollout
+that way. Each kernel is
 ``cache=True`` (compiled once per machine into ``__pycache__``) and ``nogil``.
 """
 
@@ -44,8 +43,8 @@ USE_NUMBA: bool = HAVE_NUMBA and os.environ.get("MREXPLORE_NUMBA", "1") != "0"
 
 
 def load(name: str) -> ModuleType | None:
-    """The kernel module ``name`` (``"sensing"``, ``"views"``, ``"scoring"``, ``"merging"``),
-    or None when numba is not installed (callers then take their numpy path)."""
+    """The kernel module ``name`` (``"sensing"``, ``"views"``, ``"scoring"``, ``"merging"``,
+    ``"planning"``), or None when numba is not installed (callers then take their numpy path)."""
     if not HAVE_NUMBA:
         return None
     return importlib.import_module(f"mrexplore.kernels.{name}")

@@ -26,10 +26,12 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
+from mrexplore import kernels
 from mrexplore.errors import ConfigError
 from mrexplore.robot import Action, RobotConfig
 from mrexplore.types import RobotView
@@ -44,6 +46,8 @@ __all__ = [
     "follow_path",
     "nearest_path_index",
 ]
+
+_planning = kernels.load("planning")
 
 _CFG = RobotConfig()
 #: Heading change of one TURN_LEFT / TURN_RIGHT with the robot's defaults (radians; 22.5 deg).
@@ -131,6 +135,11 @@ def densify_path(path: NDArray[np.floating], spacing: float = 1.0) -> NDArray[np
     p = np.asarray(path, dtype=np.float64).reshape(-1, 2)
     if p.shape[0] < 2:
         return p
+    if _planning is not None and kernels.enabled():
+        if _planning.max_step(p) <= spacing:
+            return p
+        out: NDArray[np.float64] = _planning.densify(p, float(spacing))
+        return out
     seg = np.hypot(*np.diff(p, axis=0).T)
     if float(seg.max()) <= spacing:
         return p
@@ -146,12 +155,27 @@ def nearest_path_index(
 ) -> int:
     """Index of the path point closest to the robot (path (K, 2) ``(col, row)``; pose in cells)."""
     p = np.asarray(path, dtype=np.float64).reshape(-1, 2)
+    if _planning is not None and kernels.enabled() and p.shape[0]:
+        return int(_planning.nearest_index(p, float(pose[0]), float(pose[1])))
     d2 = (p[:, 0] - pose[0]) ** 2 + (p[:, 1] - pose[1]) ** 2
     return int(np.argmin(d2))
 
 
 #: ``clear(points (N, 2) (col, row)) -> bool (N,)``: whether a robot centre may stand there.
 ClearFn = Callable[[NDArray[np.float64]], NDArray[np.bool_]]
+
+
+class TraversableGrid(Protocol):
+    """A planning grid as the follower reads it (:class:`~mrexplore.policies.planning.
+    PlanningGrid`): ``free`` bool (h, w) planning cells, the fine-cell offset ``col0, row0``,
+    ``factor`` fine cells per planning cell, and ``clear`` (:data:`ClearFn`) on them."""
+
+    free: NDArray[np.bool_]
+    col0: int
+    row0: int
+    factor: int
+
+    def clear(self, cells: NDArray[np.floating]) -> NDArray[np.bool_]: ...
 
 
 def follow_path(
@@ -162,6 +186,7 @@ def follow_path(
     arrive_cells: float = 2.0,
     clear: ClearFn | None = None,
     blocked_ahead: bool = False,
+    grid: TraversableGrid | None = None,
 ) -> int:
     """Pure pursuit on a discrete action set: the action that brings the robot along ``path``.
 
@@ -186,6 +211,8 @@ def follow_path(
             collided): where FORWARD would be the answer, turn towards the waypoint's side
             instead, so that the next FORWARD, at most a turn step off the waypoint, slides
             along the obstacle rather than pushing into it again.
+        grid: a planning grid whose traversable cells the line of sight keeps to, as
+            ``clear=grid.clear`` does (the compiled follower reads the grid itself).
 
     Returns:
         An :class:`~mrexplore.robot.Action` value.
@@ -197,12 +224,29 @@ def follow_path(
     x, y, theta = float(pose[0]), float(pose[1]), float(pose[2])
     if math.hypot(p[-1, 0] - x, p[-1, 1] - y) <= arrive_cells:
         return int(Action.STAY)
-    d = np.hypot(p[:, 0] - x, p[:, 1] - y)
-    k = int(np.argmin(d))
-    ahead = np.flatnonzero(d[k:] >= lookahead_cells)
-    j = k + int(ahead[0]) if ahead.size else p.shape[0] - 1
-    if clear is not None and j > k:
-        j = _line_of_sight(p, k, j, x, y, clear)
+    if grid is not None and clear is None and _planning is not None and kernels.enabled():
+        j = int(
+            _planning.waypoint(
+                p,
+                x,
+                y,
+                float(lookahead_cells),
+                grid.free,
+                float(grid.col0),
+                float(grid.row0),
+                grid.factor,
+                True,
+            )
+        )
+    else:
+        if clear is None and grid is not None:
+            clear = grid.clear
+        d = np.hypot(p[:, 0] - x, p[:, 1] - y)
+        k = int(np.argmin(d))
+        ahead = np.flatnonzero(d[k:] >= lookahead_cells)
+        j = k + int(ahead[0]) if ahead.size else p.shape[0] - 1
+        if clear is not None and j > k:
+            j = _line_of_sight(p, k, j, x, y, clear)
     wp = p[j]
     err = _wrap(math.atan2(wp[1] - y, wp[0] - x) - theta)
     if abs(err) <= 0.5 * turn_step_rad * 1.05:

@@ -75,7 +75,7 @@ from mrexplore.policies.base import (
     follow_path,
     nearest_path_index,
 )
-from mrexplore.policies.frontier_cells import find_frontiers, known_bbox, window_frontier_mask
+from mrexplore.policies.frontier_cells import find_frontiers, frontier_near, known_bbox
 from mrexplore.policies.planning import PlanningGrid, planning_rounds
 from mrexplore.robot import Action
 from mrexplore.types import RobotView
@@ -330,8 +330,8 @@ class FrontierExplorer(Policy):
             turn_step_rad=self.turn_step_rad,
             lookahead_cells=self.lookahead_m / res,
             arrive_cells=self.arrive_m / res,
-            clear=self._grid.clear if self._grid is not None else None,
             blocked_ahead=self.slide_on_bump and self._hit,
+            grid=self._grid,
         )
 
     def _progress(
@@ -402,13 +402,7 @@ class FrontierExplorer(Policy):
     @staticmethod
     def _still_frontier(m: NDArray[np.int8], cell: tuple[int, int], radius: int = 2) -> bool:
         """Whether a frontier cell lies within ``radius`` cells of ``cell`` (a local check)."""
-        c, r = cell
-        h, w = m.shape
-        r0, r1 = max(r - radius - 1, 0), min(r + radius + 2, h)
-        c0, c1 = max(c - radius - 1, 0), min(c + radius + 2, w)
-        win = window_frontier_mask(m[r0:r1, c0:c1])
-        rr0, cc0 = max(r - radius - r0, 0), max(c - radius - c0, 0)
-        return bool(win[rr0 : r + radius + 1 - r0, cc0 : c + radius + 1 - c0].any())
+        return frontier_near(m, cell, radius)
 
     def replan(self, view: RobotView) -> None:
         """Plan now from ``view`` (choose a frontier and a path), as :meth:`act` does when a

@@ -17,10 +17,20 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from mrexplore import kernels
 from mrexplore.errors import GridError
 from mrexplore.grid import Int8Grid, free_mask, known_bbox, known_mask
 
-__all__ = ["Frontier", "find_frontiers", "frontier_mask", "known_bbox", "window_frontier_mask"]
+_planning = kernels.load("planning")
+
+__all__ = [
+    "Frontier",
+    "find_frontiers",
+    "frontier_mask",
+    "frontier_near",
+    "known_bbox",
+    "window_frontier_mask",
+]
 
 #: 4-connectivity cross: a frontier cell needs an unknown cell up, down, left or right.
 _CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=np.uint8)
@@ -103,6 +113,8 @@ def find_frontiers(map_int8: Int8Grid, min_size_cells: int = 8) -> list[Frontier
     grid = _check_map(map_int8)
     if min_size_cells < 1:
         raise GridError(f"min_size_cells must be >= 1, got {min_size_cells}")
+    if _planning is not None and kernels.enabled():
+        return _compiled_frontiers(grid, min_size_cells)
     box = known_bbox(grid, margin=1)
     if box is None:
         return []
@@ -148,3 +160,38 @@ def find_frontiers(map_int8: Int8Grid, min_size_cells: int = 8) -> list[Frontier
         )
     frontiers.sort(key=lambda f: (-f.size, f.target[1], f.target[0]))
     return frontiers
+
+
+def _compiled_frontiers(grid: Int8Grid, min_size_cells: int) -> list[Frontier]:
+    """:func:`find_frontiers` by one compiled pass (the same frontiers, cells and targets)."""
+    assert _planning is not None
+    cells, starts, window, centroids, targets = _planning.frontier_clusters(grid, min_size_cells)
+    c0, r0 = int(window[0]), int(window[1])
+    frontiers = []
+    for k in range(starts.size - 1):
+        s, e = int(starts[k]), int(starts[k + 1])
+        t = cells[targets[k]]
+        frontiers.append(
+            Frontier(
+                cells=cells[s:e],
+                size=e - s,
+                centroid=(float(centroids[k, 0] + c0), float(centroids[k, 1] + r0)),
+                target=(int(t[0]), int(t[1])),
+            )
+        )
+    frontiers.sort(key=lambda f: (-f.size, f.target[1], f.target[0]))
+    return frontiers
+
+
+def frontier_near(grid: Int8Grid, cell: tuple[int, int], radius: int = 2) -> bool:
+    """Whether a frontier cell lies within ``radius`` cells (a square) of ``cell`` ``(col, row)``
+    of ``grid`` (int8 (H, W)); cells beyond the grid are not unknown."""
+    c, r = cell
+    h, w = grid.shape
+    if _planning is not None and kernels.enabled() and 0 <= c < w and 0 <= r < h:
+        return bool(_planning.frontier_near(grid, c, r, radius))
+    r0, r1 = max(r - radius - 1, 0), min(r + radius + 2, h)
+    c0, c1 = max(c - radius - 1, 0), min(c + radius + 2, w)
+    win = window_frontier_mask(grid[r0:r1, c0:c1])
+    rr0, cc0 = max(r - radius - r0, 0), max(c - radius - c0, 0)
+    return bool(win[rr0 : r + radius + 1 - r0, cc0 : c + radius + 1 - c0].any())

@@ -36,7 +36,11 @@ import mrexplore
 assert mrexplore.__file__.startswith(sys.argv[1]), mrexplore.__file__
 out = {}
 for label, opts in json.loads(sys.argv[3]):
-    out[label] = h.measure(int(sys.argv[4]), 0, **opts)
+    if "team" in opts:  # a realistic rollout (measure_rollout), else random actions
+        team = opts.pop("team")
+        out[label] = h.measure_rollout(int(sys.argv[4]), 0, team, **opts)
+    else:
+        out[label] = h.measure(int(sys.argv[4]), 0, **opts)
 print(json.dumps(out))
 """
 
@@ -63,6 +67,37 @@ def _proc_ratio(runs: dict[str, list[dict[str, Any]]], label: str) -> float | No
         return None
 
 
+def _print_rollouts(
+    runs: dict[str, list[dict[str, Any]]], label: str, rounds: int, base: Path, this: Path
+) -> int:
+    """Every round's rollout rows of both trees, then the medians and this / base."""
+    from mrexplore.experiments.env_bench import ROLLOUT_HEADER, rollout_row
+
+    print(f"{rounds} alternating rounds, base then this\nbase: {base}\nthis: {this}")
+    print(ROLLOUT_HEADER)
+    for k in range(rounds):
+        for name in ("base", "this"):
+            print(rollout_row(f"round {k + 1}, {name}", runs[name][k][label]))
+    keys = ("process_ms", "thread_ms", "policy_ms", "env_ms", "policy_share", "p50_ms")
+    keys += ("p99_ms", "max_ms", "max_over_p50")
+    med = {
+        name: {key: statistics.median(r[label][key] for r in runs[name]) for key in keys}
+        for name in runs
+    }
+    for name in ("base", "this"):
+        print(rollout_row(f"median over rounds, {name}", med[name]))
+    ratio = statistics.median(
+        t[label]["process_ms"] / b[label]["process_ms"]
+        for b, t in zip(runs["base"], runs["this"], strict=True)
+    )
+    pol = statistics.median(
+        t[label]["policy_ms"] / b[label]["policy_ms"]
+        for b, t in zip(runs["base"], runs["this"], strict=True)
+    )
+    print(f"this / base, median of the rounds' ratios: process CPU {ratio:.2f}x, policy {pol:.2f}x")
+    return 0
+
+
 def main() -> int:
     """Measure both trees in turn and print steps/s, p50/p99 and the ratio per setting."""
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
@@ -71,12 +106,22 @@ def main() -> int:
     p.add_argument("--steps", type=int, default=1500)
     p.add_argument("--robots", default="1,2,4,8")
     p.add_argument("--merger", default="semantic", help='a merge method, or "none"')
+    p.add_argument(
+        "--rollout",
+        default=None,
+        metavar="TEAM",
+        help="instead of random actions: a realistic rollout driven by this team policy "
+        "(symmetric_office, 2 robots; measure_rollout), e.g. coordinated-frontier",
+    )
     args = p.parse_args()
     sys.path.insert(0, str(HERE))
-    from mrexplore.experiments.env_bench import settings
+    from mrexplore.experiments.env_bench import DEFAULT_WORLD, settings
 
     merger = None if args.merger.lower() == "none" else args.merger
     table = settings([int(v) for v in args.robots.split(",")], merger)
+    if args.rollout is not None:
+        label = f"{args.rollout}, symmetric_office, 2 robots"
+        table = [(label, {**DEFAULT_WORLD, "merger": merger, "team": args.rollout})]
     base, this = Path(args.base).resolve(), HERE
     runs: dict[str, list[dict[str, Any]]] = {"base": [], "this": []}
     for k in range(args.rounds):
@@ -88,6 +133,8 @@ def main() -> int:
         for name in runs:
             runs[name].append(got[name])
         print(f"round {k + 1}/{args.rounds} done", file=sys.stderr, flush=True)
+    if args.rollout is not None:
+        return _print_rollouts(runs, table[0][0], args.rounds, base, this)
     print(
         f"{args.steps} random-action steps per setting, {args.rounds} alternating rounds, "
         f"merger {merger}; CPU time of the stepping thread; medians over rounds\n"

@@ -39,6 +39,14 @@ With ``--team coordinated-frontier`` every world is driven by that team, its dec
 realistic rollout. The machine's core count and load are printed: on a
 shared machine the wall ratio is a ratio under contention.
 
+``--rollout coordinated-frontier`` (:func:`measure_rollout`): one env (``symmetric_office``, 2
+robots, merging on) driven by that team for ``--steps`` steps, the team's decisions (views
+included) timed with the steps: process CPU per step (the merge worker and OpenCV's threads
+too), the stepping thread's, the policy's and the env step's, the policy's share of the process
+CPU, and p50 / p99 / max of one step's stepping-thread CPU with the slowest step over the
+median. ``studies/speed_vs_checkout.py --rollout coordinated-frontier`` runs it on two trees side
+by side.
+
 Settings: ``symmetric_office`` (0.05 m/cell, 360 beams, 4 m, merging on) for ``--robots``
 (default 1, 2, 4, 8), and two robots on the Explore-Bench-sized world (250 x 250 cells,
 0.1 m/cell, 3 m). ``--breakdown`` also times the stages of the default 2-robot step by wrapping
@@ -221,6 +229,84 @@ def measure_batched(
         "p99_ms": 1000.0 * float(np.percentile(lat, 99)),
         "max_ms": 1000.0 * float(lat.max()),
     }
+
+
+def measure_rollout(
+    steps: int = 1000,
+    seed: int = 0,
+    team: str = "coordinated-frontier",
+    warmup: int = 20,
+    **options: Any,
+) -> dict[str, Any]:
+    """A realistic rollout: ``parallel_env(**options)`` driven by the team policy ``team``
+    (its decisions on every robot's view, views included) for ``steps`` steps after ``warmup``
+    untimed ones; episodes that end are reset with the team (not timed).
+
+    Returns a dict: ``steps``, ``episodes``, per step in ms ``process_ms`` (process CPU: the
+    merge worker and OpenCV's threads too), ``thread_ms`` (stepping thread: decisions + step),
+    ``policy_ms`` and ``env_ms`` (stepping thread), ``policy_share`` (policy / process CPU),
+    ``p50_ms`` / ``p99_ms`` / ``max_ms`` of one step's stepping-thread CPU (decisions + step) and
+    ``max_over_p50``, the slowest step over the median.
+    """
+    from mrexplore.policies import make_team_policy
+
+    penv = mrexplore.parallel_env(**options)
+    policy = make_team_policy(team, penv.possible_agents)
+    penv.reset(seed=seed)
+    policy.reset(np.random.default_rng(seed))
+    decide = np.zeros(steps)
+    step = np.zeros(steps)
+    proc = 0.0
+    episodes = 1
+    try:
+        for k in range(-warmup, steps):
+            if not penv.agents:
+                penv.reset()
+                policy.reset(np.random.default_rng([seed, episodes]))
+                episodes += 1
+            p0 = time.process_time()
+            t0 = time.thread_time()
+            actions = policy.act({a: penv.robot_view(a) for a in penv.agents})
+            t1 = time.thread_time()
+            penv.step(actions)
+            t2 = time.thread_time()
+            if k >= 0:
+                decide[k], step[k] = t1 - t0, t2 - t1
+                proc += time.process_time() - p0
+    finally:
+        penv.close()
+    lat = decide + step
+    p50 = float(np.percentile(lat, 50))
+    return {
+        "options": dict(options),
+        "team": team,
+        "steps": steps,
+        "episodes": episodes,
+        "process_ms": 1000.0 * proc / steps,
+        "thread_ms": 1000.0 * float(lat.sum()) / steps,
+        "policy_ms": 1000.0 * float(decide.sum()) / steps,
+        "env_ms": 1000.0 * float(step.sum()) / steps,
+        "policy_share": float(decide.sum()) / proc,
+        "p50_ms": 1000.0 * p50,
+        "p99_ms": 1000.0 * float(np.percentile(lat, 99)),
+        "max_ms": 1000.0 * float(lat.max()),
+        "max_over_p50": float(lat.max()) / p50,
+    }
+
+
+ROLLOUT_HEADER = (
+    f"{'realistic rollout (ms of CPU per step)':<52} {'process':>8} {'thread':>7} "
+    f"{'policy':>7} {'env':>6} {'policy/proc':>11} {'p50':>6} {'p99':>6} {'max':>6} {'max/p50':>7}"
+)
+
+
+def rollout_row(label: str, r: dict[str, Any]) -> str:
+    """One printed line of a result of :func:`measure_rollout`."""
+    return (
+        f"{label:<52} {r['process_ms']:>8.3f} {r['thread_ms']:>7.3f} {r['policy_ms']:>7.3f} "
+        f"{r['env_ms']:>6.3f} {100 * r['policy_share']:>10.1f}% {r['p50_ms']:>6.2f} "
+        f"{r['p99_ms']:>6.2f} {r['max_ms']:>6.2f} {r['max_over_p50']:>6.2f}x"
+    )
 
 
 def _load_line(when: str) -> str:
@@ -486,7 +572,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="batched steps per --batched row, the same for every N (default 200)",
     )
     p.add_argument(
-        "--batched-only", action="store_true", help="with --batched: skip the per-env table"
+        "--batched-only",
+        action="store_true",
+        help="with --batched, --side-by-side or --rollout: skip the per-env table",
     )
     p.add_argument(
         "--side-by-side",
@@ -509,6 +597,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         default="random",
         help="--side-by-side: comma-separated drivers, 'random' and/or a team policy name "
         "(e.g. random,coordinated-frontier)",
+    )
+    p.add_argument(
+        "--rollout",
+        default=None,
+        metavar="TEAM",
+        help="a realistic rollout per team policy (comma-separated, e.g. coordinated-frontier): "
+        "symmetric_office, 2 robots, --steps steps; prints process and stepping-thread CPU per "
+        "step, the policy's share and the slowest step over the median",
     )
     p.add_argument("--breakdown", action="store_true", help="also time the stages (2 robots)")
     p.add_argument("--json", default=None, help="also write the figures to this JSON file")
@@ -555,8 +651,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         raise ConfigError(
             f"bench env: --batched-steps must be at least 1, got {args.batched_steps}"
         )
-    if args.batched_only and not batched and args.side_by_side is None:
-        raise ConfigError("bench env: --batched-only needs --batched or --side-by-side")
+    if args.batched_only and not batched and args.side_by_side is None and args.rollout is None:
+        raise ConfigError("bench env: --batched-only needs --batched, --side-by-side or --rollout")
     if args.side_by_side is not None and args.side_by_side < 1:
         raise ConfigError(
             f"bench env: --side-by-side must be an integer >= 1 (worlds), got {args.side_by_side}"
@@ -579,6 +675,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         teams.append(None if word == "random" else word)
     if not teams:
         raise ConfigError(f"bench env: --team names no driver, got {args.team!r}")
+    rollouts = [w.strip() for w in (args.rollout or "").split(",") if w.strip()]
+    if args.rollout is not None:
+        from mrexplore.policies import POLICIES
+
+        if not rollouts or any(w not in POLICIES for w in rollouts):
+            raise ConfigError(
+                f"bench env: --rollout must name team policies ({', '.join(sorted(POLICIES))}), "
+                f"got {args.rollout!r}"
+            )
     if args.json:
         check_outputs([args.json], force=args.force, what="mrexplore bench env")
     merger = None if args.merger.lower() == "none" else args.merger
@@ -615,6 +720,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             r = measure_batched(n, b_steps, args.seed, **b_opts)
             results[name] = r
             print(batched_row(name, r), flush=True)
+    if rollouts:
+        print(ROLLOUT_HEADER)
+    for team in rollouts:
+        name = f"{team}, symmetric_office, 2 robots, merger {merger}"
+        r = measure_rollout(args.steps, args.seed, team, **{**DEFAULT_WORLD, "merger": merger})
+        results[f"rollout, {name}"] = r
+        print(rollout_row(name, r), flush=True)
     if args.breakdown:
         r = measure(args.steps, args.seed, breakdown=True, **{**DEFAULT_WORLD, "merger": merger})
         ms = r["ms_per_step"]

@@ -34,6 +34,7 @@ from mrexplore.cli import main
         (["env", "--batched", "x"], "--batched must be integers >= 1"),
         (["env", "--batched", "2", "--batched-steps", "0"], "--batched-steps must be at least 1"),
         (["env", "--batched-only"], "--batched-only needs --batched"),
+        (["env", "--rollout", "bogus"], "--rollout must name team policies"),
     ],
 )
 def test_bench_bad_options_exit_2(args: list[str], words: str, capsys) -> None:  # type: ignore[no-untyped-def]
@@ -80,6 +81,23 @@ def test_env_breakdown_times_every_stage() -> None:
     assert all(r["ms_per_step"][k] > 0 for k in STAGES)
     # wall time holds the stepping thread's CPU time (and any wait for the merge worker)
     assert r["wall_s"] >= 0.9 * r["cpu_s"] > 0 and r["steps_per_wall_s"] == 5 / r["wall_s"]
+
+
+def test_env_rollout_row_splits_the_step_between_policy_and_env(capsys) -> None:  # type: ignore[no-untyped-def]
+    """``--rollout``: one row per team, the policy's and the env's parts of the stepping thread
+    (not timed: a tiny run)."""
+    from mrexplore.experiments.env_bench import measure_rollout
+
+    r = measure_rollout(4, 0, "coordinated-frontier", warmup=1, world="small_office")
+    assert r["steps"] == 4 and r["policy_ms"] > 0 and r["env_ms"] > 0
+    assert r["thread_ms"] == pytest.approx(r["policy_ms"] + r["env_ms"])
+    assert r["max_over_p50"] >= 1.0
+    args = ["bench", "env", "--rollout", "coordinated-frontier", "--batched-only", "--steps", "2"]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "policy/proc" in out and "max/p50" in out
+    assert "coordinated-frontier, symmetric_office, 2 robots, merger semantic" in out
+    assert "symmetric_office, 1 robot " not in out  # --batched-only
 
 
 def test_env_batched_rows_run_on_a_tiny_setting(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]

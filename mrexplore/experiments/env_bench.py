@@ -245,8 +245,9 @@ def measure_rollout(
     Returns a dict: ``steps``, ``episodes``, per step in ms ``process_ms`` (process CPU: the
     merge worker and OpenCV's threads too), ``thread_ms`` (stepping thread: decisions + step),
     ``policy_ms`` and ``env_ms`` (stepping thread), ``policy_share`` (policy / process CPU),
-    ``p50_ms`` / ``p99_ms`` / ``max_ms`` of one step's stepping-thread CPU (decisions + step) and
-    ``max_over_p50``, the slowest step over the median.
+    ``p50_ms`` / ``p99_ms`` / ``max_ms`` of one step's stepping-thread CPU (decisions + step),
+    ``max_over_p50``, the slowest step over the median, and that step's ``max_policy_ms`` and
+    ``max_env_ms``.
     """
     from mrexplore.policies import make_team_policy
 
@@ -291,11 +292,14 @@ def measure_rollout(
         "p99_ms": 1000.0 * float(np.percentile(lat, 99)),
         "max_ms": 1000.0 * float(lat.max()),
         "max_over_p50": float(lat.max()) / p50,
+        # the slowest step's parts: decisions and env step
+        "max_policy_ms": 1000.0 * float(decide[int(np.argmax(lat))]),
+        "max_env_ms": 1000.0 * float(step[int(np.argmax(lat))]),
     }
 
 
 ROLLOUT_HEADER = (
-    f"{'realistic rollout (ms of CPU per step)':<52} {'process':>8} {'thread':>7} "
+    f"{'realistic rollout (ms of CPU per step)':<66} {'process':>8} {'thread':>7} "
     f"{'policy':>7} {'env':>6} {'policy/proc':>11} {'p50':>6} {'p99':>6} {'max':>6} {'max/p50':>7}"
 )
 
@@ -303,7 +307,7 @@ ROLLOUT_HEADER = (
 def rollout_row(label: str, r: dict[str, Any]) -> str:
     """One printed line of a result of :func:`measure_rollout`."""
     return (
-        f"{label:<52} {r['process_ms']:>8.3f} {r['thread_ms']:>7.3f} {r['policy_ms']:>7.3f} "
+        f"{label:<66} {r['process_ms']:>8.3f} {r['thread_ms']:>7.3f} {r['policy_ms']:>7.3f} "
         f"{r['env_ms']:>6.3f} {100 * r['policy_share']:>10.1f}% {r['p50_ms']:>6.2f} "
         f"{r['p99_ms']:>6.2f} {r['max_ms']:>6.2f} {r['max_over_p50']:>6.2f}x"
     )

@@ -193,6 +193,19 @@ other_steps() {
     --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_office_row_test2" --force
   mrexplore bench loop --family office_row --part test2 --worlds 20 --seeds 5 --variants semantic \
     --merge-options OUTRANKED_DROP=false --jobs 2 --out "$out/loop_office_row_test2_before" --force
+  # the third test part (world seeds 300000..; opened for a sighting binding its pair, chosen
+  # after the second was read): the merger, sightings, the room oracle and never merging; and
+  # sightings without the binding, on the same episodes
+  mrexplore bench loop --family paper_like --part test3 --worlds 20 --seeds 5 \
+    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_paper_like_test3" --force
+  mrexplore bench loop --family paper_like --part test3 --worlds 20 --seeds 5 --variants sighting \
+    --merge-options SIGHTING_BINDS=false --jobs 2 --out "$out/loop_paper_like_test3_sighting_before" \
+    --force
+  mrexplore bench loop --family office_row --part test3 --worlds 20 --seeds 5 \
+    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_office_row_test3" --force
+  mrexplore bench loop --family office_row --part test3 --worlds 20 --seeds 5 --variants sighting \
+    --merge-options SIGHTING_BINDS=false --jobs 2 --out "$out/loop_office_row_test3_sighting_before" \
+    --force
   # the four fixed worlds with the place test, beside the room oracle
   mrexplore bench loop --seeds 20 --variants semantic oracle_room --jobs 2 \
     --out "$out/loop_fixed_worlds" --force

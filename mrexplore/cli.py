@@ -71,15 +71,15 @@ def _bench(argv: Sequence[str]) -> int:
 
         return int(merge_main(rest))
     if what == "loop":
-        from mrexplore.experiments.loop_study import main as loop_main
+        from mrexplore.studies.loop_study import main as loop_main
 
         return int(loop_main(rest))
     if what == "env":
-        from mrexplore.experiments.env_bench import main as env_main
+        from mrexplore.studies.env_bench import main as env_main
 
         return int(env_main(rest))
     if what == "sensor":
-        from mrexplore.experiments.sensor_bench import main as sensor_main
+        from mrexplore.studies.sensor_bench import main as sensor_main
 
         return int(sensor_main(rest))
     if what == "policies":

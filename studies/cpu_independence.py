@@ -3,7 +3,7 @@ wide SIMD paths of OpenCV, numpy and OpenBLAS switched off.
 
     python studies/cpu_independence.py [--worlds depot tb3_office] [--seeds 20] [--first-seed 1000]
 
-Runs the loop study's semantic episodes (:func:`mrexplore.experiments.loop_study.run_loop_episode`,
+Runs the loop study's semantic episodes (:func:`mrexplore.studies.loop_study.run_loop_episode`,
 two robots, random headings, noise on) and keeps every merge attempt's two maps; then replays
 all of them in two child processes, one as the machine is and one with SSE-level code
 (:data:`NARROW_CPU`), and prints per world how many attempts answered differently: in outcome
@@ -51,8 +51,8 @@ print(json.dumps(out))
 
 def capture(worlds: list[str], seeds: list[int]) -> list[tuple[str, Any, Any, dict[str, Any]]]:
     """Every merge attempt ``(world, a, b, options)`` of the episodes, in order."""
-    from mrexplore.experiments.loop_study import run_loop_episode
     from mrexplore.merge import tracker
+    from mrexplore.studies.loop_study import run_loop_episode
 
     attempts: list[tuple[str, Any, Any, dict[str, Any]]] = []
     merge = tracker.NamedMerger.__call__
@@ -95,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--first-seed", type=int, default=1000)
     args = p.parse_args(argv)
     from mrexplore.errors import MrexploreError
-    from mrexplore.experiments.loop_study import validate
+    from mrexplore.studies.loop_study import validate
 
     try:  # every option checked before any work, with the loop study's own rules
         validate(list(args.worlds), args.seeds, args.first_seed, ["semantic"], 600.0, 1)

@@ -39,11 +39,11 @@ import numpy as np
 
 from mrexplore.errors import ConfigError
 from mrexplore.experiments.episode import run_episode
-from mrexplore.experiments.loop_study import POLICY, episode_options, validate
 from mrexplore.experiments.task_time import make_team
 from mrexplore.grid import UNKNOWN, Transform, known_bbox, map_points
 from mrexplore.merge.common import warp_into
 from mrexplore.merge.tracker import AttemptRecord, MapMergeTracker
+from mrexplore.studies.loop_study import POLICY, episode_options, validate
 from mrexplore.studies.merge_bench import parse_options
 
 #: Tracker options ``--replay`` can change (the confirmation rule), with their checks.

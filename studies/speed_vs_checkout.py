@@ -2,7 +2,7 @@
 
     python studies/speed_vs_checkout.py --base /path/to/older/checkout [--rounds 3] [--steps 1500]
 
-Each round runs the same harness (:func:`mrexplore.experiments.env_bench.measure` of *this*
+Each round runs the same harness (:func:`mrexplore.studies.env_bench.measure` of *this*
 checkout, which uses only the public env API) on every setting, once on the other tree and once
 on this one, in fresh processes whose ``import mrexplore`` resolves to that tree, alternating
 setting by setting so that a change of the machine's load hits both sides alike. Run each tree
@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 HERE = Path(__file__).resolve().parent.parent
-HARNESS = HERE / "mrexplore" / "experiments" / "env_bench.py"
+HARNESS = HERE / "mrexplore" / "studies" / "env_bench.py"
 
 # Run in the child: load the harness by path, with the chosen tree first on sys.path.
 CHILD = """
@@ -71,7 +71,7 @@ def _print_rollouts(
     runs: dict[str, list[dict[str, Any]]], label: str, rounds: int, base: Path, this: Path
 ) -> int:
     """Every round's rollout rows of both trees, then the medians and this / base."""
-    from mrexplore.experiments.env_bench import ROLLOUT_HEADER, rollout_row
+    from mrexplore.studies.env_bench import ROLLOUT_HEADER, rollout_row
 
     print(f"{rounds} alternating rounds, base then this\nbase: {base}\nthis: {this}")
     print(ROLLOUT_HEADER)
@@ -115,7 +115,7 @@ def main() -> int:
     )
     args = p.parse_args()
     sys.path.insert(0, str(HERE))
-    from mrexplore.experiments.env_bench import DEFAULT_WORLD, settings
+    from mrexplore.studies.env_bench import DEFAULT_WORLD, settings
 
     merger = None if args.merger.lower() == "none" else args.merger
     table = settings([int(v) for v in args.robots.split(",")], merger)

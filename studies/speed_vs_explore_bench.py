@@ -260,7 +260,7 @@ def make_ours(merger: str | None, seed: int, steps: int) -> Side:
     if str(HERE) not in sys.path:
         sys.path.insert(0, str(HERE))
     import mrexplore
-    from mrexplore.experiments.env_bench import EXPLORE_BENCH_WORLD
+    from mrexplore.studies.env_bench import EXPLORE_BENCH_WORLD
 
     penv = mrexplore.parallel_env(**EXPLORE_BENCH_WORLD, n_robots=N_ROBOTS, merger=merger)
     rng = np.random.default_rng(seed)

@@ -6,7 +6,7 @@ a reference held to a room's worth of evidence, as an honest merger in a world w
 must be); :class:`SeededMerger` runs the semantic merger with the true pose among its hypotheses.
 Both go through the env's :class:`~mrexplore.merge.MapMergeTracker` like a real merger (the same
 confirmations, re-checks and drops), which calls their ``merge_pair`` with the robots' ids and
-crop offsets. The loop study (:mod:`mrexplore.experiments.loop_study`) compares the default
+crop offsets. The loop study (:mod:`mrexplore.studies.loop_study`) compares the default
 merger with them: what a perfect merger would gain, and what the search misses.
 """
 

@@ -59,7 +59,7 @@ print(json.dumps({k: None if r.transform is None else np.round(r.transform, 6).t
 #: (``studies/cpu_independence.py``).
 _LOOP = r"""
 import hashlib, json, sys
-from mrexplore.experiments.loop_study import run_loop_episode
+from mrexplore.studies.loop_study import run_loop_episode
 from mrexplore.merge import tracker
 
 answers = []

@@ -7,9 +7,9 @@ import pytest
 
 import mrexplore
 from mrexplore.errors import ConfigError
-from mrexplore.experiments.loop_study import VARIANTS
 from mrexplore.experiments.task_time import make_team
 from mrexplore.merge.common import translation
+from mrexplore.studies.loop_study import VARIANTS
 from mrexplore.studies.oracle import OracleMerger, SeededMerger
 
 

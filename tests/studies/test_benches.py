@@ -74,7 +74,7 @@ def test_merge_sizes_prints_time_and_outcomes_per_size(capsys) -> None:  # type:
 
 
 def test_env_breakdown_times_every_stage() -> None:
-    from mrexplore.experiments.env_bench import STAGES, measure
+    from mrexplore.studies.env_bench import STAGES, measure
 
     r = measure(5, 0, warmup=1, breakdown=True, world="small_office", merger=None)
     assert set(r["ms_per_step"]) == {*STAGES, "other"}
@@ -86,7 +86,7 @@ def test_env_breakdown_times_every_stage() -> None:
 def test_env_rollout_row_splits_the_step_between_policy_and_env(capsys) -> None:  # type: ignore[no-untyped-def]
     """``--rollout``: one row per team, the policy's and the env's parts of the stepping thread
     (not timed: a tiny run)."""
-    from mrexplore.experiments.env_bench import measure_rollout
+    from mrexplore.studies.env_bench import measure_rollout
 
     r = measure_rollout(4, 0, "coordinated-frontier", warmup=1, world="small_office")
     assert r["steps"] == 4 and r["policy_ms"] > 0 and r["env_ms"] > 0

@@ -35,7 +35,7 @@ the target was reached, whether a transform >= 5 cells off the truth was held at
 seconds it was held (``merged_wrongly_s``) and the largest share of contradicting claims in a
 robot's own-or-fused map (``fused_contradiction``): see
 :mod:`mrexplore.environment.parallel_env`. Prints a table per world
-(:mod:`~mrexplore.experiments.loop_report`) and writes ``<out>.json`` and ``<out>.md``.
+(:mod:`~mrexplore.studies.loop_report`) and writes ``<out>.json`` and ``<out>.md``.
 ``--jobs N`` runs episodes in N processes; every episode depends only on its world, variant
 and seed, so the results equal a serial run.
 
@@ -49,7 +49,7 @@ family's part (:mod:`mrexplore.world.family`: floors with 2 or more identical ro
 a tuning and a test part by world seed), by default with the variants :data:`FAMILY_VARIANTS`
 (the merger beside the oracle, the room oracle and never merging); the report adds the
 aggregate over all the part's worlds (wrong-merge episodes with the upper 95 % bound of their
-rate, merges, task times; :func:`~mrexplore.experiments.loop_report.aggregate`). Each world
+rate, merges, task times; :func:`~mrexplore.studies.loop_report.aggregate`). Each world
 travels to the worker processes as its spec string (``family:paper_like/tune/3``) and is
 rebuilt there from its world seed. Tune rules on the ``tune`` part only.
 
@@ -70,7 +70,8 @@ from pathlib import Path
 from typing import Any
 
 from mrexplore.errors import ConfigError, MrexploreError
-from mrexplore.experiments.loop_report import (
+from mrexplore.experiments.task_time import NAV_WARMUP_S
+from mrexplore.studies.loop_report import (
     MERGER_VARIANTS,
     against,
     aggregate,
@@ -78,7 +79,6 @@ from mrexplore.experiments.loop_report import (
     load_study,
     summarize,
 )
-from mrexplore.experiments.task_time import NAV_WARMUP_S
 from mrexplore.studies.merge_bench import parse_options
 from mrexplore.studies.oracle import OracleMerger, SeededMerger
 

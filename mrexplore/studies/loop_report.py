@@ -4,7 +4,7 @@
 holds; :func:`against` compares a run with another study's episodes of the same seeds;
 :func:`format_tables` prints them (text, or markdown for ``<out>.md``); :func:`load_study`
 reads a study's JSON with a clear error. Running the study is
-:mod:`mrexplore.experiments.loop_study`'s job.
+:mod:`mrexplore.studies.loop_study`'s job.
 """
 
 from __future__ import annotations

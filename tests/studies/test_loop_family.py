@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from mrexplore.errors import ConfigError
-from mrexplore.experiments.loop_report import aggregate, binomial_upper_bound
-from mrexplore.experiments.loop_study import (
+from mrexplore.studies.loop_report import aggregate, binomial_upper_bound
+from mrexplore.studies.loop_study import (
     FAMILY_VARIANTS,
     _worlds_and_variants,
     family_worlds,

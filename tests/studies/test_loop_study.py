@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 
 import mrexplore
-from mrexplore.experiments.loop_study import (
+from mrexplore.studies.loop_study import (
     main,
     run_loop_episode,
     run_study,
@@ -52,7 +52,7 @@ def test_bad_options_fail_before_any_work(
 def test_env_options_reach_every_variant(tmp_path: Path) -> None:
     """``--env-options`` go to every variant's env (here the mapper's hit weight, which the
     episode's maps then carry); recorded in the JSON and printed."""
-    from mrexplore.experiments.loop_study import episode_options
+    from mrexplore.studies.loop_study import episode_options
 
     for v in ("semantic", "oracle", "none", "single"):
         assert episode_options("depot", v, 60.0, env_options={"map_l_occ": 2.6})["map_l_occ"] == 2.6
@@ -74,7 +74,7 @@ def test_merge_options_reach_the_semantic_variants_only(tmp_path: Path) -> None:
     """``--merge-options`` go to the env's ``merge_options`` of the variants that merge with the
     named semantic merger; the oracle, the seeded diagnostic and the baselines keep theirs. The
     options are recorded and printed."""
-    from mrexplore.experiments.loop_study import episode_options
+    from mrexplore.studies.loop_study import episode_options
 
     mo = {"min_common_m2": 10.0, "confirmations": 3}
     for v in ("semantic", "sighting", "verify"):
@@ -94,7 +94,8 @@ def test_the_verify_variant_is_the_semantic_team_that_checks_candidates(
 ) -> None:
     """``verify``: the env of the ``semantic`` variant, with the team policy
     :data:`VERIFY_POLICY` (``coordinated-frontier-verify``) instead of the study's."""
-    from mrexplore.experiments import loop_study, task_time
+    from mrexplore.experiments import task_time
+    from mrexplore.studies import loop_study
 
     assert loop_study.episode_options("depot", "verify", 60.0) == loop_study.episode_options(
         "depot", "semantic", 60.0
@@ -118,7 +119,7 @@ def test_the_room_oracle_is_the_oracle_held_to_the_mergers_floor(
 ) -> None:
     """``oracle_room``: the env of the ``oracle`` variant, its oracle waiting for
     :data:`ROOM_EVIDENCE_M2` (a room's worth) of known space under the truth."""
-    from mrexplore.experiments import loop_study
+    from mrexplore.studies import loop_study
     from mrexplore.studies.oracle import OracleMerger
 
     assert loop_study.ROOM_EVIDENCE_M2 == 20.0
@@ -228,7 +229,7 @@ def test_reuse_takes_the_episodes_a_study_of_the_same_settings_holds(
     and the document equals a fresh run's but for the count it records; a study made with other
     settings or by other code, one that holds none of the run's episodes, and a file given twice
     are refused before any work, naming why."""
-    from mrexplore.experiments import loop_study
+    from mrexplore.studies import loop_study
 
     base = ["--worlds", "small_office", "--seeds", "2", "--max-time-s", "3"]
     first, fresh, second = tmp_path / "first", tmp_path / "fresh", tmp_path / "second"
@@ -274,7 +275,7 @@ def test_rule_constants_in_the_merge_options_are_set_for_each_episode_only(
 ) -> None:
     """Upper-case ``--merge-options`` are the rules' constants: set while an episode runs (in
     its process), restored after it, and not handed to the env as options."""
-    import mrexplore.experiments.loop_study as study
+    import mrexplore.studies.loop_study as study
     from mrexplore.merge import tracker
 
     seen: list[tuple[bool, object]] = []

@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from mrexplore.experiments.loop_report import format_tables, summarize
+from mrexplore.studies.loop_report import format_tables, summarize
 
 #: The env options a study document records (what ``format_tables`` prints in its heading).
 _ENV_OPTIONS = {

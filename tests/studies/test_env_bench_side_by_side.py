@@ -42,7 +42,7 @@ def test_side_by_side_prints_single_and_batched_rows_with_the_cores(
     ],
 )
 def test_side_by_side_bad_options_name_themselves(extra: list[str], names: str) -> None:
-    from mrexplore.experiments.env_bench import main as env_main
+    from mrexplore.studies.env_bench import main as env_main
 
     with pytest.raises(ConfigError, match=names):
         env_main(["--batched-only", *extra])

@@ -40,7 +40,13 @@ def _task_time(args: argparse.Namespace) -> int:
         out=args.out,
         first_seed=args.first_seed,
         tasks=args.tasks,
-        env_options={"max_time_s": args.max_time_s, "nav_goal": args.nav_goal},
+        env_options={
+            "max_time_s": args.max_time_s,
+            "nav_goal": args.nav_goal,
+            **(
+                {} if args.sighting_range_m is None else {"sighting_range_m": args.sighting_range_m}
+            ),
+        },
         nav_warmup_s=args.nav_warmup_s,
         force=args.force,
         workers=args.workers,
@@ -189,6 +195,15 @@ def build_parser() -> argparse.ArgumentParser:
         "--tasks", nargs="+", default=["explore", "navigate"], choices=["explore", "navigate"]
     )
     t.add_argument("--max-time-s", type=float, default=600.0, help="truncation, simulated s")
+    t.add_argument(
+        "--sighting-range-m",
+        type=float,
+        default=None,
+        help="robots that see each other within this many metres (no wall between) measure "
+        "their relative pose, which guides and binds the merger (a rendezvous); 4.0 is "
+        "recommended on floors with repeated rooms, where the maps alone merge look-alike "
+        "rooms (default: off)",
+    )
     t.add_argument(
         "--nav-warmup-s",
         type=float,

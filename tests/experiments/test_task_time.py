@@ -73,6 +73,7 @@ def _no_episodes(*args: object, **kwargs: object) -> None:
         (["--policy", "nope"], "unknown policy 'nope'"),
         (["--world", "no_such_world"], "no_such_world"),
         (["--workers", "0"], "workers must be an integer >= 1"),
+        (["--sighting-range-m", "-1"], "sighting_range_m must be"),
         (["--address", " "], "address must be a Ray address"),
     ],
 )
@@ -381,3 +382,24 @@ def test_task_time_refuses_the_options_it_sets_itself(tmp_path: Path, monkeypatc
             env_options={"coverage_mode": "observed"},
             progress=False,
         )
+
+
+def test_task_time_sighting_range_reaches_every_episode(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``--sighting-range-m`` turns sightings on in every episode's env (off without it)."""
+    seen: list[object] = []
+
+    class _Stop(Exception):
+        pass
+
+    def capture(env_options: dict[str, object], *args: object, **kwargs: object) -> None:
+        seen.append(env_options.get("sighting_range_m"))
+        raise _Stop
+
+    monkeypatch.setattr(task_time, "run_episode", capture)
+    for extra, want in (["--sighting-range-m", "4"], 4.0), ([], None):
+        with pytest.raises(_Stop):
+            main(["task-time", "--world", "small_office", "--seeds", "1", "--out",
+                  str(tmp_path / str(want)), *extra])  # fmt: skip
+        assert seen[-1] == want

@@ -260,14 +260,20 @@ class DropRecord:
     Attributes:
         i, j: the pair.
         contradicted_step: the first re-check that found the kept transform's noise-aware
-            agreement under ``drop_below`` (kept then as drift, refitted or relocated).
-        dropped_step: the re-check that dropped it.
+            agreement under ``drop_below`` (kept then as drift, refitted or relocated), or the
+            drop's own step when none did.
+        dropped_step: the step that dropped it.
+        cause: ``"contradicted"`` (the grown maps contradict it: un-merged), ``"outranked"``
+            (the maps single out another place the merger refused: un-merged), ``"moved"``
+            (... and accepted: the pair moved there) or ``"sighting"`` (the robots were seen
+            elsewhere: un-merged).
     """
 
     i: int
     j: int
     contradicted_step: int
     dropped_step: int
+    cause: str = "contradicted"
 
 
 @dataclass
@@ -616,7 +622,7 @@ class MapMergeTracker:
             return
         # The robots saw each other where the kept pose does not put them: a look-alike place.
         first = self._contradicted.pop((i, j), step)
-        self.drops.append(DropRecord(i, j, first, step))
+        self.drops.append(DropRecord(i, j, first, step, "sighting"))
         self._unmerge(i, j)
         self._pending.pop((i, j), None)
         self._last_attempt_known.pop((i, j), None)
@@ -1007,11 +1013,12 @@ class MapMergeTracker:
             # that place at once when the merger accepted it on these maps (not a place where
             # the robots were not seen: a sighting outranks the maps).
             first = self._contradicted.pop((i, j), step)
-            self.drops.append(DropRecord(i, j, first, step))
             moved = out.T is not None and not self._same(T_old, out.T, bbox_j, _same_place_cells())
             if moved and out.result is not None and out.T is not None:
+                self.drops.append(DropRecord(i, j, first, step, "moved"))
                 self._replace_edge(i, j, out.T, out.result.score)
                 return
+            self.drops.append(DropRecord(i, j, first, step, "outranked"))
             self._unmerge(i, j)
             return
         if out.held_now < self.options.drop_below:

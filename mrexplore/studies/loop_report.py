@@ -201,6 +201,9 @@ def aggregate(episodes: Sequence[Mapping[str, Any]], variants: Sequence[str]) ->
         firsts = [float(e["first_merge_time_s"]) for e in eps if e["merged"]]
         # how long a dropped merge stood contradicted (records without drops: none counted)
         recovery = [d[1] - d[0] for e in eps for d in e.get("drops_s", ())]
+        causes: dict[str, int] = {}
+        for c in (c for e in eps for c in e.get("drop_causes", ())):
+            causes[c] = causes.get(c, 0) + 1
         out["variants"][v] = {
             "episodes": len(eps),
             "merged": sum(bool(e["merged"]) for e in eps),
@@ -210,6 +213,7 @@ def aggregate(episodes: Sequence[Mapping[str, Any]], variants: Sequence[str]) ->
             "wrong_merge_upper95": binomial_upper_bound(wrong, len(eps)),
             "merged_wrongly_s": float(sum(float(e["merged_wrongly_s"]) for e in eps)),
             "drops": len(recovery),
+            "drop_causes": dict(sorted(causes.items())),
             "contradiction_to_drop_max_s": max(recovery) if recovery else None,
             "task_time_mean_s": float(statistics.fmean(times)) if times else None,
         }
@@ -281,7 +285,7 @@ def _aggregate_lines(doc: Mapping[str, Any], markdown: bool) -> list[str]:
                 str(s["wrong_merge_episodes"]) if merging else "-",
                 "-" if up is None or not merging else f"{up:.1%}",
                 f"{s.get('merged_wrongly_s', 0.0):.1f}" if merging else "-",
-                str(s.get("drops", 0)) if merging else "-",
+                _drops_text(s) if merging else "-",
                 "-" if held is None else f"{held:.1f}",
                 "-" if mean is None else f"{mean:.1f} s",
             )
@@ -302,10 +306,21 @@ def _aggregate_lines(doc: Mapping[str, Any], markdown: bool) -> list[str]:
     lines.append(
         "wrong rate <=: the one-sided upper 95 % bound (exact binomial, Clopper-Pearson) of the "
         "share of episodes that ever held a wrong merge; wrong s: seconds merged wrongly, "
-        "summed; dropped: merges a re-check dropped for the grown maps' contradiction; "
-        "contradicted s: the longest a dropped merge stood contradicted before the drop."
+        "summed; dropped: merges the tracker let go, in brackets those not for the grown maps' "
+        "contradiction (outranked: the maps single out another place, un-merged; moved: ... "
+        "and the pair moved there; sighting: the robots were seen elsewhere); contradicted s: "
+        "the longest a dropped merge stood contradicted before the drop."
     )
     return lines
+
+
+def _drops_text(s: Mapping[str, Any]) -> str:
+    """The dropped column: the count, then the causes other than contradiction (when the
+    records name them)."""
+    other = {c: n for c, n in s.get("drop_causes", {}).items() if c != "contradicted"}
+    if not other:
+        return str(s.get("drops", 0))
+    return f"{s.get('drops', 0)} ({', '.join(f'{n} {c}' for c, n in other.items())})"
 
 
 def _table(cols: Sequence[str], body: Sequence[Sequence[str]], markdown: bool) -> list[str]:

@@ -296,9 +296,10 @@ def _run_loop_episode(
         "merged_wrongly_s": r.merged_wrongly_s,
         "max_fused_contradiction": s["max_fused_contradiction"],
         "merges_lost": r.merges_lost,
-        # every merge the grown maps contradicted and the tracker dropped: [first
-        # contradiction, drop] (simulated s)
+        # every merge the tracker let go: [first contradiction, drop] (simulated s), and why
+        # (DropRecord.cause: contradicted, outranked, moved, sighting)
         "drops_s": drops,
+        "drop_causes": [] if tracker is None else [d.cause for d in tracker.drops],
     }
 
 

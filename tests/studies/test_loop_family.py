@@ -140,3 +140,22 @@ def test_family_workers_rebuild_worlds_and_equal_serial() -> None:
     pooled = run_study(worlds, jobs=2, family=("office_row", "test"), **kw)  # type: ignore[arg-type]
     assert serial["episodes"] == pooled["episodes"]
     assert serial["family"]["world_seeds"] == [100_000, 100_001]
+
+
+def test_the_dropped_column_names_the_causes_other_than_contradiction() -> None:
+    """A record's ``drop_causes`` are counted per variant; the report's dropped column lists
+    the drops not made for the maps' contradiction (older records, without causes: the count)."""
+    from mrexplore.studies.loop_report import _drops_text
+
+    base = {"world": "a", "variant": "sighting", "merged": True, "first_merge_time_s": 5.0}
+    base |= {"wrong_merge": False, "task_time_s": 50.0, "reached": True, "merged_wrongly_s": 0.0}
+    two = {"drops_s": [[1.0, 2.0], [3.0, 3.0]], "drop_causes": ["contradicted", "sighting"]}
+    eps = [
+        {**base, "seed": 1, **two},
+        {**base, "seed": 2, "drops_s": [[4.0, 4.0]], "drop_causes": ["moved"]},
+        {**base, "seed": 3, "drops_s": [[5.0, 6.0]]},
+    ]
+    s = aggregate(eps, ["sighting"])["variants"]["sighting"]
+    assert s["drops"] == 4 and s["drop_causes"] == {"contradicted": 1, "moved": 1, "sighting": 1}
+    assert _drops_text(s) == "4 (1 moved, 1 sighting)"
+    assert _drops_text({"drops": 2, "drop_causes": {}}) == "2"

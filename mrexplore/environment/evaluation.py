@@ -44,6 +44,19 @@ ERROR_REFRESH_STEPS = 10
 MergeError = dict[str, float]
 
 
+def _load_error_kernel() -> None:
+    """Load the compiled merge-error sampler now, with the argument types of its use (a
+    read-only map): its first load from numba's cache (~8 ms) otherwise fell in the step
+    that applies the first merge, the slowest step of a merged team."""
+    if not kernels.enabled():
+        return
+    assert _scoring is not None
+    grid = np.zeros((2, 2), dtype=np.int8)
+    grid.flags.writeable = False
+    eye = np.eye(3)
+    _scoring.sampled_displacements(grid, 0, 2, 0, 2, 4, eye, eye, 0.0, 0.0)
+
+
 def is_wrong_merge(err: Mapping[str, float]) -> bool:
     """A merge error (``translation_cells``, ``rotation_deg``, ``drift_cells``) that drift
     cannot explain: the mean displacement exceeds ``WRONG_MERGE_CELLS`` plus the odometry-drift
@@ -76,6 +89,7 @@ class TruthMonitor:
         self.fusion = fusion
         self.held = held
         self.scorer = MapScorer(sim.world.walls, sim.reachable)
+        _load_error_kernel()
         #: seconds each robot has held a wrong transform
         self.wrong_s = np.zeros(len(self.agents), dtype=np.float64)
         # per robot: (fused-map version, contradiction share, held free cells or None)

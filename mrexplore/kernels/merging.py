@@ -18,7 +18,18 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["count_both_ways", "count_shifted", "pool_blocks", "ratio_scores", "wall_icp"]
+__all__ = [
+    "count_both_ways",
+    "count_shifted",
+    "grow_labels",
+    "level_add",
+    "level_batches",
+    "level_find",
+    "level_stamp",
+    "pool_blocks",
+    "ratio_scores",
+    "wall_icp",
+]
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -284,3 +295,203 @@ def ratio_scores(agree: NDArray[np.float64], dis: NDArray[np.float64]) -> NDArra
             v = ag * (q * q)
             out[i, j] = np.float32(np.rint(v * 1e6) / 1e6)
     return out
+
+
+# --- the places' level sweep (mrexplore.merge.places.segment_places) as one union-find: the
+# components of {clearance >= level} for a falling ladder of levels are nested, so each level
+# only adds its new cells to the sets of the one above, instead of labelling the whole map
+# again (one connectedComponentsWithStats per level). A set's root is its first cell in raster
+# order; OpenCV numbers 8-connected components in the order of their first 2 x 2 block (its
+# block-based scan; every foreground cell of a block is one component), kept per root.
+
+
+@numba.njit(cache=True, nogil=True)
+def level_batches(
+    clearance: NDArray[np.float32], levels: NDArray[np.float32]
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int32]]:
+    """The cells of ``clearance`` (H, W) grouped by the first of the falling ``levels`` (L,)
+    they reach (``clearance >= level`` in float32, as numpy compares a float32 map with a
+    Python float): ``(order, starts, first)``, the raster indices of level ``l``'s new cells
+    ``order[starts[l]:starts[l + 1]]`` and each cell's first level (L: none)."""
+    h, w = clearance.shape
+    n_levels = levels.shape[0]
+    first = np.full(h * w, n_levels, dtype=np.int32)
+    counts = np.zeros(n_levels + 1, dtype=np.int64)
+    for r in range(h):
+        for c in range(w):
+            v = clearance[r, c]
+            for li in range(n_levels):
+                if v >= levels[li]:
+                    first[r * w + c] = li
+                    counts[li + 1] += 1
+                    break
+    starts = np.cumsum(counts)
+    order = np.empty(starts[n_levels], dtype=np.int64)
+    fill = starts[:n_levels].copy()
+    for x in range(h * w):
+        li = first[x]
+        if li < n_levels:
+            order[fill[li]] = x
+            fill[li] += 1
+    return order, starts, first
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _root(parent: NDArray[np.int64], x: int) -> int:
+    while parent[x] != x:
+        parent[x] = parent[parent[x]]  # path halving
+        x = parent[x]
+    return x
+
+
+@numba.njit(cache=True, nogil=True)
+def level_add(
+    li: int,
+    order: NDArray[np.int64],
+    starts: NDArray[np.int64],
+    first: NDArray[np.int32],
+    w: int,
+    parent: NDArray[np.int64],
+    block: NDArray[np.int64],
+    roots: NDArray[np.int64],
+    n_roots: int,
+) -> tuple[int, NDArray[np.int64]]:
+    """Add level ``li``'s cells to the union-find ``parent`` (H * W; a set's root is its
+    smallest raster index, ``block[root]`` its first 2 x 2 block), joining 8-neighbours already
+    in; ``roots[:n_roots]``: the roots before. Returns the new root count (``roots`` updated)
+    and the roots in the order OpenCV numbers their components."""
+    h = first.shape[0] // w
+    half_w = (w + 1) // 2
+    for t in range(starts[li], starts[li + 1]):
+        x = order[t]
+        parent[x] = x
+        r = x // w
+        block[x] = (r // 2) * half_w + (x - r * w) // 2
+        roots[n_roots] = x
+        n_roots += 1
+    for t in range(starts[li], starts[li + 1]):
+        x = order[t]
+        r = x // w
+        c = x - r * w
+        for dr in range(-1, 2):
+            rr = r + dr
+            if rr < 0 or rr >= h:
+                continue
+            for dc in range(-1, 2):
+                cc = c + dc
+                if cc < 0 or cc >= w or (dr == 0 and dc == 0):
+                    continue
+                y = rr * w + cc
+                if first[y] > li:
+                    continue
+                a = _root(parent, x)
+                b = _root(parent, y)
+                if a == b:
+                    continue
+                if b < a:
+                    a, b = b, a
+                parent[b] = a
+                block[a] = min(block[a], block[b])
+    k = 0
+    for t in range(n_roots):
+        x = roots[t]
+        if parent[x] == x:
+            roots[k] = x
+            k += 1
+    keys = np.empty(k, dtype=np.int64)
+    for t in range(k):
+        keys[t] = block[roots[t]]
+    return k, roots[:k][np.argsort(keys)]
+
+
+@numba.njit(cache=True, nogil=True)
+def level_find(parent: NDArray[np.int64], cells: NDArray[np.int64]) -> NDArray[np.int64]:
+    """The name (root) of the component of each cell (raster indices, already added)."""
+    out = np.empty(cells.shape[0], dtype=np.int64)
+    for k in range(cells.shape[0]):
+        out[k] = _root(parent, cells[k])
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def level_stamp(
+    first: NDArray[np.int32], li: int, start: int, markers: NDArray[np.int32], label: int
+) -> None:
+    """Write ``label`` into ``markers`` (H, W) where it is 0 on the component of level ``li``
+    holding the cell ``start`` (8-connected cells whose first level is <= ``li``)."""
+    h, w = markers.shape
+    seen = np.zeros(h * w, dtype=np.bool_)
+    stack = np.empty(h * w, dtype=np.int64)
+    stack[0] = start
+    seen[start] = True
+    top = 1
+    while top > 0:
+        top -= 1
+        x = stack[top]
+        r = x // w
+        c = x - r * w
+        if markers[r, c] == 0:
+            markers[r, c] = label
+        for dr in range(-1, 2):
+            rr = r + dr
+            if rr < 0 or rr >= h:
+                continue
+            for dc in range(-1, 2):
+                cc = c + dc
+                if cc < 0 or cc >= w:
+                    continue
+                y = rr * w + cc
+                if not seen[y] and first[y] <= li:
+                    seen[y] = True
+                    stack[top] = y
+                    top += 1
+
+
+@numba.njit(cache=True, nogil=True)
+def grow_labels(markers: NDArray[np.int32], free: NDArray[np.uint8]) -> NDArray[np.int32]:
+    """:func:`mrexplore.merge.places._grow` without a dilation of the whole map per round: the
+    same rounds (a free unlabelled cell takes the largest label of its 3 x 3 window as it was
+    before the round), but each round looks only at the cells beside those labelled in the
+    last one (a cell beside an older label was taken in an earlier round)."""
+    h, w = markers.shape
+    labels = markers.copy()
+    n = h * w
+    front = np.empty(n, dtype=np.int64)
+    nxt = np.empty(n, dtype=np.int64)
+    queued = np.zeros(n, dtype=np.bool_)
+    n_front = 0
+    for r in range(h):
+        for c in range(w):
+            if labels[r, c] > 0:
+                front[n_front] = r * w + c
+                n_front += 1
+    while n_front > 0:
+        n_next = 0
+        for t in range(n_front):
+            x = front[t]
+            r = x // w
+            c = x - r * w
+            for rr in range(max(r - 1, 0), min(r + 2, h)):
+                for cc in range(max(c - 1, 0), min(c + 2, w)):
+                    y = rr * w + cc
+                    if free[rr, cc] > 0 and labels[rr, cc] == 0 and not queued[y]:
+                        queued[y] = True
+                        nxt[n_next] = y
+                        n_next += 1
+        vals = np.empty(n_next, dtype=np.int32)
+        for t in range(n_next):  # every value from the labels before the round
+            y = nxt[t]
+            r = y // w
+            c = y - r * w
+            best = 0
+            for rr in range(max(r - 1, 0), min(r + 2, h)):
+                for cc in range(max(c - 1, 0), min(c + 2, w)):
+                    best = max(best, labels[rr, cc])
+            vals[t] = best
+        for t in range(n_next):
+            y = nxt[t]
+            r = y // w
+            labels[r, y - r * w] = vals[t]
+        front, nxt = nxt, front
+        n_front = n_next
+    return labels

@@ -26,14 +26,19 @@ before it met a place it stays apart from) then grows through the free space to 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from mrexplore import kernels
 from mrexplore.grid import FREE, FREE_THRESHOLD, Int8Grid, Transform
 from mrexplore.merge.common import MapCodes, agreeing_cells, rigid_inverse
 from mrexplore.merge.pinning import cross_support
+
+# The compiled level sweep (None without numba); used while mrexplore.kernels.enabled().
+_merging = kernels.load("merging")
 
 __all__ = [
     "PASSAGE_RATIO",
@@ -92,6 +97,94 @@ def _first_pixel(labels: NDArray[np.int32], top: int, k: int) -> tuple[int, int]
     return top, int(cols[0])
 
 
+class _Sweep:
+    """The components of ``{clearance >= level}`` down the ladder, each named by an int, listed
+    per level in OpenCV's order (the order decides the places' labels)."""
+
+    def level(self, li: int, level: float) -> list[int]:
+        raise NotImplementedError
+
+    def names_of(self, pixels: list[tuple[int, int]]) -> list[int]:
+        raise NotImplementedError
+
+    def first_pixel(self, name: int) -> tuple[int, int]:
+        raise NotImplementedError
+
+    def stamp(self, markers: NDArray[np.int32], li: int, name: int, label: int) -> None:
+        """``label`` where ``markers`` is 0 on component ``name`` of level ``li``."""
+        raise NotImplementedError
+
+
+class _LabelSweep(_Sweep):
+    """Every level labelled afresh by OpenCV (names: its labels); the numpy path."""
+
+    def __init__(self, clearance: NDArray[Any]) -> None:
+        self.clearance = clearance
+        self.comps: list[NDArray[np.int32]] = []
+        self.tops: NDArray[Any] = np.zeros(0, np.int32)
+
+    def level(self, li: int, level: float) -> list[int]:
+        mask = (self.clearance >= level).view(np.uint8)
+        n, comp, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        self.comps.append(comp.astype(np.int32, copy=False))
+        self.tops = stats[:, cv2.CC_STAT_TOP]
+        return list(range(1, n))
+
+    def names_of(self, pixels: list[tuple[int, int]]) -> list[int]:
+        comp = self.comps[-1]
+        return [int(comp[r, c]) for r, c in pixels]
+
+    def first_pixel(self, name: int) -> tuple[int, int]:
+        return _first_pixel(self.comps[-1], int(self.tops[name]), name)
+
+    def stamp(self, markers: NDArray[np.int32], li: int, name: int, label: int) -> None:
+        markers[(self.comps[li] == name) & (markers == 0)] = label
+
+
+class _UnionSweep(_Sweep):
+    """The compiled sweep: each level adds its cells to one union-find (names: the roots, first
+    cells in raster order); the same components in the same order, without labelling the map
+    per level."""
+
+    def __init__(self, clearance: NDArray[Any], levels: list[float]) -> None:
+        assert _merging is not None
+        self.k = _merging
+        # float32 levels: numpy compares a float32 map with a Python float in float32
+        self.order, self.starts, self.first = _merging.level_batches(
+            clearance, np.array(levels, dtype=np.float32)
+        )
+        self.w = clearance.shape[1]
+        self.parent = np.zeros(clearance.size, np.int64)
+        self.block = np.zeros(clearance.size, np.int64)
+        self.roots = np.zeros(clearance.size, np.int64)
+        self.n_roots = 0
+
+    def level(self, li: int, level: float) -> list[int]:
+        self.n_roots, names = self.k.level_add(
+            li,
+            self.order,
+            self.starts,
+            self.first,
+            self.w,
+            self.parent,
+            self.block,
+            self.roots,
+            self.n_roots,
+        )
+        return [int(x) for x in names]
+
+    def names_of(self, pixels: list[tuple[int, int]]) -> list[int]:
+        cells = np.array([r * self.w + c for r, c in pixels], dtype=np.int64)
+        return [int(x) for x in self.k.level_find(self.parent, cells)]
+
+    def first_pixel(self, name: int) -> tuple[int, int]:
+        r, c = divmod(name, self.w)
+        return r, c
+
+    def stamp(self, markers: NDArray[np.int32], li: int, name: int, label: int) -> None:
+        self.k.level_stamp(self.first, li, name, markers, label)
+
+
 def segment_places(grid: Int8Grid) -> Places:
     """Cut a map's known free space into places (see the module docstring).
 
@@ -121,19 +214,18 @@ def segment_places(grid: Int8Grid) -> Places:
     cores: list[tuple[int, int] | None] = []
     last: list[tuple[int, int]] = []
     owner: list[int] = []
-    comps: list[NDArray[np.int32]] = []
     previous = top / _LEVEL_FACTOR
+    compiled = _merging is not None and kernels.enabled()
+    sweep: _Sweep = _UnionSweep(clearance, levels) if compiled else _LabelSweep(clearance)
     for li, level in enumerate(levels):
-        mask = (clearance >= level).view(np.uint8)
-        n, comp, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
-        comps.append(comp.astype(np.int32, copy=False))
+        names = sweep.level(li, level)  # the components' names in OpenCV's (raster) order
         groups: dict[int, list[int]] = {}
-        for p, (r, c) in enumerate(seeds):
-            if owner[p] == p:
-                groups.setdefault(int(comp[r, c]), []).append(p)
-        for k in range(1, n):
+        alive = [p for p in range(len(seeds)) if owner[p] == p]
+        for p, name in zip(alive, sweep.names_of([seeds[p] for p in alive]), strict=True):
+            groups.setdefault(name, []).append(p)
+        for k in names:
             if k not in groups:  # born between the previous level and this one
-                seeds.append(_first_pixel(comps[li], int(stats[k, cv2.CC_STAT_TOP]), k))
+                seeds.append(sweep.first_pixel(k))
                 peaks.append(previous)
                 cores.append(None)
                 last.append((li, k))
@@ -159,7 +251,7 @@ def segment_places(grid: Int8Grid) -> Places:
     out_peaks = np.zeros(len(kept) + 1, np.float32)
     for label, p in enumerate(kept, start=1):
         li, k = cores[p] or last[p]
-        markers[(comps[li] == k) & (markers == 0)] = label
+        sweep.stamp(markers, li, k, label)
         out_peaks[label] = peaks[p]
     return Places(_grow(markers, free), len(kept), out_peaks)
 
@@ -168,6 +260,8 @@ def _grow(markers: NDArray[np.int32], free: NDArray[np.uint8]) -> NDArray[np.int
     """The cores grown through the free cells, one cell a round, until no free cell they can
     reach is left (where two meet, the larger label takes the cell: the boundary between two
     places is one cell either way)."""
+    if _merging is not None and kernels.enabled():
+        return _merging.grow_labels(markers, free)
     labels = markers.astype(np.float32)
     open_ = (free > 0) & (markers == 0)
     kernel = np.ones((3, 3), np.uint8)

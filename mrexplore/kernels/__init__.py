@@ -4,7 +4,7 @@
 ``sensing``        lidar cast + coverage marking, own-map update, motion (the simulator)
 ``views``          occupancy shares per view block and the trail channel (the observation)
 ``scoring``        map accuracy against the truth (evaluation only)
-``merging``        the merger's verifier count and wall ICP
+``merging``        the merger's verifier count, wall ICP, coarse pooling and places
 ``planning``       the frontier planners: frontiers, planning grid, distances, paths, follower
 =================  ===========================================================================
 

@@ -2,10 +2,12 @@
 
 Writes the merged map (YAML + PGM, in a's frame, canvas grown as needed, origin shifted so the
 world coordinates of a's cells are unchanged) and a PNG beside it (``merged.png``) with the two
-inputs side by side, the matched points joined by lines (like the seed paper's Figure 6), and
-the result. Prints the transform and the score, or says plainly that no reliable match was found;
-when the refusal is an ambiguity (look-alike places), it also prints the best pose and its
-rivals with their agreement, so a user who knows where the maps overlap can tell which is right.
+inputs side by side, each captioned with its file name, the matched points joined by lines
+(like the seed paper's Figure 6), the outcome in words (transform and score, or the refusal and
+its reason), the fused map when merged, and a legend of the colours. Prints the transform and
+the score, or says plainly that no reliable match was found; when the refusal is an ambiguity
+(look-alike places), it also prints the best pose and its rivals with their agreement, so a
+user who knows where the maps overlap can tell which is right.
 
 Exit codes: **0** merged, **1** refused (no reliable match: a clean, expected outcome, but one a
 script must be able to tell apart), **2** bad input (missing or malformed file, different
@@ -90,7 +92,8 @@ def merge_files(
         ox, oy, yaw = fa.origin_m
         origin = (ox - dc * fa.resolution_m, oy - dr * fa.resolution_m, yaw)
         write_map_yaml(out_yaml, res.merged, fa.resolution_m, origin)
-    ok, encoded = cv2.imencode(".png", figure(fa.grid, fb.grid, res))
+    img = figure(fa.grid, fb.grid, res, a_name=Path(a_yaml).name, b_name=Path(b_yaml).name)
+    ok, encoded = cv2.imencode(".png", img)
     if ok:
         write_bytes(png, encoded.tobytes())
     return res
@@ -131,8 +134,128 @@ def _panel(grid: Int8Grid) -> NDArray[np.uint8]:
     return cv2.cvtColor(to_gray(grid)[::-1].copy(), cv2.COLOR_GRAY2BGR)
 
 
-def figure(a: Int8Grid, b: Int8Grid, res: MergeResult, max_lines: int = 40) -> NDArray[np.uint8]:
-    """BGR image: [a | b] with matched points joined by lines, then the merged map (or a note)."""
+_FONT = cv2.FONT_HERSHEY_SIMPLEX
+_TEXT_SCALE = 0.45
+_LINE_PX = 18  # one text line's height at _TEXT_SCALE
+_MIN_WIDTH_PX = 480  # small maps: the captions still get a readable line length
+_REFUSED = (0, 0, 200)  # BGR red: the refusal's words
+
+
+def figure_labels(
+    res: MergeResult,
+    a_name: str = "a",
+    b_name: str = "b",
+    resolution_m: float | None = None,
+    max_lines: int = 40,
+) -> dict[str, str]:
+    """The words of :func:`figure`: what each panel is, what the lines are and the outcome.
+
+    Keys: ``"a"`` and ``"b"`` (the two input panels), ``"matches"`` (the lines between them),
+    ``"result"`` (the panel below: the fused map with the transform and score, or the refusal
+    and its reason). ``resolution_m`` (m/cell) adds the translation in metres; by default it is
+    read from ``res.info`` (set by :func:`~mrexplore.merge.merge_maps`).
+    """
+    if resolution_m is None and "resolution_m" in (res.info or {}):
+        resolution_m = float(res.info["resolution_m"])
+    n = len(res.matches)
+    shown = min(n, max_lines)
+    if n == 0:
+        matches = "no matched points to draw"
+    else:
+        whose = "supporting the merge" if res.matched else "of the best pose weighed (refused)"
+        matches = f"lines: {shown} of {n} matched point pairs a <-> b {whose} (one colour per pair)"
+    method = res.method or "?"
+    if res.matched and res.transform is not None:
+        T = res.transform
+        deg = round(float(np.degrees(transform_angle(T))), 2) + 0.0  # + 0.0: no "-0.00"
+        tx, ty = round(float(T[0, 2]), 1) + 0.0, round(float(T[1, 2]), 1) + 0.0
+        move = f"translation ({tx:.1f}, {ty:.1f}) cells"
+        if resolution_m is not None:
+            move += f" = ({tx * resolution_m:.2f}, {ty * resolution_m:.2f}) m"
+        result = (
+            f"below: the fused result (a + b in a's frame): MERGED by the {method} method, "
+            f"score {res.score:.3f}; b -> a: rotation {deg:.2f} deg, {move}"
+        )
+    else:
+        result = (
+            f"below: no fused result: REFUSED by the {method} method (best score "
+            f"{res.score:.3f}): {res.reason or 'no reliable match'}"
+        )
+    return {
+        "a": f"a: {a_name} (reference; the result is in its frame)",
+        "b": f"b: {b_name} (the map to merge into a)",
+        "matches": matches,
+        "result": result,
+    }
+
+
+def _wrap(text: str, width_px: int) -> list[str]:
+    """``text`` in lines no wider than ``width_px`` at the figure's font (a longer word alone)."""
+    lines: list[str] = []
+    for word in text.split():
+        line = f"{lines[-1]} {word}" if lines else word
+        if lines and cv2.getTextSize(line, _FONT, _TEXT_SCALE, 1)[0][0] <= width_px:
+            lines[-1] = line
+        else:
+            lines.append(word)
+    return lines or [""]
+
+
+def _text_bar(text: str, width: int, colour: tuple[int, int, int] = (0, 0, 0)) -> NDArray[np.uint8]:
+    """A white bar ``width`` px wide holding ``text``, wrapped to fit."""
+    lines = _wrap(text, width - 12)
+    bar = np.full((len(lines) * _LINE_PX + 6, width, 3), 255, dtype=np.uint8)
+    for i, line in enumerate(lines):
+        y = 4 + (i + 1) * _LINE_PX - 5
+        cv2.putText(bar, line, (6, y), _FONT, _TEXT_SCALE, colour, 1, cv2.LINE_AA)
+    return bar
+
+
+def _legend(width: int) -> NDArray[np.uint8]:
+    """The colours: the maps' three values (map_server gray) and a matched pair's mark."""
+    items = [(254, "free"), (0, "occupied"), (205, "unknown")]
+    bar = np.full((_LINE_PX + 10, width, 3), 255, dtype=np.uint8)
+    y0, x = 5, 6
+    cv2.putText(bar, "legend:", (x, y0 + 12), _FONT, _TEXT_SCALE, (0, 0, 0), 1, cv2.LINE_AA)
+    x += 70
+    for gray, label in items:
+        cv2.rectangle(bar, (x, y0), (x + 13, y0 + 13), (gray, gray, gray), -1)
+        cv2.rectangle(bar, (x, y0), (x + 13, y0 + 13), (90, 90, 90), 1)
+        cv2.putText(bar, label, (x + 18, y0 + 12), _FONT, _TEXT_SCALE, (0, 0, 0), 1, cv2.LINE_AA)
+        x += 18 + cv2.getTextSize(label, _FONT, _TEXT_SCALE, 1)[0][0] + 14
+    col = (40, 120, 200)
+    cv2.circle(bar, (x + 4, y0 + 7), 3, col, 1)
+    cv2.line(bar, (x + 4, y0 + 7), (x + 24, y0 + 7), col, 1, cv2.LINE_AA)
+    cv2.circle(bar, (x + 24, y0 + 7), 3, col, 1)
+    cv2.putText(
+        bar, "a matched pair", (x + 32, y0 + 12), _FONT, _TEXT_SCALE, (0, 0, 0), 1, cv2.LINE_AA
+    )
+    return bar
+
+
+def _stack(rows: Sequence[NDArray[np.uint8]], width: int) -> NDArray[np.uint8]:
+    """``rows`` one above the other, left-aligned on a white canvas ``width`` px wide."""
+    out = np.full((sum(r.shape[0] for r in rows), width, 3), 255, dtype=np.uint8)
+    y = 0
+    for r in rows:
+        out[y : y + r.shape[0], : r.shape[1]] = r
+        y += r.shape[0]
+    return out
+
+
+def figure(
+    a: Int8Grid,
+    b: Int8Grid,
+    res: MergeResult,
+    max_lines: int = 40,
+    a_name: str = "a",
+    b_name: str = "b",
+    resolution_m: float | None = None,
+) -> NDArray[np.uint8]:
+    """BGR image (H, W, 3 uint8): a caption per input, [a | b] with matched points joined by
+    lines, the outcome in words (transform and score, or the refusal's reason), the fused map
+    when merged, and a legend of the colours. The words are :func:`figure_labels`'."""
+    labels = figure_labels(res, a_name, b_name, resolution_m, max_lines)
     pa, pb = _panel(a), _panel(b)
     h = max(pa.shape[0], pb.shape[0])
     gap = 10
@@ -148,25 +271,22 @@ def figure(a: Int8Grid, b: Int8Grid, res: MergeResult, max_lines: int = 40) -> N
         cv2.circle(top, p1, 3, col, 1)
         cv2.circle(top, p2, 3, col, 1)
         cv2.line(top, p1, p2, col, 1, cv2.LINE_AA)
-    if res.matched and res.merged is not None:
-        bottom = _panel(res.merged)
-    else:
-        bottom = np.full((60, top.shape[1], 3), 255, dtype=np.uint8)
-        cv2.putText(
-            bottom,
-            "no reliable match: " + res.reason[:80],
-            (5, 35),
-            cv2.FONT_HERSHEY_SIMPLEX,
-            0.45,
-            (0, 0, 200),
-            1,
-            cv2.LINE_AA,
-        )
-    w = max(top.shape[1], bottom.shape[1])
-    out = np.full((top.shape[0] + gap + bottom.shape[0], w, 3), 255, dtype=np.uint8)
-    out[: top.shape[0], : top.shape[1]] = top
-    out[top.shape[0] + gap :, : bottom.shape[1]] = bottom
-    return out
+    merged = res.matched and res.merged is not None
+    bottom = _panel(res.merged) if merged and res.merged is not None else None
+    width = max(top.shape[1], 0 if bottom is None else bottom.shape[1], _MIN_WIDTH_PX)
+    # the input captions: "left"/"right" name the panel even when a name is wider than it
+    rows = [
+        _text_bar(f"left, {labels['a']}", width),
+        _text_bar(f"right, {labels['b']}", width),
+        top,
+        _text_bar(labels["matches"], width),
+        np.full((gap, width, 3), 255, dtype=np.uint8),
+        _text_bar(labels["result"], width, (0, 0, 0) if merged else _REFUSED),
+    ]
+    if bottom is not None:
+        rows.append(bottom)
+    rows.append(_legend(width))
+    return _stack(rows, width)
 
 
 def _pose_line(label: str, T: NDArray[np.float64], ag: Any, resolution_m: float) -> str:

@@ -202,3 +202,37 @@ def test_the_refusals_rivals_are_listed_strongest_first() -> None:
     )
     lines = candidate_lines(res, 0.05)
     assert "(-90.0, 0.0) cells" in lines[2] and "(50.0, 0.0) cells" in lines[3]
+
+
+def test_the_figure_is_written_and_says_what_each_panel_is(files, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    import cv2
+
+    from mrexplore.experiments.merge_files import figure_labels
+
+    pa, pb, _ = files
+    out = tmp_path / "merged.yaml"
+    res = merge_files(pa, pb, out)
+    assert res.matched
+    img = cv2.imread(str(out.with_suffix(".png")))
+    assert img is not None and img.ndim == 3 and img.shape[1] >= 480
+    labels = figure_labels(res, "a.yaml", "b.yaml")
+    assert labels["a"].startswith("a: a.yaml") and "reference" in labels["a"]
+    assert labels["b"].startswith("b: b.yaml")
+    assert "MERGED" in labels["result"] and f"score {res.score:.3f}" in labels["result"]
+    assert "rotation" in labels["result"] and " m" in labels["result"]  # metres, from res.info
+    assert f"of {len(res.matches)} matched point pairs" in labels["matches"]
+
+
+def test_a_refused_figure_gives_the_reason() -> None:
+    from mrexplore.experiments.merge_files import figure, figure_labels
+    from mrexplore.merge.common import MergeResult
+
+    res = MergeResult(
+        matched=False, transform=None, score=0.25, method="semantic", reason="too little overlap"
+    )
+    labels = figure_labels(res, "x.yaml", "y.yaml")
+    assert "REFUSED" in labels["result"] and "too little overlap" in labels["result"]
+    assert "MERGED" not in labels["result"] and labels["matches"] == "no matched points to draw"
+    a = np.zeros((40, 30), np.int8)
+    img = figure(a, a, res, a_name="x.yaml", b_name="y.yaml")
+    assert img.dtype == np.uint8 and img.shape[2] == 3 and img.shape[0] > 40

@@ -264,7 +264,7 @@ def build_parser() -> argparse.ArgumentParser:
         ("merge", "merge two map_server maps: mrexplore merge a.yaml b.yaml -o merged.yaml"),
         ("bench", "benchmarks: mrexplore bench {merge,loop,env,sensor,policies,wrappers}"),
         ("train", "train a shared policy with stable-baselines3"),
-        ("evaluate", "evaluate a trained policy against the baselines"),
+        ("evaluate", "a policy (trained folder or --team-factory) against the baselines"),
         ("imitate", "clone the goal-level keep-or-Burgard rule (a start for train --init-from)"),
     ):
         sub.add_parser(name, help=helptext, add_help=False)

@@ -1,5 +1,9 @@
 """``mrexplore evaluate <policy folder>``: a trained policy side by side with the baselines.
 
+``mrexplore evaluate --team-factory package.module:function`` does the same for any team policy
+(a TorchRL or hand-written policy, an SB3 or RLlib checkpoint loaded your way): ``function(agents)``
+returns the team policy :func:`evaluate_team` runs; ``--env KEY=VALUE`` sets the env it acts in.
+
 Runs the trained policy and ``random``, ``nearest-frontier``, ``cost-frontier`` and
 ``coordinated-frontier`` on the same held-out seeds (never used in training: training env copies
 are seeded from the training seed, evaluation from ``EVAL_SEED_BASE`` up), and reports task time
@@ -312,6 +316,23 @@ def _against_baselines(
     return by_world
 
 
+def team_env_options(env_options: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``(options, low-level options)`` an evaluated team policy acts in: ``env_options`` with
+    the exploration task and, when it names none, the env's default world; checked.
+
+    Raises:
+        ConfigError: an unknown or bad option.
+    """
+    from mrexplore.environment.config import EnvConfig
+    from mrexplore.environment.goal_actions import split_options
+
+    options = {**dict(env_options), "task": "explore"}
+    options.setdefault("world", EnvConfig().world)
+    _, _, low_options = split_options(options)
+    EnvConfig.from_kwargs(**{k: v for k, v in low_options.items() if k != "world"})
+    return options, low_options
+
+
 def evaluate_team(
     policy: Callable[[list[str]], Any],
     env_options: Mapping[str, Any],
@@ -343,16 +364,11 @@ def evaluate_team(
         ConfigError: ``n_seeds < 1``, a policy that is not callable, or bad env options.
         OutputExistsError: ``out`` is a file or a non-empty folder (without ``force``).
     """
-    from mrexplore.environment.config import EnvConfig
-    from mrexplore.environment.goal_actions import split_options
-
     if isinstance(n_seeds, bool) or not isinstance(n_seeds, (int, np.integer)) or n_seeds < 1:
         raise ConfigError(f"evaluate needs at least 1 seed, got {n_seeds!r}")
     if not callable(policy):
         raise ConfigError(f"evaluate_team: policy must be a factory policy(agents), got {policy!r}")
-    options = {**dict(env_options), "task": "explore"}
-    _, _, low_options = split_options(options)
-    EnvConfig.from_kwargs(**{k: v for k, v in low_options.items() if k != "world"})
+    options, low_options = team_env_options(env_options)
     out_dir = None if out is None else check_out_dir(out, force=force, what="evaluate_team")
     world_list = [str(w) for w in worlds] if worlds else [str(options.get("world"))]
     seeds = list(range(EVAL_SEED_BASE, EVAL_SEED_BASE + int(n_seeds)))
@@ -371,6 +387,91 @@ def evaluate_team(
         write_evaluation(doc, out_dir)
     print(format_evaluation(doc))
     return doc
+
+
+def import_team_factory(spec: str) -> Callable[[list[str]], Any]:
+    """The team-policy factory named ``spec`` = ``package.module:function`` (the function may be
+    a dotted attribute path, e.g. ``module:Class.make``), imported with the current directory on
+    the import path (as ``python -m`` has it), so a ``my_policy.py`` beside you is found.
+
+    Raises:
+        ConfigError: ``spec`` is malformed, the module cannot be imported (or raised while
+            importing), it has no such attribute, or the attribute is not callable; the message
+            names which.
+    """
+    import importlib
+    import os
+    import sys
+
+    module_name, sep, attr = str(spec).partition(":")
+    if not sep or not module_name or not attr:
+        raise ConfigError(
+            f"--team-factory must be package.module:function, got {spec!r} (e.g. "
+            "my_policy:make_team, where make_team(agents) returns the team policy)"
+        )
+    cwd = os.getcwd()
+    if cwd not in sys.path and "" not in sys.path:
+        sys.path.insert(0, cwd)  # a console script, unlike python -m, lacks it
+    try:
+        obj: Any = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        raise ConfigError(
+            f"--team-factory {spec}: cannot import {module_name!r} ({exc}); run from the folder "
+            "that holds it or install its package"
+        ) from exc
+    except Exception as exc:  # the user's module failed while importing: say so, not crash
+        raise ConfigError(
+            f"--team-factory {spec}: importing {module_name!r} raised {type(exc).__name__}: {exc}"
+        ) from exc
+    for part in attr.split("."):
+        if not hasattr(obj, part):
+            raise ConfigError(f"--team-factory {spec}: {module_name!r} has no attribute {attr!r}")
+        obj = getattr(obj, part)
+    if not callable(obj):
+        raise ConfigError(
+            f"--team-factory {spec}: {attr!r} is a {type(obj).__name__}, not a callable "
+            "factory(agents) returning a team policy"
+        )
+    return obj
+
+
+def check_team_policy(policy: Any, spec: str) -> None:
+    """Refuse, before any episode, a factory's product that :func:`evaluate_team` cannot run:
+    it needs ``reset(rng)`` and either ``act(views)`` or ``uses_observations = True`` with
+    ``act_obs(obs)``.
+
+    Raises:
+        ConfigError: naming ``spec`` and the missing method.
+    """
+    needs = ["reset", "act_obs" if getattr(policy, "uses_observations", False) else "act"]
+    missing = [m for m in needs if not callable(getattr(policy, m, None))]
+    if missing:
+        raise ConfigError(
+            f"--team-factory {spec} returned a {type(policy).__name__} without "
+            f"{' and '.join(m + '()' for m in missing)}; a team policy has reset(rng) and "
+            "act(views), or uses_observations = True and act_obs(obs)"
+        )
+
+
+def parse_env_options(pairs: Sequence[str]) -> dict[str, Any]:
+    """``["KEY=VALUE", ...]`` -> env options, each value read as a YAML scalar (``3`` an int,
+    ``5.0`` a float, ``true`` a bool, ``float32`` a string).
+
+    Raises:
+        ConfigError: an item without ``=`` or with an empty key.
+    """
+    import yaml
+
+    options: dict[str, Any] = {}
+    for item in pairs:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ConfigError(f"--env takes KEY=VALUE (e.g. n_robots=3), got {item!r}")
+        try:
+            options[key.strip()] = yaml.safe_load(value) if value.strip() else value
+        except yaml.YAMLError:
+            options[key.strip()] = value
+    return options
 
 
 def write_evaluation(doc: Mapping[str, Any], out_dir: Path) -> None:
@@ -459,15 +560,39 @@ def plot_evaluation(doc: Mapping[str, Any], path: Path) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """CLI: ``mrexplore evaluate FOLDER [--seeds N] [--out DIR]``."""
-    p = argparse.ArgumentParser(prog="mrexplore evaluate", description=__doc__)
-    p.add_argument("folder")
+    """CLI: ``mrexplore evaluate FOLDER [--seeds N] [--out DIR]`` or ``mrexplore evaluate
+    --team-factory MODULE:FUNCTION [--env KEY=VALUE ...] [--seeds N] [--out DIR]``."""
+    p = argparse.ArgumentParser(
+        prog="mrexplore evaluate",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument(
+        "folder", nargs="?", default=None, help="a trained policy folder (`mrexplore train`)"
+    )
+    p.add_argument(
+        "--team-factory",
+        default=None,
+        metavar="MODULE:FUNCTION",
+        help="instead of a folder: a Python factory, FUNCTION(agents) -> team policy (reset(rng) "
+        "and act(views), or uses_observations = True and act_obs(obs)), imported with the "
+        "current directory on the path",
+    )
+    p.add_argument(
+        "--env",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="with --team-factory: an option of the env the policy acts in (repeat: "
+        "world=small_office n_robots=2 obs_dtype=float32 ...); default the env's defaults",
+    )
+    p.add_argument("--name", default=None, help="with --team-factory: its row in the tables")
     p.add_argument("--seeds", type=int, default=20)
     p.add_argument(
         "--out",
         default=None,
-        help="new folder for eval.json/eval.png (default: eval/<policy folder name>; never the "
-        "policy folder itself)",
+        help="new folder for eval.json/eval.png (default: eval/<policy folder name>, or "
+        "eval/<FUNCTION> for a factory; never the policy folder itself)",
     )
     p.add_argument("--force", action="store_true", help="replace the files of a non-empty --out")
     p.add_argument(
@@ -484,14 +609,52 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="episode time limit in simulated seconds (default: the policy's config)",
     )
     args = p.parse_args(argv)
-    out = args.out if args.out is not None else default_eval_dir(args.folder)
-    evaluate_folder(
-        args.folder,
-        args.seeds,
-        out,
-        force=args.force,
-        worlds=args.worlds,
-        max_time_s=args.max_time_s,
-    )
+    if (args.folder is None) == (args.team_factory is None):
+        raise ConfigError(
+            "mrexplore evaluate takes a policy folder or --team-factory MODULE:FUNCTION"
+            + (", not both" if args.folder is not None else "")
+        )
+    if args.team_factory is None:
+        if args.env or args.name is not None:
+            raise ConfigError(
+                "--env and --name go with --team-factory (a folder's config.yaml sets its env)"
+            )
+        out = args.out if args.out is not None else default_eval_dir(args.folder)
+        evaluate_folder(
+            args.folder,
+            args.seeds,
+            out,
+            force=args.force,
+            worlds=args.worlds,
+            max_time_s=args.max_time_s,
+        )
+    else:
+        out = _evaluate_factory(args)
     print(f"wrote {Path(out) / 'eval.json'} and eval.png")
     return 0
+
+
+def _evaluate_factory(args: argparse.Namespace) -> Path:
+    """``--team-factory``: import it, check what it makes, run :func:`evaluate_team`; returns
+    the output folder."""
+    factory = import_team_factory(args.team_factory)
+    if args.max_time_s is not None and not args.max_time_s > 0:
+        raise ConfigError(f"--max-time-s must be > 0, got {args.max_time_s!r}")
+    options = parse_env_options(args.env)
+    if args.max_time_s is not None:
+        options["max_time_s"] = float(args.max_time_s)
+    options, _ = team_env_options(options)  # checked before the factory runs
+    agents = [f"robot_{i}" for i in range(int(options.get("n_robots", 2)))]
+    check_team_policy(factory(agents), args.team_factory)
+    func = args.team_factory.partition(":")[2]
+    out = Path(args.out) if args.out is not None else Path("eval") / func
+    evaluate_team(
+        factory,
+        options,
+        n_seeds=args.seeds,
+        out=out,
+        name=args.name or args.team_factory,
+        worlds=args.worlds,
+        force=args.force,
+    )
+    return out

@@ -153,3 +153,67 @@ def test_any_team_policy_is_evaluated_against_the_planners(tmp_path: Path, capsy
         evaluate_team("not callable", env, n_seeds=1)  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match="at least 1 seed"):
         evaluate_team(_Forward, env, n_seeds=0)
+
+
+def forward_team(agents: list[str]) -> _Forward:
+    """The factory ``mrexplore evaluate --team-factory test_evaluate:forward_team`` imports
+    (pytest puts this folder on the import path)."""
+    return _Forward(agents)
+
+
+def not_a_policy(agents: list[str]) -> object:
+    return object()
+
+
+def test_the_command_evaluates_a_team_factory_like_a_folder(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    from mrexplore.cli import main
+
+    out = tmp_path / "e"
+    env = ["--env", "world=small_office", "--env", "n_robots=2", "--max-time-s", "5"]
+    argv = ["evaluate", "--team-factory", "test_evaluate:forward_team", *env, "--seeds", "1"]
+    assert main([*argv, "--out", str(out)]) == 0
+    doc = json.loads((out / "eval.json").read_text())
+    assert set(doc["results"]) == {"test_evaluate:forward_team", *BASELINES}
+    assert doc["env"]["world"] == "small_office" and doc["env"]["max_time_s"] == 5.0
+    assert "wrote" in capsys.readouterr().out
+    assert main([*argv, "--out", str(out)]) == 2  # results are not replaced without --force
+    assert "--force" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("spec", "words"),
+    [
+        ("test_evaluate", "package.module:function"),
+        ("no_such_module_xyz:f", "cannot import 'no_such_module_xyz'"),
+        ("test_evaluate:nope", "has no attribute 'nope'"),
+        ("test_evaluate:BASELINES", "not a callable"),
+        ("test_evaluate:not_a_policy", "without reset() and act()"),
+    ],
+)
+def test_a_bad_team_factory_is_one_clear_line(
+    tmp_path: Path, spec: str, words: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from mrexplore.cli import main
+
+    rc = main(["evaluate", "--team-factory", spec, "--seeds", "1", "--out", str(tmp_path / "e")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and words in err[0] and not (tmp_path / "e").exists()
+
+
+def test_evaluate_takes_a_folder_or_a_factory(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
+    from mrexplore.cli import main
+    from mrexplore.experiments.evaluate import parse_env_options
+
+    assert main(["evaluate", "--seeds", "1"]) == 2
+    assert "policy folder or --team-factory" in capsys.readouterr().err
+    both = ["evaluate", str(tmp_path), "--team-factory", "test_evaluate:forward_team"]
+    assert main(both) == 2 and "not both" in capsys.readouterr().err
+    assert main(["evaluate", str(tmp_path), "--env", "n_robots=3"]) == 2
+    assert "--env" in capsys.readouterr().err
+    assert parse_env_options(["n_robots=3", "max_time_s=5.0", "obs_dtype=float32"]) == {
+        "n_robots": 3,
+        "max_time_s": 5.0,
+        "obs_dtype": "float32",
+    }
+    with pytest.raises(ConfigError, match="KEY=VALUE"):
+        parse_env_options(["n_robots"])

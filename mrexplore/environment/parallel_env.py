@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import copy
 import math
+import time
 from collections.abc import Callable
 from concurrent.futures import Executor
 from typing import Any, ClassVar
@@ -72,11 +73,18 @@ from mrexplore.sensors import LidarConfig
 from mrexplore.sim import SimConfig, Simulation
 from mrexplore.types import AgentID, RobotView
 
-__all__ = ["MultiRobotExplorationEnv"]
+__all__ = ["STEP_STAGES", "MultiRobotExplorationEnv", "StageTimer"]
 from mrexplore.world import World, load_world
 
 Observations = dict[AgentID, NDArray[Any]]
 Infos = dict[AgentID, dict[str, Any]]
+#: ``timer(stage, seconds)``: told, after each stage of a ``step()``, its name (one of
+#: :data:`STEP_STAGES`) and the stepping thread's CPU seconds it took (``time.thread_time``).
+StageTimer = Callable[[str, float], None]
+#: The stages of ``step()`` a :data:`StageTimer` is told of, in order: ``act`` (move, lidar and
+#: own maps: the simulator), ``merge`` (radio links and the fusion stage), ``observe`` (the
+#: observation images). The rest of a step (task, reward, infos) is not a named stage.
+STEP_STAGES = ("act", "merge", "observe")
 
 
 class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
@@ -89,6 +97,11 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
     :func:`mrexplore.render.render_frame`) and ``merge_executor`` (the worker thread of delayed
     merge attempts, which the caller owns and may share between env copies, as the batched env
     of :mod:`mrexplore.environment.batched` does; default: a private one made on first use).
+
+    ``stage_timer`` (a :data:`StageTimer`, also settable later as the attribute; default None:
+    nothing is timed) is told each stage of every ``step()`` with its thread CPU seconds, for
+    profiling (``mrexplore bench env --breakdown``). It only reads the clock: the episode, its
+    random draws and its results are the same with it or without.
     """
 
     metadata: ClassVar[dict[str, Any]] = {
@@ -105,9 +118,16 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         radio: Radio | None = None,
         viewer: Callable[[FrameSnapshot], NDArray[np.uint8]] | None = None,
         merge_executor: Executor | None = None,
+        stage_timer: StageTimer | None = None,
         **options: Any,
     ) -> None:
         self.config = cfg = EnvConfig.from_kwargs(**options)
+        if stage_timer is not None and not callable(stage_timer):
+            raise ConfigError(
+                f"stage_timer must be a callable (stage, seconds), got {stage_timer!r}"
+            )
+        #: told each step stage and its thread CPU seconds (None: no clock is read)
+        self.stage_timer: StageTimer | None = stage_timer
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ConfigError(
                 f"render_mode must be one of {self.metadata['render_modes']} or None, "
@@ -265,12 +285,12 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
             raise RuntimeError("step() called on an env that is not running: call reset() first")
         act = self._parse_actions(actions)
         given_before = self.task.given(ep.sim)
-        self._move(ep, act)
+        self._stage("act", self._move, ep, act)
         self.task.after_move(ep.sim, given_before)
-        self._exchange_maps(ep, attempt=True)
+        self._stage("merge", self._exchange_maps, ep, True)
         if ep.truth is not None:
             ep.truth.count_wrong(ep.transforms, self.config.dt_s)
-        ep.obs = self._observe(ep)
+        ep.obs = self._stage("observe", self._observe, ep)
         coverage = self._coverage_now(ep)
         reward = self.task.reward(coverage - ep.coverage, ep.sim, self._resolution_m)
         ep.coverage = coverage
@@ -466,6 +486,17 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
                 )
             act[self.possible_agents.index(agent)] = int(a)
         return act
+
+    def _stage(self, name: str, fn: Callable[..., Any], *args: Any) -> Any:
+        """``fn(*args)``, its thread CPU time told to :attr:`stage_timer` when there is one."""
+        timer = self.stage_timer
+        if timer is None:
+            return fn(*args)
+        t0 = time.thread_time()
+        try:
+            return fn(*args)
+        finally:
+            timer(name, time.thread_time() - t0)
 
     def _move(self, ep: EpisodeState, act: NDArray[np.int64]) -> None:
         """Move, sense and update each robot's own map (all in the simulator)."""

@@ -49,9 +49,9 @@ by side.
 
 Settings: ``symmetric_office`` (0.05 m/cell, 360 beams, 4 m, merging on) for ``--robots``
 (default 1, 2, 4, 8), and two robots on the Explore-Bench-sized world (250 x 250 cells,
-0.1 m/cell, 3 m). ``--breakdown`` also times the stages of the default 2-robot step by wrapping
-the env's named step parts on the instance (``act``: move + lidar + own maps; ``merge``: fusion
-stage; ``observe``: observation images; ``other``: reward, termination, infos).
+0.1 m/cell, 3 m). ``--breakdown`` also times the stages of the default 2-robot step through the
+env's ``stage_timer`` (``act``: move + lidar + own maps; ``merge``: fusion stage; ``observe``:
+observation images; ``other``: reward, termination, infos).
 
 :func:`measure` uses only the public API (``parallel_env``, ``reset``, ``step``), so the same
 harness times an older checkout: ``scripts/bench_env_vs.py`` runs it on two trees in turn and
@@ -72,6 +72,7 @@ from typing import Any
 import numpy as np
 
 import mrexplore
+from mrexplore.environment.parallel_env import STEP_STAGES
 from mrexplore.errors import ConfigError
 from mrexplore.io_safety import check_outputs, write_text
 
@@ -80,19 +81,8 @@ DEFAULT_WORLD: dict[str, Any] = {"world": "symmetric_office"}
 EXPLORE_BENCH_WORLD: dict[str, Any] = {"world": "symmetric_office_coarse", "max_range_m": 3.0}
 
 
-#: Stage -> the env's method that does it (timed with ``--breakdown``).
-STAGES = {"act": "_move", "merge": "_exchange_maps", "observe": "_observe"}
-
-
-def _timed(fn: Callable[..., Any], acc: dict[str, float], key: str) -> Callable[..., Any]:
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        t0 = time.thread_time()
-        try:
-            return fn(*args, **kwargs)
-        finally:
-            acc[key] += time.thread_time() - t0
-
-    return wrapper
+#: The step's stages timed with ``--breakdown`` (the env's ``stage_timer`` names them).
+STAGES = STEP_STAGES
 
 
 def measure(
@@ -113,9 +103,13 @@ def measure(
     penv = mrexplore.parallel_env(**options)
     acc: dict[str, float] = defaultdict(float)
     if breakdown:
-        # the step's parts, wrapped on this instance (the stage names the table prints)
-        for stage, name in STAGES.items():
-            setattr(penv, name, _timed(getattr(penv, name), acc, stage))
+        if not hasattr(penv, "stage_timer"):
+            raise ConfigError("--breakdown needs an env with a stage_timer (this checkout's)")
+
+        def tell(stage: str, seconds: float) -> None:
+            acc[stage] += seconds
+
+        penv.stage_timer = tell
     rng = np.random.default_rng(seed)
     penv.reset(seed=seed)
     n_act = int(penv.action_space(penv.possible_agents[0]).n)

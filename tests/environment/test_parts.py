@@ -114,3 +114,31 @@ def test_evaluate_false_changes_no_observation_reward_or_end() -> None:
     assert info_t["fused_contradiction"] >= 0.0
     with pytest.raises(ConfigError, match="evaluate=True"):
         mrexplore.parallel_env(**opts, evaluate=False, coverage_mode="held")
+
+
+def test_a_stage_timer_is_told_every_stage_and_changes_nothing() -> None:
+    import numpy as np
+
+    from mrexplore.environment.parallel_env import STEP_STAGES
+
+    told: list[tuple[str, float]] = []
+    opts = {"world": "small_office", "n_robots": 2}
+    timed = mrexplore.parallel_env(stage_timer=lambda s, sec: told.append((s, sec)), **opts)
+    plain = mrexplore.parallel_env(**opts)
+    runs = []
+    for env in (timed, plain):
+        obs, _ = env.reset(seed=3)
+        rng = np.random.default_rng(0)
+        trace = []
+        for _ in range(6):
+            obs, rew, _, _, infos = env.step({a: int(rng.integers(4)) for a in env.agents})
+            trace.append((obs, rew, infos))
+        runs.append(trace)
+    for (o1, r1, i1), (o2, r2, i2) in zip(*runs, strict=True):
+        assert r1 == r2 and i1 == i2
+        assert all(np.array_equal(o1[a], o2[a]) for a in o1)
+    assert [s for s, _ in told] == list(STEP_STAGES) * 6  # step()'s stages only, in order
+    assert all(isinstance(sec, float) and sec >= 0.0 for _, sec in told)
+    assert plain.stage_timer is None
+    with pytest.raises(ConfigError, match="stage_timer"):
+        mrexplore.parallel_env(stage_timer="yes", **opts)

@@ -23,6 +23,8 @@ def test_every_subpackage_has_an_api_page_with_its_modules() -> None:
         page = text.get(f"{name}.md", "")
         assert f"::: mrexplore.{name}\n" in page, f"add docs/api/{name}.md (::: mrexplore.{name})"
         assert "show_submodules: true" in page, f"docs/api/{name}.md: show its submodules"
+        # a filter may hide private names only: every public submodule is on the page
+        assert "!^" not in page.replace('"!^_"', ""), f"docs/api/{name}.md hides a module"
 
 
 def test_every_top_level_module_is_in_the_api_reference() -> None:

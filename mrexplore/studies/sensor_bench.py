@@ -11,7 +11,7 @@ loaded from the on-disk cache, before any timing). Each figure is the best of ``
 runs of CPU time of the calling thread (``time.thread_time``), since the machine may be
 shared.
 
-Usage: mrexplore bench sensor [--steps 300] [--robots 2] [--repeats 3] [--numpy]
+Usage: ``mrexplore bench sensor [--steps 300] [--robots 2] [--repeats 3] [--numpy]``
 """
 
 from __future__ import annotations

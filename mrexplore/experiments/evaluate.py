@@ -262,16 +262,23 @@ def evaluate_folder(
             f"seed(s) x {len(world_list)} world(s): {n_eps} episodes"
         )
     by_world = _against_baselines(learned, env_options, low_options, world_list, seeds, progress)
-    first = by_world[world_list[0]]
+    actions = (
+        "greedy and sampled"
+        if len(learned) > 1
+        else ("deterministic" if trained.deterministic else "sampled")
+    )
+    head = {"policy_folder": str(folder), "env": env_options, "seeds": seeds}
+    return _report({**head, "trained_actions": actions}, by_world, world_list[0], out_dir)
+
+
+def _report(
+    head: Mapping[str, Any], by_world: dict[str, Any], first_world: str, out_dir: Path | None
+) -> dict[str, Any]:
+    """The evaluation's document (``head``, then the first world's results and pairing and
+    every world's), written to ``out_dir`` (None: not written) and printed."""
+    first = by_world[first_world]
     doc: dict[str, Any] = {
-        "policy_folder": str(folder),
-        "env": env_options,
-        "seeds": seeds,
-        "trained_actions": (
-            "greedy and sampled"
-            if len(learned) > 1
-            else ("deterministic" if trained.deterministic else "sampled")
-        ),
+        **head,
         "paired_baseline": PAIRED_BASELINE,
         "results": first["results"],
         "paired": first["paired"],
@@ -373,20 +380,8 @@ def evaluate_team(
     world_list = [str(w) for w in worlds] if worlds else [str(options.get("world"))]
     seeds = list(range(EVAL_SEED_BASE, EVAL_SEED_BASE + int(n_seeds)))
     by_world = _against_baselines({name: policy}, options, low_options, world_list, seeds, progress)
-    first = by_world[world_list[0]]
-    doc: dict[str, Any] = {
-        "policy": name,
-        "env": options,
-        "seeds": seeds,
-        "paired_baseline": PAIRED_BASELINE,
-        "results": first["results"],
-        "paired": first["paired"],
-        "worlds": by_world,
-    }
-    if out_dir is not None:
-        write_evaluation(doc, out_dir)
-    print(format_evaluation(doc))
-    return doc
+    head = {"policy": name, "env": options, "seeds": seeds}
+    return _report(head, by_world, world_list[0], out_dir)
 
 
 def import_team_factory(spec: str) -> Callable[[list[str]], Any]:

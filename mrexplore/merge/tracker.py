@@ -612,9 +612,7 @@ class MapMergeTracker:
         if self.transform(i, j) is None:
             if (i, j) not in self._sighted:
                 self._last_attempt_known.pop((i, j), None)  # due for an attempt at once
-            self._sighted[(i, j)] = seen
-            return
-        if not SIGHTING_BINDS:
+        elif not SIGHTING_BINDS:
             return
         self._sighted[(i, j)] = seen
         kept = self._edges.get((i, j))

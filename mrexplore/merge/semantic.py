@@ -529,6 +529,10 @@ POLISH_MARGIN: float = 0.01
 #: Each map's strongest repeats by which the pose about to be merged is moved and judged as rivals
 #: (0: off).
 REPEAT_RIVALS: int = 4
+#: With the place test on (the loop), a far pose, a rival the search found or the best moved by a
+#: repeat of either map, stands unless the maps contradict it beyond their noise (its noise-aware
+#: index under ``min_score``), however little it explains or however much its raw index trails.
+RIVALS_CONTRADICTED: bool = True
 #: A match on one structure seen from outside (free cells under this share of its hull) is refused
 #: (0: off).
 OBJECT_HULL_FREE: float = 0.2
@@ -1189,6 +1193,14 @@ def _rule_unique(j: _Judged) -> str | None:
     o, best = j.o, j.best
     if not j.rivals:
         return None
+    if o.place_test and RIVALS_CONTRADICTED:
+        for h in j.rivals:
+            if _uncontradicted(j.pair, h, o):
+                return (
+                    f"ambiguous: a pose {j.away(h):.0f} cells away that the maps do not "
+                    f"contradict beyond their noise (raw index {h.score:.3f} against the best's "
+                    f"{best.score:.3f})"
+                )
     rival = j.rivals[0]
     margin = best.score - rival.score
     evidence = 0
@@ -1372,6 +1384,14 @@ def _rule_outside_object(j: _Judged) -> str | None:
     )
 
 
+def _uncontradicted(pair: _Pair, h: _Hypothesis, o: SemanticOptions) -> bool:
+    """The maps agree with pose ``h`` within their noise (the consistency test the best pose
+    passed: walls ``SLACK_CELLS`` apart agree, contradictions count in groups of
+    ``MIN_RUN_CELLS``)."""
+    noisy = Verifier(pair.codes_a, pair.codes_b, max_samples=MAX_SAMPLES, slack=SLACK_CELLS)
+    return bool(noisy.structured(h.T, MIN_RUN_CELLS).score >= o.min_score)
+
+
 def _rule_repeats(j: _Judged) -> str | None:
     """The poses that move the best by either map's ``REPEAT_RIVALS`` strongest repeats are
     beaten as rivals are: a copy the coarse search never tried. Last, since it costs an
@@ -1394,6 +1414,7 @@ def _rule_repeats(j: _Judged) -> str | None:
             or not (
                 _perfect(h, pair.verify, o)
                 or stands_as_rival(j.agreement, h.agreement, pair.verify.cells_per_sample, o)
+                or (o.place_test and RIVALS_CONTRADICTED and _uncontradicted(pair, h, o))
             )
         ):
             continue

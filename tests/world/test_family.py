@@ -42,15 +42,19 @@ def test_parts_are_disjoint_and_fixed(family: str) -> None:
     tune, test = family_seeds(family, "tune", 50), family_seeds(family, "test", 50)
     test2 = family_seeds(family, "test2", 50)
     test3 = family_seeds(family, "test3", 50)
+    test4 = family_seeds(family, "test4", 50)
     assert tune[:3] == [0, 1, 2] and test[:3] == [100_000, 100_001, 100_002]
     assert test2[:2] == [200_000, 200_001]
     assert test3[:2] == [300_000, 300_001]
     assert not set(tune) & set(test) and not (set(tune) | set(test)) & set(test2)
     assert not (set(tune) | set(test) | set(test2)) & set(test3)
+    assert test4[:2] == [400_000, 400_001]
+    assert not (set(tune) | set(test) | set(test2) | set(test3)) & set(test4)
     # the parts cannot meet at any index
     assert family_seed("tune", PART_SIZE - 1) < family_seed("test", 0)
     assert family_seed("test", PART_SIZE - 1) < family_seed("test2", 0)
     assert family_seed("test2", PART_SIZE - 1) < family_seed("test3", 0)
+    assert family_seed("test3", PART_SIZE - 1) < family_seed("test4", 0)
 
 
 def test_family_world_is_its_seed_alone() -> None:

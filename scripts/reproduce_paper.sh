@@ -206,6 +206,19 @@ other_steps() {
   mrexplore bench loop --family office_row --part test3 --worlds 20 --seeds 5 --variants sighting \
     --merge-options SIGHTING_BINDS=false --jobs 2 --out "$out/loop_office_row_test3_sighting_before" \
     --force
+  # the fourth test part (world seeds 400000..; opened for rivals that must be contradicted,
+  # chosen after the third was read), 40 worlds: the merger, sightings, the room oracle and
+  # never merging; and the merger and sightings without the rule, on the same episodes
+  mrexplore bench loop --family paper_like --part test4 --worlds 40 --seeds 5 \
+    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_paper_like_test4" --force
+  mrexplore bench loop --family paper_like --part test4 --worlds 40 --seeds 5 \
+    --variants semantic sighting --merge-options RIVALS_CONTRADICTED=false --jobs 2 \
+    --out "$out/loop_paper_like_test4_before" --force
+  mrexplore bench loop --family office_row --part test4 --worlds 40 --seeds 5 \
+    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_office_row_test4" --force
+  mrexplore bench loop --family office_row --part test4 --worlds 40 --seeds 5 \
+    --variants semantic sighting --merge-options RIVALS_CONTRADICTED=false --jobs 2 \
+    --out "$out/loop_office_row_test4_before" --force
   # the four fixed worlds with the place test, beside the room oracle
   mrexplore bench loop --seeds 20 --variants semantic oracle_room --jobs 2 \
     --out "$out/loop_fixed_worlds" --force

@@ -153,11 +153,44 @@ def _unique(values: Iterable[str]) -> list[str]:
     return list(dict.fromkeys(values))
 
 
+_FAMILY_WORLD = re.compile(r"(family:[^/]+/[^/]+/)(\d+)$")
+
+
+def _worlds(worlds: Sequence[str]) -> str:
+    """World names, a family part's consecutive worlds as one range.
+
+    >>> _worlds(["family:f/test/0", "family:f/test/1", "family:f/test/2", "depot"])
+    'family:f/test/0-2 (3 worlds), depot'
+    """
+    out: list[str] = []
+    run: list[tuple[str, int]] = []
+
+    def flush() -> None:
+        if len(run) > 2:
+            out.append(f"{run[0][0]}{run[0][1]}-{run[-1][1]} ({len(run)} worlds)")
+        else:
+            out.extend(f"{prefix}{i}" for prefix, i in run)
+        run.clear()
+
+    for name in worlds:
+        m = _FAMILY_WORLD.match(name)
+        if m and run and run[-1][0] == m.group(1) and run[-1][1] + 1 == int(m.group(2)):
+            run.append((m.group(1), int(m.group(2))))
+            continue
+        flush()
+        if m:
+            run.append((m.group(1), int(m.group(2))))
+        else:
+            out.append(name)
+    flush()
+    return ", ".join(out)
+
+
 def describe_loop(doc: Mapping[str, Any]) -> tuple[str, str]:
     worlds = list(doc["worlds"])
     what = (
         f"in-loop merging: team `{doc['policy']}`, variants {', '.join(doc['variants'])}; "
-        f"worlds {', '.join(worlds)}; seeds {_seeds(doc['seeds'])}"
+        f"worlds {_worlds(worlds)}; seeds {_seeds(doc['seeds'])}"
     )
     extra = {**doc.get("env_options", {}), **doc.get("extra_env_options", {})}
     if extra:

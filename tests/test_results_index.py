@@ -37,3 +37,12 @@ def test_check_and_atomic_rewrite(tmp_path: Path) -> None:
     text = (tmp_path / "index.md").read_text()
     assert "task_time" in text and "-47.1 %" in text
     assert sorted(p.name for p in tmp_path.iterdir()) == ["index.md", "task_time.json"]
+
+
+def test_a_family_part_s_worlds_are_one_range() -> None:
+    script = load_script("results_index")
+    names = [f"family:paper_like/test4/{i}" for i in range(40)] + ["depot", "family:f/tune/3"]
+    assert script._worlds(names) == (
+        "family:paper_like/test4/0-39 (40 worlds), depot, family:f/tune/3"
+    )
+    assert script._worlds(["family:f/t/0", "family:f/t/2"]) == "family:f/t/0, family:f/t/2"

@@ -1006,6 +1006,8 @@ class _Judged:
     # rivals (the rules may add one: a repeat's moved pose)
     hypotheses: tuple[WeighedPose, ...] = ()
     rival_poses: list[WeighedPose] = field(default_factory=list)
+    # the noise-aware verifier the consistency test used (walls SLACK_CELLS apart agree)
+    noisy: Verifier | None = None
     _structures_b: Structures | None = None
     _by_structure: ByStructure | None = None
 
@@ -1168,6 +1170,7 @@ def _judge(pair: _Pair, found: _Found, o: SemanticOptions, info: dict[str, Any])
         common,
         hypotheses=tuple(hypotheses),
         rival_poses=rival_poses,
+        noisy=consistent_v,
     )
 
 
@@ -1195,7 +1198,7 @@ def _rule_unique(j: _Judged) -> str | None:
         return None
     if o.place_test and RIVALS_CONTRADICTED:
         for h in j.rivals:
-            if _uncontradicted(j.pair, h, o):
+            if _uncontradicted(j, h):
                 return (
                     f"ambiguous: a pose {j.away(h):.0f} cells away that the maps do not "
                     f"contradict beyond their noise (raw index {h.score:.3f} against the best's "
@@ -1384,12 +1387,12 @@ def _rule_outside_object(j: _Judged) -> str | None:
     )
 
 
-def _uncontradicted(pair: _Pair, h: _Hypothesis, o: SemanticOptions) -> bool:
+def _uncontradicted(j: _Judged, h: _Hypothesis) -> bool:
     """The maps agree with pose ``h`` within their noise (the consistency test the best pose
-    passed: walls ``SLACK_CELLS`` apart agree, contradictions count in groups of
-    ``MIN_RUN_CELLS``)."""
-    noisy = Verifier(pair.codes_a, pair.codes_b, max_samples=MAX_SAMPLES, slack=SLACK_CELLS)
-    return bool(noisy.structured(h.T, MIN_RUN_CELLS).score >= o.min_score)
+    passed, with its verifier: walls ``SLACK_CELLS`` apart agree, contradictions count in
+    groups of ``MIN_RUN_CELLS``)."""
+    assert j.noisy is not None
+    return bool(j.noisy.structured(h.T, MIN_RUN_CELLS).score >= j.o.min_score)
 
 
 def _rule_repeats(j: _Judged) -> str | None:
@@ -1414,7 +1417,7 @@ def _rule_repeats(j: _Judged) -> str | None:
             or not (
                 _perfect(h, pair.verify, o)
                 or stands_as_rival(j.agreement, h.agreement, pair.verify.cells_per_sample, o)
-                or (o.place_test and RIVALS_CONTRADICTED and _uncontradicted(pair, h, o))
+                or (o.place_test and RIVALS_CONTRADICTED and _uncontradicted(j, h))
             )
         ):
             continue

@@ -631,39 +631,36 @@ def test_a_rival_ruled_out_by_one_object_does_not_make_the_best_ambiguous() -> N
     assert res.info["rival_structure_cells"] >= 20
 
 
-def test_in_the_loop_a_repeat_must_be_contradicted() -> None:
-    """Two robots' maps of a paper-like tune world (``family:paper_like/tune/14``, episode seed
-    1003, at 69.5 s): each shows the same two identical rooms side by side, b's one room along
-    from a's. Laying b's two rooms on a's explains 3,190 wall cells and contradicts 19; the
-    truth, one room along, explains a fifth as much and was no rival, so the loop merged the
-    rooms 114 cells off. With the place test on (the loop), a pose moved by a repeat of either
-    map stands as a rival unless the maps contradict it."""
+@pytest.mark.parametrize(
+    ("case", "reason", "off_by"),
+    [
+        ("paper_like_tune14_1003_70s", "the maps repeat", 100),
+        ("paper_like_tune29_1003_137s", "do not contradict beyond their noise", 150),
+    ],
+)
+def test_in_the_loop_a_rival_stands_until_the_maps_contradict_it(
+    case: str, reason: str, off_by: float
+) -> None:
+    """Two robots' maps of paper-like tune worlds, each merged wrongly in the loop before
+    ``RIVALS_CONTRADICTED``: with the place test on (the loop), a far pose stands as a rival
+    unless the maps contradict it beyond their noise.
+
+    - ``family:paper_like/tune/14``, episode seed 1003, at 69.5 s: each map shows the same two
+      identical rooms side by side, b's one room along from a's. Laying b's two rooms on a's
+      explains 3,190 wall cells and contradicts 19; the truth, the best moved by a map's
+      repeat, explains a fifth as much and was no rival: merged 114 cells off.
+    - ``family:paper_like/tune/29``, episode seed 1003, at 137 s, maps bent by drift: the truth
+      explains 3,568 wall samples and contradicts 412 in the raw index, a half-turned pose
+      laying one identical room on the other 2,551 against 147. The raw index beat the truth
+      by 0.05, though its noise-aware index is 1.0: merged 196 cells off.
+    """
     from mrexplore.merge.constants import rule_constants
     from mrexplore.merge.fusion import IN_LOOP_SEMANTIC_OPTIONS
 
-    data = np.load(Path(__file__).parent / "data" / "paper_like_tune14_1003_70s.npz")
+    data = np.load(Path(__file__).parent / "data" / f"{case}.npz")
     a, b, T_ab = data["a"], data["b"], data["T_ab"]
     res = merge_maps(a, b, resolution_m=0.05, **IN_LOOP_SEMANTIC_OPTIONS)
-    assert not res.matched and "the maps repeat" in res.reason, res.reason
+    assert not res.matched and reason in res.reason, res.reason
     with rule_constants({"RIVALS_CONTRADICTED": False}):
         old = merge_maps(a, b, resolution_m=0.05, **IN_LOOP_SEMANTIC_OPTIONS)
-    assert old.matched and merge_error(old.transform, T_ab, b)[0] > 100
-
-
-def test_in_the_loop_a_rival_within_the_noise_stands() -> None:
-    """Two robots' maps of ``family:paper_like/tune/29`` (episode seed 1003, at 137 s), bent by
-    137 s of odometry drift: the truth explains 3,568 wall samples and contradicts 412 in the
-    raw index, a half-turned pose laying one identical room on the other 2,551 against 147. The
-    raw index beat the truth by 0.05 and the loop merged the half-turn 196 cells off, though the
-    maps agree with the truth within their noise (its noise-aware index is 1.0). In the loop a
-    far pose is beaten only by what the maps contradict beyond their noise."""
-    from mrexplore.merge.constants import rule_constants
-    from mrexplore.merge.fusion import IN_LOOP_SEMANTIC_OPTIONS
-
-    data = np.load(Path(__file__).parent / "data" / "paper_like_tune29_1003_137s.npz")
-    a, b, T_ab = data["a"], data["b"], data["T_ab"]
-    res = merge_maps(a, b, resolution_m=0.05, **IN_LOOP_SEMANTIC_OPTIONS)
-    assert not res.matched and "do not contradict beyond their noise" in res.reason, res.reason
-    with rule_constants({"RIVALS_CONTRADICTED": False}):
-        old = merge_maps(a, b, resolution_m=0.05, **IN_LOOP_SEMANTIC_OPTIONS)
-    assert old.matched and merge_error(old.transform, T_ab, b)[0] > 150
+    assert old.matched and merge_error(old.transform, T_ab, b)[0] > off_by

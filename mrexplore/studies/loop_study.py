@@ -625,10 +625,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument(
         "--part",
         default=None,
-        help="with --family: tune (world seeds 0, 1, ...), test (100000, ...), test2 "
-        "(200000, ...: kept for a rule chosen after test was read), test3 (300000, ...: "
-        "kept for one chosen after test2 was read) or test4 (400000, ...: after test3); tune "
-        "rules on tune only",
+        help="with --family: tune (world seeds 0, 1, ...), test (100000, ...) or test2 .. "
+        "test9 (k * 100000, ...: each kept for a rule chosen after the part before it was "
+        "read); tune rules on tune only",
     )
     p.add_argument("--seeds", type=int, default=20, help="seeds per world (default 20)")
     p.add_argument("--first-seed", type=int, default=1000, help="first seed (default 1000)")

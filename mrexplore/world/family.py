@@ -8,12 +8,9 @@ rule is chosen, so that nothing is tuned on the worlds it is judged on.
 The split: world ``index`` of a part is drawn from ``numpy.random.default_rng(seed)`` alone,
 with ``seed = PART_FIRST_SEED[part] + index``: the tune part is world seeds 0, 1, 2, ...
 (:data:`TUNE_FIRST_SEED`), the test part world seeds 100_000, 100_001, ...
-(:data:`TEST_FIRST_SEED`), and a second test part ``test2``, world seeds 200_000, ...
-(:data:`TEST2_FIRST_SEED`), kept closed for a rule chosen after the test part's results were
-read, a third ``test3``, world seeds 300_000, ... (:data:`TEST3_FIRST_SEED`), kept closed
-for a rule chosen after ``test2`` was read, and a fourth ``test4``, world seeds 400_000, ...
-(:data:`TEST4_FIRST_SEED`), kept closed for a rule chosen after ``test3`` was read; an index
-is below :data:`PART_SIZE`, so the parts never share a seed. Nobody tunes on a test part. A
+(:data:`TEST_FIRST_SEED`), and further test parts ``test2`` .. ``test9``, world seeds
+``k * 100_000``, ..., each kept closed for a rule chosen after the part before it was read; an
+index is below :data:`PART_SIZE`, so the parts never share a seed. Nobody tunes on a test part. A
 world is named by the spec ``"family:<family>/<part>/<index>"`` (:func:`family_spec`), which
 :func:`mrexplore.world.load_world` resolves; its :class:`~mrexplore.world.World` is named
 ``"<family>/<part>/<index:04d>"``.
@@ -98,27 +95,19 @@ __all__ = [
 
 #: The spec prefix: ``"family:paper_like/test/7"``.
 FAMILY_PREFIX = "family:"
-#: The parts of every family, by world seed.
-PARTS: tuple[str, ...] = ("tune", "test", "test2", "test3", "test4")
+#: Worlds per part at most: indices 0 .. PART_SIZE - 1, so the parts' seeds never meet.
+PART_SIZE = 100_000
 #: First world seed of the tune part (world seeds 0, 1, 2, ...).
 TUNE_FIRST_SEED = 0
 #: First world seed of the test part (world seeds 100_000, 100_001, ...).
-TEST_FIRST_SEED = 100_000
-#: First world seed of the second test part (world seeds 200_000, 200_001, ...).
-TEST2_FIRST_SEED = 200_000
-#: First world seed of the third test part (world seeds 300_000, 300_001, ...).
-TEST3_FIRST_SEED = 300_000
-#: First world seed of the fourth test part (world seeds 400_000, 400_001, ...).
-TEST4_FIRST_SEED = 400_000
-#: Worlds per part at most: indices 0 .. PART_SIZE - 1, so the parts' seeds never meet.
-PART_SIZE = 100_000
+TEST_FIRST_SEED = PART_SIZE
+#: The parts of every family, by world seed: ``test<k>`` starts at ``k * PART_SIZE``.
 PART_FIRST_SEED: dict[str, int] = {
     "tune": TUNE_FIRST_SEED,
     "test": TEST_FIRST_SEED,
-    "test2": TEST2_FIRST_SEED,
-    "test3": TEST3_FIRST_SEED,
-    "test4": TEST4_FIRST_SEED,
+    **{f"test{k}": k * PART_SIZE for k in range(2, 10)},
 }
+PARTS: tuple[str, ...] = tuple(PART_FIRST_SEED)
 #: Largest floor, metres: the long side and the short side.
 MAX_LONG_M = 35.0
 MAX_SHORT_M = 25.0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
 
 import numpy as np
@@ -15,6 +16,7 @@ from mrexplore.world.family import (
     MAX_LONG_M,
     MAX_SHORT_M,
     PART_SIZE,
+    PARTS,
     family_seed,
     family_seeds,
     family_spec,
@@ -39,22 +41,14 @@ def _canonical(world: World, copy: dict) -> np.ndarray:
 
 @pytest.mark.parametrize("family", FAMILIES)
 def test_parts_are_disjoint_and_fixed(family: str) -> None:
-    tune, test = family_seeds(family, "tune", 50), family_seeds(family, "test", 50)
-    test2 = family_seeds(family, "test2", 50)
-    test3 = family_seeds(family, "test3", 50)
-    test4 = family_seeds(family, "test4", 50)
-    assert tune[:3] == [0, 1, 2] and test[:3] == [100_000, 100_001, 100_002]
-    assert test2[:2] == [200_000, 200_001]
-    assert test3[:2] == [300_000, 300_001]
-    assert not set(tune) & set(test) and not (set(tune) | set(test)) & set(test2)
-    assert not (set(tune) | set(test) | set(test2)) & set(test3)
-    assert test4[:2] == [400_000, 400_001]
-    assert not (set(tune) | set(test) | set(test2) | set(test3)) & set(test4)
-    # the parts cannot meet at any index
-    assert family_seed("tune", PART_SIZE - 1) < family_seed("test", 0)
-    assert family_seed("test", PART_SIZE - 1) < family_seed("test2", 0)
-    assert family_seed("test2", PART_SIZE - 1) < family_seed("test3", 0)
-    assert family_seed("test3", PART_SIZE - 1) < family_seed("test4", 0)
+    seeds = {part: family_seeds(family, part, 50) for part in PARTS}
+    assert seeds["tune"][:3] == [0, 1, 2] and seeds["test"][:3] == [100_000, 100_001, 100_002]
+    assert seeds["test2"][:2] == [200_000, 200_001]
+    assert seeds["test5"][:2] == [500_000, 500_001]
+    assert len(set().union(*seeds.values())) == 50 * len(PARTS)
+    # the parts cannot meet at any index, in the order they are opened
+    for before, after in itertools.pairwise(PARTS):
+        assert family_seed(before, PART_SIZE - 1) < family_seed(after, 0)
 
 
 def test_family_world_is_its_seed_alone() -> None:

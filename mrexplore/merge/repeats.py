@@ -180,6 +180,60 @@ def agreement_by_structure(
     return out[0], out[1]
 
 
+def ruled_out_structure(
+    a: MapCodes,
+    b: MapCodes,
+    T: Transform,
+    slack: int,
+    tolerance: int = 1,
+    structures_b: Structures | None = None,
+) -> int:
+    """The largest wall structure of either map that the other map rules out under ``T`` (b
+    cells -> a cells): none of its wall cells lands on the other map's walls (nor on free space
+    within ``tolerance`` of one), while half of them or more land on floor the other map has
+    seen open all round (free cells with no wall and no unknown cell within ``tolerance +
+    slack``). A thing one robot saw where the other saw open floor; one that a pose a few cells
+    off grazes with its edge is not ruled out.
+
+    Returns:
+        How many of that structure's wall cells land on such floor (0 when no structure is
+        ruled out).
+
+    >>> import numpy as np
+    >>> g = np.zeros((40, 40), dtype=np.int8)
+    >>> g[0, :] = g[-1, :] = g[:, 0] = g[:, -1] = 100  # a room
+    >>> h = g.copy()
+    >>> h[18:22, 18:22] = 100  # the same room with a box on its floor
+    >>> ruled_out_structure(MapCodes(g), MapCodes(h), np.eye(3), slack=2)
+    16
+    >>> ruled_out_structure(MapCodes(h), MapCodes(h), np.eye(3), slack=2)
+    0
+    """
+    k = 2 * (tolerance + slack) + 1
+    most = 0
+    for mine, other, to_other, known in (
+        (a, b, rigid_inverse(T), None),
+        (b, a, T, structures_b),
+    ):
+        rows, cols = mine.wall_cells()
+        if rows.size == 0:
+            continue
+        on, c, r = agreeing_cells((rows, cols), to_other, other.codes(tolerance))
+        seen_open = cv2.erode(other.free.view(np.uint8), np.ones((k, k), np.uint8))
+        h, w = seen_open.shape
+        inside = (c >= 0) & (c < w) & (r >= 0) & (r < h)
+        open_ = np.zeros(rows.size, dtype=bool)
+        open_[inside] = seen_open[r[inside], c[inside]] > 0
+        structures = known if known is not None else Structures(mine)
+        labels = structures.labels[rows, cols]
+        n = int(labels.max()) + 1
+        agreeing = np.bincount(labels[on], minlength=n)
+        ruled = np.bincount(labels[open_], minlength=n)
+        ruled[(agreeing > 0) | (2 * ruled < np.bincount(labels, minlength=n))] = 0
+        most = max(most, int(ruled.max()))
+    return most
+
+
 def one_object_area(
     a: MapCodes,
     b: MapCodes,

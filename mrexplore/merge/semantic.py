@@ -94,6 +94,7 @@ from mrexplore.merge.repeats import (
     one_object_area,
     outside_object,
     repeat_shifts,
+    ruled_out_structure,
 )
 from mrexplore.merge.rotation import direction_histogram, rotation_candidates, wall_normals
 from mrexplore.options import Options, boolean, integer, number, option
@@ -533,6 +534,10 @@ REPEAT_RIVALS: int = 4
 #: repeat of either map, stands unless the maps contradict it beyond their noise (its noise-aware
 #: index under ``min_score``), however little it explains or however much its raw index trails.
 RIVALS_CONTRADICTED: bool = True
+#: With the place test on (the loop), a pose is refused when either map shows a thing (a wall
+#: structure) the other map rules out: none of it agrees, and most of it, ``MIN_RUN_CELLS``
+#: cells or more, lands on floor the other robot has seen open.
+THINGS_RULED_OUT: bool = True
 #: A match on one structure seen from outside (free cells under this share of its hull) is refused
 #: (0: off).
 OBJECT_HULL_FREE: float = 0.2
@@ -1327,6 +1332,24 @@ def _rule_beyond_places(j: _Judged) -> str | None:
     )
 
 
+def _rule_ruled_out(j: _Judged) -> str | None:
+    """In the loop, no thing either map shows lands, without a cell of it agreeing, on floor
+    the other map has seen open: a repeated room's agreement does not outvote the one thing
+    that differs (``THINGS_RULED_OUT``)."""
+    if not (j.o.place_test and THINGS_RULED_OUT):
+        return None
+    cells = ruled_out_structure(
+        j.pair.codes_a, j.pair.codes_b, j.best.T, SLACK_CELLS, structures_b=j.structures_b()
+    )
+    j.info["ruled_out_cells"] = cells
+    if cells < MIN_RUN_CELLS:
+        return None
+    return (
+        f"a thing one map shows lands on floor the other map has seen open ({cells} wall "
+        "cells, none agreeing): the maps are not of the same place under this pose"
+    )
+
+
 def _rule_wall_area(j: _Judged) -> str | None:
     """The agreeing walls cover ``min_wall_area_m2``: one object fits every copy of it."""
     o = j.o
@@ -1443,6 +1466,7 @@ _RULES: tuple[Callable[[_Judged], str | None], ...] = (
     _rule_room_match,
     _rule_pinned,
     _rule_beyond_places,
+    _rule_ruled_out,
     _rule_wall_area,
     _rule_one_object,
     _rule_outside_object,

@@ -8,7 +8,12 @@ from conftest import merge_with
 from mrexplore.grid import FREE, OCCUPIED, UNKNOWN
 from mrexplore.merge import merge_maps
 from mrexplore.merge.common import MapCodes
-from mrexplore.merge.repeats import one_object_area, repeat_shifts, wall_structures
+from mrexplore.merge.repeats import (
+    one_object_area,
+    repeat_shifts,
+    ruled_out_structure,
+    wall_structures,
+)
 
 #: One rack's footprint: an outline (its inside unseen), with a crate against one corner so that
 #: it is not symmetric under a half turn.
@@ -159,3 +164,45 @@ def test_the_aliased_rack_side_merges_are_refused() -> None:
         res = merge_with(case.a, case.b, **kw, lone_pin_test=False)
         assert not res.matched and "seen from outside" in res.reason
         assert not merge_maps(case.a, case.b, **kw).matched
+
+
+def _room_with_box(box_at: tuple[int, int] | None, seen: slice = slice(None)) -> np.ndarray:
+    """A 60 x 60 room, its floor seen in columns ``seen`` only, with a 4 x 4 box at (row, col)."""
+    g = np.full((60, 60), UNKNOWN, dtype=np.int8)
+    g[:, seen] = FREE
+    g[0, :] = g[-1, :] = g[:, 0] = g[:, -1] = OCCUPIED
+    if box_at is not None:
+        r, c = box_at
+        g[r : r + 4, c : c + 4] = OCCUPIED
+    return g
+
+
+def test_a_thing_only_one_map_shows_on_the_others_open_floor_is_ruled_out() -> None:
+    empty, box = MapCodes(_room_with_box(None)), MapCodes(_room_with_box((28, 28)))
+    # either way round: the box's 16 cells land on the other map's open floor
+    assert ruled_out_structure(empty, box, np.eye(3), slack=2) == 16
+    assert ruled_out_structure(box, empty, np.eye(3), slack=2) == 16
+    # both maps show it, two cells apart (drift): it agrees, nothing is ruled out
+    moved = MapCodes(_room_with_box((28, 30)))
+    assert ruled_out_structure(box, moved, np.eye(3), slack=2) == 0
+
+
+def test_a_thing_on_floor_the_other_map_never_saw_is_not_ruled_out() -> None:
+    box = MapCodes(_room_with_box((28, 44)))
+    half_seen = MapCodes(_room_with_box(None, seen=slice(0, 30)))
+    assert ruled_out_structure(half_seen, box, np.eye(3), slack=2) == 0
+    # nor one joined to the walls (a cell's gap bridged): one structure with them, which agree
+    by_the_wall = MapCodes(_room_with_box((28, 3)))
+    assert ruled_out_structure(MapCodes(_room_with_box(None)), by_the_wall, np.eye(3), slack=2) == 0
+
+
+def test_a_thing_ruled_out_only_at_its_edge_is_not_ruled_out() -> None:
+    """A pose a few cells off lays a thing's edge on seen floor and the rest where the other map
+    never looked: under half of it on open floor is not evidence against the pose."""
+    half_seen = MapCodes(_room_with_box(None, seen=slice(0, 31)))
+    bar = _room_with_box(None)
+    bar[28:30, 20:45] = OCCUPIED  # 50 cells; 16 of them over floor seen open all round
+    assert ruled_out_structure(half_seen, MapCodes(bar), np.eye(3), slack=2) == 0
+    inside = _room_with_box(None)
+    inside[28:30, 8:24] = OCCUPIED  # all of it over that floor
+    assert ruled_out_structure(half_seen, MapCodes(inside), np.eye(3), slack=2) == 32

@@ -664,3 +664,26 @@ def test_in_the_loop_a_rival_stands_until_the_maps_contradict_it(
     with rule_constants({"RIVALS_CONTRADICTED": False}):
         old = merge_maps(a, b, resolution_m=0.05, **IN_LOOP_SEMANTIC_OPTIONS)
     assert old.matched and merge_error(old.transform, T_ab, b)[0] > off_by
+
+
+def test_in_the_loop_a_thing_one_map_shows_and_the_other_saw_as_floor_refuses() -> None:
+    """``family:office_row/test4/6``, episode seed 1004, at 104.5 s: each robot mapped two
+    identical furnished offices and the corridor before them, and the two maps share nothing
+    (the truth lies three offices along). Laying b's first office on a's second explains 3,080
+    wall samples against 144, consistent within the maps' noise, and agrees beyond the
+    offices' places; but a box in each robot's stretch of corridor lands on floor the other
+    robot saw open, no cell of it agreeing. With ``THINGS_RULED_OUT`` it is refused; without it,
+    merged 270 cells off."""
+    from mrexplore.merge.constants import rule_constants
+    from mrexplore.merge.fusion import IN_LOOP_SEMANTIC_OPTIONS
+
+    data = np.load(Path(__file__).parent / "data" / "office_row_test4_6_1004_104s.npz")
+    a, b, T_ab = data["a"], data["b"], data["T_ab"]
+    res = merge_maps(a, b, resolution_m=0.05, **IN_LOOP_SEMANTIC_OPTIONS)
+    assert not res.matched and "floor the other map has seen open" in res.reason, res.reason
+    assert res.info["ruled_out_cells"] >= 20
+    with rule_constants({"THINGS_RULED_OUT": False}):
+        old = merge_maps(a, b, resolution_m=0.05, **IN_LOOP_SEMANTIC_OPTIONS)
+    assert old.matched and merge_error(old.transform, T_ab, b)[0] > 200
+    # a single call (no place test) does not ask it
+    assert "ruled_out_cells" not in merge_maps(a, b, resolution_m=0.05).info

@@ -8,6 +8,7 @@ checked when the env is built, not deep inside a step.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -51,6 +52,21 @@ def _task_check(v: Any) -> None:
             raise ValueError("'explore' or 'navigate' (or a Task object)")
     elif not (callable(getattr(v, "bind", None)) and callable(getattr(v, "terminated", None))):
         raise ValueError("'explore' or 'navigate' (or a Task object)")
+
+
+def _options_of(name: str) -> Callable[[Any], None]:
+    """A check that a value is an instance of ``mrexplore.merge``'s options class ``name``
+    (``SemanticOptions`` or ``TrackerOptions``; imported when checked, so the merger loads
+    only when options for it are given)."""
+
+    def check(v: Any) -> None:
+        from mrexplore.merge import SemanticOptions, TrackerOptions
+
+        classes = {"SemanticOptions": SemanticOptions, "TrackerOptions": TrackerOptions}
+        if not isinstance(v, classes[name]):
+            raise ValueError(f"a mrexplore.merge.{name}")
+
+    return check
 
 
 def _is_dict(v: Any) -> None:
@@ -112,6 +128,20 @@ class EnvConfig(Options):
             :mod:`mrexplore.environment.sighting`). None (default): no sightings.
         sighting_noise_range_m, sighting_noise_bearing_rad, sighting_noise_heading_rad: standard
             deviations of that measurement (defaults 0.05 m, 0.02 rad, 0.05 rad).
+        semantic_options: the semantic merger's options
+            (:class:`~mrexplore.merge.semantic.SemanticOptions`), used as given: build them with
+            :func:`~mrexplore.merge.fusion.in_loop_semantic_options` to change one and keep the
+            loop's others (the loop's differ from a single call's: the place test on, no area
+            floors). None (default): the loop's. Only with ``merger="semantic"``.
+        tracker_options: the merge tracker's options
+            (:class:`~mrexplore.merge.TrackerOptions`), used as given but for the schedule
+            above (``merge_every``, ``recheck_every``, ``merge_latency_steps`` are the env's):
+            build them with :func:`~mrexplore.merge.fusion.in_loop_tracker_options`. None
+            (default): the loop's.
+        merge_options: the untyped form: a dict of the merge method's keyword options with the
+            tracker's among them (``{"min_margin": 0.05, "drop_below": 0.9}``); for a merger
+            other than the semantic one, the only form. Not with the typed options for the same
+            part.
     Episode and reward:
         target_coverage: exploration ends when the coverage (``coverage_mode``) reaches this
             share of the reachable free cells.
@@ -220,8 +250,16 @@ class EnvConfig(Options):
     info_extra: bool = option(False, boolean)
     evaluate: bool = option(True, boolean)
     merge_options: dict[str, Any] = option(None, _is_dict, factory=dict)
+    semantic_options: Any = option(None, optional(_options_of("SemanticOptions")))
+    tracker_options: Any = option(None, optional(_options_of("TrackerOptions")))
 
     def check_together(self) -> None:
+        if self.semantic_options is not None and not (
+            isinstance(self.merger, str) and self.merger.lower() == "semantic"
+        ):
+            raise ConfigError(
+                f"option semantic_options are the semantic merger's; merger is {self.merger!r}"
+            )
         if self.task == "navigate" and self.nav_warmup_s >= self.max_time_s:
             raise ConfigError(
                 f"option nav_warmup_s ({self.nav_warmup_s}) must be shorter than max_time_s "

@@ -168,6 +168,8 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
             merge_options=cfg.merge_options,
             resolution_m=self._resolution_m,
             executor=merge_executor,
+            semantic_options=cfg.semantic_options,
+            tracker_options=cfg.tracker_options,
         )
         self._obs_builder = ObservationBuilder(
             self._resolution_m,

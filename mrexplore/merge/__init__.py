@@ -4,14 +4,18 @@
   :class:`MergeEvidence` (semantic) holds the poses the merger weighed;
 - :class:`MapMergeTracker`: every-step use for N robots (attempts, keeps, re-checks, fuses),
   tuned by :class:`TrackerOptions`;
+- :class:`SemanticOptions`, :class:`TrackerOptions`: the typed options of the semantic merger
+  and the tracker; :func:`in_loop_semantic_options` and :func:`in_loop_tracker_options` give
+  the loop's (the env's ``semantic_options`` and ``tracker_options``);
 - :func:`window_size`: the seed paper's Eq. (5);
 - :class:`PosePrior`: a rough guess of the relative pose, for maps of look-alike places.
 """
 
 from mrexplore.merge.api import METHODS, merge_maps
 from mrexplore.merge.common import MergeEvidence, MergeResult, WeighedPose
+from mrexplore.merge.fusion import in_loop_semantic_options, in_loop_tracker_options
 from mrexplore.merge.paper import window_size
-from mrexplore.merge.semantic import PosePrior
+from mrexplore.merge.semantic import PosePrior, SemanticOptions
 from mrexplore.merge.tracker import MapMergeTracker, TrackerOptions
 
 __all__ = [
@@ -20,8 +24,11 @@ __all__ = [
     "MergeEvidence",
     "MergeResult",
     "PosePrior",
+    "SemanticOptions",
     "TrackerOptions",
     "WeighedPose",
+    "in_loop_semantic_options",
+    "in_loop_tracker_options",
     "merge_maps",
     "window_size",
 ]

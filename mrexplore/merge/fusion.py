@@ -10,16 +10,22 @@ agents can talk (``links``), and the step counter.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
+from mrexplore.errors import ConfigError
 from mrexplore.grid import MapChange, Transform, check_int8_map
-from mrexplore.options import MERGE_EVERY_DEFAULT, RECHECK_EVERY_DEFAULT
+from mrexplore.options import MERGE_EVERY_DEFAULT, RECHECK_EVERY_DEFAULT, Options
 from mrexplore.types import Box, Merger
+
+if TYPE_CHECKING:
+    from mrexplore.merge.semantic import SemanticOptions
+    from mrexplore.merge.tracker import TrackerOptions
 
 #: ``rival_perfect_cells`` of the semantic merger in the loop: off. The perfect-rival test guards
 #: a one-shot merge against b's rest lying in a's unseen part; in the loop that part gets seen
@@ -49,9 +55,105 @@ IN_LOOP_SEMANTIC_OPTIONS: dict[str, Any] = {
 }
 
 
+_O = TypeVar("_O", bound=Options)
+
+
 def semantic_named(merger: Any) -> bool:
     """Is ``merger`` the named semantic method (whose in-loop settings apply)?"""
     return isinstance(merger, str) and merger.lower() == "semantic"
+
+
+def in_loop_semantic_options(**changes: Any) -> SemanticOptions:
+    """The semantic merger's options in the loop (:data:`IN_LOOP_SEMANTIC_OPTIONS` over its
+    defaults) with ``changes``: what to give the env's ``semantic_options`` to change one
+    setting and keep the loop's others. A bad name or value is a ``ConfigError`` naming it.
+
+    >>> o = in_loop_semantic_options(min_margin=0.05)
+    >>> o.place_test, o.min_common_m2, o.min_margin
+    (True, 0.0, 0.05)
+    """
+    from mrexplore.merge.semantic import SemanticOptions
+
+    return SemanticOptions.from_kwargs(**{**IN_LOOP_SEMANTIC_OPTIONS, **changes})
+
+
+def in_loop_tracker_options(merger: Any = "semantic", **changes: Any) -> TrackerOptions:
+    """The tracker's options in the loop for ``merger`` (``min_accept_cells``
+    :data:`IN_LOOP_MIN_ACCEPT_CELLS` with the semantic merger, 0 with another) with
+    ``changes``: what to give the env's ``tracker_options``. The schedule (``merge_every``,
+    ``recheck_every``, ``merge_latency_steps``) is the env's own options; set it there.
+
+    >>> in_loop_tracker_options(drop_below=0.9).min_accept_cells
+    250
+    """
+    from mrexplore.merge.tracker import TrackerOptions
+
+    floor = IN_LOOP_MIN_ACCEPT_CELLS if semantic_named(merger) else 0
+    return TrackerOptions.from_kwargs(**{"min_accept_cells": floor, **changes})
+
+
+def _tracker_settings(
+    merger: Any,
+    schedule: Mapping[str, Any],
+    merge_options: Mapping[str, Any] | None,
+    semantic_options: SemanticOptions | None,
+    tracker_options: TrackerOptions | None,
+    resolution_m: float | None,
+) -> tuple[TrackerOptions, dict[str, Any]]:
+    """The tracker's options and the merger's keyword options of a stage, from the untyped
+    ``merge_options`` (the merger's options with the tracker's knobs among them) or the typed
+    ones; both forms for one part is a ``ConfigError``."""
+    from mrexplore.merge.semantic import SemanticOptions
+    from mrexplore.merge.tracker import TRACKER_KEYS, TrackerOptions
+
+    options = dict(merge_options or {})
+    knobs = {k: options.pop(k) for k in sorted(TRACKER_KEYS & set(options))}
+    semantic = semantic_named(merger)
+    if tracker_options is None:
+        tuning = in_loop_tracker_options(merger, **{**schedule, **knobs})
+    elif not isinstance(tracker_options, TrackerOptions):
+        raise ConfigError(f"tracker_options must be a TrackerOptions, got {tracker_options!r}")
+    elif knobs:
+        raise ConfigError(
+            f"the tracker's {sorted(knobs)} given in merge_options and tracker_options: give "
+            "them in tracker_options only"
+        )
+    else:
+        tuning = _owned_by_stage(tracker_options, schedule, "tracker_options")
+    if semantic_options is None:
+        if semantic:
+            # in the loop the maps grow, so asking for a room's worth of shared knowledge costs
+            # seconds, while a one-shot merge has no "later"
+            options = {**IN_LOOP_SEMANTIC_OPTIONS, **options}
+            if resolution_m is not None:
+                options.setdefault("resolution_m", float(resolution_m))
+        return tuning, options
+    if not isinstance(semantic_options, SemanticOptions):
+        raise ConfigError(f"semantic_options must be a SemanticOptions, got {semantic_options!r}")
+    if not semantic:
+        raise ConfigError(f"semantic_options are the semantic merger's; the merger is {merger!r}")
+    if options:
+        raise ConfigError(
+            f"the merger's {sorted(options)} given in merge_options and semantic_options: give "
+            "them in semantic_options only"
+        )
+    resolution = {} if resolution_m is None else {"resolution_m": float(resolution_m)}
+    return tuning, _owned_by_stage(semantic_options, resolution, "semantic_options").to_dict()
+
+
+def _owned_by_stage(options: _O, stage: Mapping[str, Any], where: str) -> _O:
+    """``options`` with the fields ``stage`` sets replaced by the stage's values; a field the
+    caller set to a third value (neither its default nor the stage's) is a ``ConfigError``: it
+    would be lost silently."""
+    defaults = {f.name: f.default for f in dataclasses.fields(options)}  # type: ignore[arg-type]
+    for name, value in stage.items():
+        given = getattr(options, name)
+        if given != defaults[name] and given != value:
+            raise ConfigError(
+                f"{where}.{name} is {given!r} but the env's {name} is {value!r}: set {name} "
+                "on the env (it is the env's, not the options')"
+            )
+    return dataclasses.replace(options, **stage)  # type: ignore[type-var]
 
 
 class FusionStage:
@@ -65,11 +167,17 @@ class FusionStage:
         recheck_every: steps between re-checks of an accepted transform.
         merge_latency_steps: steps between the start of a merge attempt and its effect (0: the
             same step; > 0: computed in a worker thread meanwhile).
-        merge_options: extra keyword options for the merge method.
+        merge_options: extra keyword options for the merge method, and the tracker's knobs
+            (:class:`~mrexplore.merge.TrackerOptions`' names) among them: the untyped form;
+            ``semantic_options`` and ``tracker_options`` are the typed one.
         resolution_m: metres per cell of the maps; passed to the ``"semantic"`` merger (its
             minimum common area is in m^2) unless ``merge_options`` sets it.
         executor: the worker thread for delayed attempts, shared with other stages (see
             :class:`~mrexplore.merge.MapMergeTracker`); None: the tracker's own.
+        semantic_options: the semantic merger's options, used as given (start from
+            :func:`in_loop_semantic_options`); None: the loop's. Only with ``merger="semantic"``.
+        tracker_options: the tracker's options, used as given but for the schedule above
+            (start from :func:`in_loop_tracker_options`); None: the loop's.
     """
 
     def __init__(
@@ -82,6 +190,8 @@ class FusionStage:
         merge_options: Mapping[str, Any] | None = None,
         resolution_m: float | None = None,
         executor: Executor | None = None,
+        semantic_options: SemanticOptions | None = None,
+        tracker_options: TrackerOptions | None = None,
     ) -> None:
         self.agents = list(agents)
         self.index = {a: i for i, a in enumerate(self.agents)}
@@ -97,26 +207,20 @@ class FusionStage:
         self._seen: dict[str, tuple[tuple[str, Any], int]] = {}
         self.tracker: Any = None
         if self.enabled:
-            from mrexplore.merge.tracker import TRACKER_KEYS, MapMergeTracker, TrackerOptions
+            from mrexplore.merge.tracker import MapMergeTracker
 
-            # merge_options (the env's one dict) holds the merger's options and the tracker's
-            # knobs: the knobs, over the stage's schedule, become the tracker's options (taken
-            # out of ``options``), the rest goes to the merger
-            options = dict(merge_options or {})
-            schedule = {
-                "min_accept_cells": IN_LOOP_MIN_ACCEPT_CELLS if semantic_named(merger) else 0,
-                "merge_every": merge_every,
-                "recheck_every": recheck_every,
-                "merge_latency_steps": merge_latency_steps,
-            }
-            knobs = {k: options.pop(k) for k in sorted(TRACKER_KEYS & set(options))}
-            tuning = TrackerOptions.from_kwargs(**{**schedule, **knobs})
-            if isinstance(merger, str) and merger.lower() == "semantic":
-                # In the loop the maps grow, so asking for a room's worth of shared knowledge
-                # costs seconds, while a one-shot merge has no "later".
-                options = {**IN_LOOP_SEMANTIC_OPTIONS, **options}
-                if resolution_m is not None:
-                    options.setdefault("resolution_m", float(resolution_m))
+            tuning, options = _tracker_settings(
+                merger,
+                {
+                    "merge_every": merge_every,
+                    "recheck_every": recheck_every,
+                    "merge_latency_steps": merge_latency_steps,
+                },
+                merge_options,
+                semantic_options,
+                tracker_options,
+                resolution_m,
+            )
             self.tracker = MapMergeTracker(
                 len(self.agents), merger=merger, options=tuning, executor=executor, **options
             )

@@ -65,7 +65,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import cv2
 import gymnasium
@@ -88,6 +88,9 @@ from mrexplore.options import (
     validate,
 )
 from mrexplore.types import Merger
+
+if TYPE_CHECKING:
+    from mrexplore.merge import SemanticOptions, TrackerOptions
 
 MergeMode = Literal["replace", "augment"]
 LinksFn = Callable[[Any], "NDArray[np.bool_] | None"]
@@ -194,7 +197,11 @@ class MapMergeWrapper(BaseParallelWrapper):
             exchange maps now, or None for "all can". None (default): always connected.
         obs_size_px: side S of the fused-map image, pixels (>= 36 for SB3's ``CnnPolicy``).
         view_m: side of the window shown, metres; None = the longer side of the map.
-        **merge_options: extra keyword options of the merge method.
+        semantic_options, tracker_options: the typed options of the semantic merger and of the
+            tracker (:func:`mrexplore.merge.in_loop_semantic_options`,
+            :func:`mrexplore.merge.in_loop_tracker_options`), as the env takes them; None: the
+            loop's.
+        **merge_options: extra keyword options of the merge method (the untyped form).
 
     Raises:
         ConfigError: the env lacks the map protocol, or an option has a bad value.
@@ -210,6 +217,8 @@ class MapMergeWrapper(BaseParallelWrapper):
         comm_range_fn: LinksFn | None = None,
         obs_size_px: int = 64,
         view_m: float | None = None,
+        semantic_options: SemanticOptions | None = None,
+        tracker_options: TrackerOptions | None = None,
         **merge_options: Any,
     ) -> None:
         if mode not in ("replace", "augment"):
@@ -245,6 +254,8 @@ class MapMergeWrapper(BaseParallelWrapper):
             recheck_every=int(recheck_every),
             merge_options=merge_options,
             resolution_m=float(parallel_env.unwrapped.map_resolution_m),
+            semantic_options=semantic_options,
+            tracker_options=tracker_options,
         )
         self._step = 0
         n_channels = 4 if self._has_pose else 3

@@ -13,6 +13,7 @@ from pettingzoo.test.state_test import state_test
 import mrexplore
 from mrexplore.environment.infos import INFO_KEYS
 from mrexplore.errors import ConfigError, WorldError
+from mrexplore.merge import in_loop_semantic_options
 
 SMALL = {"world": "small_office", "max_time_s": 60.0}
 
@@ -246,6 +247,12 @@ def test_navigation_warmup_hides_the_goal_then_restarts_robot0() -> None:
         ({"range_noise_m": 10.0}, "range_noise_m=10.0 must be below max_range_m"),
         ({"map_l_free": -0.5}, r"map_l_free must be in \[-5, -1.1\].*got -0.5"),
         ({"map_l_occ": 0.5}, r"map_l_occ must be in \[0.62, 5\].*got 0.5"),
+        ({"semantic_options": {"min_margin": 0.1}}, "semantic_options must be a mrexplore"),
+        ({"tracker_options": 0.9}, "tracker_options must be a mrexplore.merge.TrackerOptions"),
+        (
+            {"merger": None, "semantic_options": in_loop_semantic_options()},
+            "semantic_options are the semantic merger's; merger is None",
+        ),
     ],
 )
 def test_bad_option_values_name_the_option(options: dict, words: str) -> None:

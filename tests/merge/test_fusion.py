@@ -3,10 +3,18 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from conftest import look_alike_canvases
 
+from mrexplore.errors import ConfigError
 from mrexplore.grid import invert_transform
-from mrexplore.merge.fusion import FusionStage
+from mrexplore.merge import SemanticOptions
+from mrexplore.merge.fusion import (
+    IN_LOOP_MIN_ACCEPT_CELLS,
+    FusionStage,
+    in_loop_semantic_options,
+    in_loop_tracker_options,
+)
 
 
 def _maps() -> dict[str, np.ndarray]:
@@ -50,6 +58,73 @@ def test_the_loop_asks_for_other_places_not_areas_and_no_perfect_rival_test_unle
         ["robot_0", "robot_1"], merger="semantic", merge_options={"rival_perfect_cells": 250}
     )
     assert told.tracker._merge.options["rival_perfect_cells"] == 250
+
+
+def test_typed_options_at_the_loops_defaults_are_the_untyped_defaults() -> None:
+    """``in_loop_semantic_options()`` and ``in_loop_tracker_options()`` are what the stage uses
+    when given nothing: the same merger options and the same tracker options."""
+    plain = FusionStage(["a", "b"], merger="semantic", merge_every=5, resolution_m=0.1)
+    typed = FusionStage(
+        ["a", "b"],
+        merger="semantic",
+        merge_every=5,
+        resolution_m=0.1,
+        semantic_options=in_loop_semantic_options(),
+        tracker_options=in_loop_tracker_options(),
+    )
+    assert (
+        typed.tracker._merge.options
+        == SemanticOptions.from_kwargs(**plain.tracker._merge.options).to_dict()
+    )
+    assert typed.tracker.options == plain.tracker.options
+    assert typed.tracker.options.merge_every == 5  # the stage's schedule
+    assert typed.tracker._merge.options["resolution_m"] == 0.1  # and the maps' resolution
+
+
+def test_a_typed_option_changes_one_setting_and_keeps_the_loops_others() -> None:
+    stage = FusionStage(
+        ["a", "b"],
+        merger="semantic",
+        semantic_options=in_loop_semantic_options(min_margin=0.2),
+        tracker_options=in_loop_tracker_options(drop_below=0.9),
+    )
+    opts = stage.tracker._merge.options
+    assert opts["min_margin"] == 0.2 and opts["place_test"] is True
+    assert stage.tracker.options.drop_below == 0.9
+    assert stage.tracker.options.min_accept_cells == IN_LOOP_MIN_ACCEPT_CELLS
+    assert in_loop_tracker_options("orb").min_accept_cells == 0
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "says"),
+    [
+        ({"merger": "orb", "semantic_options": in_loop_semantic_options()}, "merger is 'orb'"),
+        ({"semantic_options": {"min_margin": 0.1}}, "must be a SemanticOptions"),
+        ({"tracker_options": {"drop_below": 0.9}}, "must be a TrackerOptions"),
+        (
+            {"merge_options": {"min_margin": 0.1}, "semantic_options": in_loop_semantic_options()},
+            "semantic_options only",
+        ),
+        (
+            {"merge_options": {"drop_below": 0.9}, "tracker_options": in_loop_tracker_options()},
+            "tracker_options only",
+        ),
+        (
+            {"merge_every": 4, "tracker_options": in_loop_tracker_options(merge_every=6)},
+            "set merge_every on the env",
+        ),
+        (
+            {"resolution_m": 0.1, "semantic_options": in_loop_semantic_options(resolution_m=0.2)},
+            "set resolution_m on the env",
+        ),
+    ],
+)
+def test_typed_options_given_twice_or_for_another_merger_are_refused(
+    kwargs: dict, says: str
+) -> None:
+    kwargs = {"merger": "semantic", **kwargs}
+    with pytest.raises(ConfigError, match=says):
+        FusionStage(["a", "b"], **kwargs)
 
 
 def test_hypotheses_give_each_robot_the_candidates_and_the_teammates_map() -> None:

@@ -29,7 +29,9 @@ Each step the caller hands over the robots' own-frame maps. The tracker
 - lets a sighting bind its pair (``SIGHTING_BINDS``): robots that see each other measure the
   transform, so a kept pose that puts the seen robot elsewhere than the sighting's region is
   dropped and the next attempt looks only in that region; re-checks of a sighted pair look only
-  there too (a look-alike elsewhere cannot win a re-check against a rendezvous);
+  there too (a look-alike elsewhere cannot win a re-check against a rendezvous). A pair merged
+  only through teammates is bound too: when the chain puts the seen robot elsewhere, every edge
+  of the chain that no sighting of its own pair vouches for is dropped;
 - chains transforms through merged pairs (0-1 and 1-2 merged => 0-2 known);
 - hands the pixels to :class:`~mrexplore.merge.compositor.MapCompositor`: change detection,
   each teammate's map warped into i's frame, and robot i's fused map ("occupied beats free
@@ -126,8 +128,9 @@ DRIFT_KEEP_ABOVE: float = 0.9
 #: (:meth:`MapMergeTracker._outranked`; False: off, the kept place judged by ``drop_below`` only).
 OUTRANKED_DROP: bool = True
 #: A sighting binds its pair: a kept pose outside the latest sighting's region is dropped (the
-#: next attempt looks in the region), and re-checks look only inside it (False: sightings guide
-#: the attempts of unmerged pairs only).
+#: next attempt looks in the region; merged through teammates, the chain's edges no sighting of
+#: their own vouches for), and re-checks look only inside it (False: sightings guide the
+#: attempts of unmerged pairs only).
 SIGHTING_BINDS: bool = True
 #: A sighting-guided attempt looks within this many cells of the guess (2 m at 0.05 m).
 PRIOR_RADIUS_CELLS: float = 40.0
@@ -362,9 +365,10 @@ class TrackerOptions(Options):
             walls within this many cells of where the guess puts it, turned by at most this
             many degrees (defaults 40 cells, 2 m at 0.05 m, and 10 degrees; the semantic
             merger's :class:`~mrexplore.merge.PosePrior`).
-        SIGHTING_BINDS: a sighting of a merged pair drops a kept pose outside its region, and a
-            sighted pair's re-checks look only in the latest sighting's region (default True;
-            False: sightings guide unmerged pairs' attempts only).
+        SIGHTING_BINDS: a sighting of a merged pair drops a kept pose outside its region (of a
+            pair merged through teammates, every edge of the chain its own sighting does not
+            vouch for), and a sighted pair's re-checks look only in the latest sighting's region
+            (default True; False: sightings guide unmerged pairs' attempts only).
         RIVAL_MEMORY: rivals remembered per unmerged pair (default 8; 0 = none): a pose an
             attempt found nearly as good as its best, far from it. A later attempt's pose is
             accepted only when the maps now rule out every remembered rival (it explains less
@@ -589,8 +593,13 @@ class MapMergeTracker:
         self._apply_due(step)
         if not attempt:
             return
-        for (i, j), seen in (sightings or {}).items():
-            self._sight(i, j, self._as_sighting(j, seen), step)
+        seen_now = [
+            (i, j, self._as_sighting(j, seen)) for (i, j), seen in (sightings or {}).items()
+        ]
+        for i, j, seen in seen_now:  # all of this step's sightings are known before any binds
+            self._take_sighting(i, j, seen)
+        for i, j, _ in seen_now:
+            self._bind(i, j, step)
         if step % self.options.merge_every == 0:
             self._attempt_merges(step)
         if self.options.recheck_every and step % self.options.recheck_every == 0 and step > 0:
@@ -606,24 +615,71 @@ class MapMergeTracker:
         r0, r1, c0, c1 = box if box is not None else (0, 0, 0, 0)
         return Sighting(np.asarray(seen, dtype=np.float64).copy(), ((c0 + c1) / 2, (r0 + r1) / 2))
 
-    def _sight(self, i: int, j: int, seen: Sighting, step: int) -> None:
-        """Take a sighting of pair (i, j): kept for the pair's attempts and, with
-        ``SIGHTING_BINDS``, to judge its poses; a kept pose it contradicts is dropped."""
+    def _take_sighting(self, i: int, j: int, seen: Sighting) -> None:
+        """Keep a sighting of pair (i, j) for the pair's attempts and, with ``SIGHTING_BINDS``,
+        to judge its poses (:meth:`_bind`)."""
         if self.transform(i, j) is None:
             if (i, j) not in self._sighted:
                 self._last_attempt_known.pop((i, j), None)  # due for an attempt at once
         elif not SIGHTING_BINDS:
             return
         self._sighted[(i, j)] = seen
-        kept = self._edges.get((i, j))
-        if kept is None or not self._seen_elsewhere(i, j, kept):
+
+    def _bind(self, i: int, j: int, step: int) -> None:
+        """With ``SIGHTING_BINDS``, drop what pair (i, j)'s latest sighting contradicts."""
+        if not SIGHTING_BINDS or (i, j) not in self._sighted:
             return
-        # The robots saw each other where the kept pose does not put them: a look-alike place.
+        kept = self._edges.get((i, j))
+        if kept is not None:
+            if self._seen_elsewhere(i, j, kept):
+                # the robots saw each other where the kept pose does not put them: a look-alike
+                self._drop_sighted(i, j, step)
+            return
+        through = self.transform(i, j)
+        if through is None or not self._seen_elsewhere(i, j, through):
+            return
+        # Merged through teammates, and seen where that chain of merges does not put them: an
+        # edge of the chain joins look-alike places. Which one the sighting cannot say, so every
+        # edge that no sighting of its own pair vouches for goes.
+        for a, b in self._chain_edges(i, j):
+            if not self._vouched(a, b):
+                self._drop_sighted(a, b, step)
+
+    def _drop_sighted(self, i: int, j: int, step: int) -> None:
+        """Un-merge the kept edge (i, j) because of a sighting (recorded in :attr:`drops`)."""
         first = self._contradicted.pop((i, j), step)
         self.drops.append(DropRecord(i, j, first, step, "sighting"))
         self._unmerge(i, j)
         self._pending.pop((i, j), None)
         self._last_attempt_known.pop((i, j), None)
+
+    def _vouched(self, i: int, j: int) -> bool:
+        """Does the latest sighting of the merged pair (i, j) put robot j where its kept pose
+        does (False without a sighting)?"""
+        return (i, j) in self._sighted and not self._seen_elsewhere(i, j, self._edges[(i, j)])
+
+    def _chain_edges(self, i: int, j: int) -> list[tuple[int, int]]:
+        """The kept edges (as stored, low index first) on the path that :meth:`transform`
+        chains from robot i to robot j (the same breadth-first search)."""
+        adj: dict[int, list[int]] = {k: [] for k in range(self.n)}
+        for a, b in self._edges:
+            adj[a].append(b)
+            adj[b].append(a)
+        parent: dict[int, int] = {i: i}
+        q = deque([i])
+        while q:
+            u = q.popleft()
+            for v in adj[u]:
+                if v not in parent:
+                    parent[v] = u
+                    q.append(v)
+        edges = []
+        v = j
+        while v != i:
+            u = parent[v]
+            edges.append((min(u, v), max(u, v)))
+            v = u
+        return edges[::-1]
 
     def _seen_elsewhere(self, i: int, j: int, T: Transform) -> bool:
         """Does pose ``T_ij`` (canvas cells) put robot j farther than ``PRIOR_RADIUS_CELLS``

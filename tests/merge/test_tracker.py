@@ -974,6 +974,39 @@ def test_a_sighting_binds_a_merged_pair(
     assert [d.cause for d in tr.drops] == ([] if kept else ["sighting"])
 
 
+@pytest.mark.parametrize(
+    ("wrong_edge", "vouched", "dropped"),
+    [
+        (None, False, []),  # the chain puts robot 2 where it was seen: nothing goes
+        ((1, 2), False, [(0, 1), (1, 2)]),  # either edge may be the look-alike: both go
+        ((1, 2), True, [(1, 2)]),  # robot 1 was seen where (0, 1) puts it: only (1, 2) goes
+    ],
+)
+def test_a_sighting_binds_a_pair_merged_through_a_teammate(
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray],
+    wrong_edge: tuple[int, int] | None,
+    vouched: bool,
+    dropped: list[tuple[int, int]],
+) -> None:
+    """Robots 0 and 2 are merged only through robot 1 (edges (0, 1) and (1, 2)). When 0 sees 2
+    where the chain does not put it, an edge of the chain joins look-alike places; the
+    sighting cannot say which, so every edge its own pair's sighting does not vouch for goes."""
+    ca, cb, T_true = robots
+    tr = MapMergeTracker(3, merger="semantic", merge_every=1000, recheck_every=0)
+    tr.update([ca, cb, cb], step=0, attempt=False)
+    T_12 = translation(60.0, 0.0) if wrong_edge == (1, 2) else np.eye(3)  # 2 is a copy of 1
+    tr._edges[(0, 1)], tr._edges[(1, 2)] = T_true.copy(), T_12
+    tr._paths = None
+    assert tr.merged(2) and tr.transform(0, 2) is not None
+    sightings = {(0, 2): _sighted_at(T_true, cb)}  # the truth: robot 2 is where robot 1 is
+    if vouched:
+        sightings[(0, 1)] = _sighted_at(T_true, cb)
+    tr.update([ca, cb, cb], step=1, sightings=sightings)
+    assert [(d.i, d.j) for d in tr.drops] == dropped
+    assert all(d.cause == "sighting" for d in tr.drops)
+    assert tr.merged(2) is (wrong_edge is None)
+
+
 def test_a_sighted_pair_attempt_does_not_take_a_pose_away_from_the_sighting(
     robots: tuple[np.ndarray, np.ndarray, np.ndarray], monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -219,6 +219,19 @@ other_steps() {
   mrexplore bench loop --family office_row --part test4 --worlds 40 --seeds 5 \
     --variants semantic sighting --merge-options RIVALS_CONTRADICTED=false --jobs 2 \
     --out "$out/loop_office_row_test4_before" --force
+  # the fifth test part (world seeds 500000..; opened for a thing the other map saw as open
+  # floor, chosen after the fourth was read), 40 worlds: the merger, sightings, the room oracle
+  # and never merging; and the merger and sightings without the rule, on the same episodes
+  mrexplore bench loop --family paper_like --part test5 --worlds 40 --seeds 5 \
+    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_paper_like_test5" --force
+  mrexplore bench loop --family paper_like --part test5 --worlds 40 --seeds 5 \
+    --variants semantic sighting --merge-options THINGS_RULED_OUT=false --jobs 2 \
+    --out "$out/loop_paper_like_test5_before" --force
+  mrexplore bench loop --family office_row --part test5 --worlds 40 --seeds 5 \
+    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_office_row_test5" --force
+  mrexplore bench loop --family office_row --part test5 --worlds 40 --seeds 5 \
+    --variants semantic sighting --merge-options THINGS_RULED_OUT=false --jobs 2 \
+    --out "$out/loop_office_row_test5_before" --force
   # the four fixed worlds with the place test, beside the room oracle
   mrexplore bench loop --seeds 20 --variants semantic oracle_room --jobs 2 \
     --out "$out/loop_fixed_worlds" --force

@@ -160,14 +160,15 @@ def agreement_by_structure(
     T: Transform,
     tolerance: int = 1,
     structures_b: Structures | None = None,
+    structures_a: Structures | None = None,
 ) -> ByStructure:
     """a's and b's agreement under ``T`` (b cells -> a cells; the verifier's agreement,
     :func:`~mrexplore.merge.common.agreeing_cells`) by structure, for
     :func:`one_object_area` and :func:`outside_object` to share (one labelling of each map;
-    ``structures_b``: b's, when the caller has it)."""
+    ``structures_a``, ``structures_b``: the maps' own, when the caller has them)."""
     out: list[_Agreement | None] = []
     for mine, other, to_other, known in (
-        (a, b, rigid_inverse(T), None),
+        (a, b, rigid_inverse(T), structures_a),
         (b, a, T, structures_b),
     ):
         rows, cols = mine.wall_cells()
@@ -187,6 +188,7 @@ def ruled_out_structure(
     slack: int,
     tolerance: int = 1,
     structures_b: Structures | None = None,
+    structures_a: Structures | None = None,
 ) -> int:
     """The largest wall structure of either map that the other map rules out under ``T`` (b
     cells -> a cells): none of its wall cells lands on the other map's walls (nor on free space
@@ -212,7 +214,7 @@ def ruled_out_structure(
     k = 2 * (tolerance + slack) + 1
     most = 0
     for mine, other, to_other, known in (
-        (a, b, rigid_inverse(T), None),
+        (a, b, rigid_inverse(T), structures_a),
         (b, a, T, structures_b),
     ):
         rows, cols = mine.wall_cells()

@@ -1014,6 +1014,7 @@ class _Judged:
     # the noise-aware verifier the consistency test used (walls SLACK_CELLS apart agree)
     noisy: Verifier | None = None
     _structures_b: Structures | None = None
+    _structures_a: Structures | None = None
     _by_structure: ByStructure | None = None
 
     def evidence(self) -> MergeEvidence:
@@ -1052,12 +1053,22 @@ class _Judged:
             self._structures_b = Structures(self.pair.codes_b)
         return self._structures_b
 
+    def structures_a(self) -> Structures:
+        """a's wall structures, labelled once."""
+        if self._structures_a is None:
+            self._structures_a = Structures(self.pair.codes_a)
+        return self._structures_a
+
     def by_structure(self) -> ByStructure:
         """Each map's agreement under the best pose by structure, computed once for the two
         object rules."""
         if self._by_structure is None:
             self._by_structure = agreement_by_structure(
-                self.pair.codes_a, self.pair.codes_b, self.best.T, structures_b=self.structures_b()
+                self.pair.codes_a,
+                self.pair.codes_b,
+                self.best.T,
+                structures_b=self.structures_b(),
+                structures_a=self.structures_a(),
             )
         return self._by_structure
 
@@ -1339,7 +1350,12 @@ def _rule_ruled_out(j: _Judged) -> str | None:
     if not (j.o.place_test and THINGS_RULED_OUT):
         return None
     cells = ruled_out_structure(
-        j.pair.codes_a, j.pair.codes_b, j.best.T, SLACK_CELLS, structures_b=j.structures_b()
+        j.pair.codes_a,
+        j.pair.codes_b,
+        j.best.T,
+        SLACK_CELLS,
+        structures_b=j.structures_b(),
+        structures_a=j.structures_a(),
     )
     j.info["ruled_out_cells"] = cells
     if cells < MIN_RUN_CELLS:

@@ -295,11 +295,15 @@ class MapScorer:
         return share, (int(n_held) if held else None)
 
     def held_free(self, in_world: Int8Grid) -> int:
-        """Reachable free cells that a warped map (int8 (H, W)) marks free at their true place."""
+        """Reachable free cells that a warped map (int8 (H, W)) holds at their true place: it
+        claims them without contradicting the truth, as free, or as occupied with a true wall
+        within one cell (a wall the mapper drew a cell onto the floor beside it is no wrong
+        knowledge; a fused map of two robots draws each wall from both sides)."""
         if self.reachable is None:
             raise GridError("MapScorer.held_free needs the reachable cells (reachable=...)")
         free = (in_world >= FREE) & (in_world <= FREE_THRESHOLD)
-        return int(np.count_nonzero(free & self.reachable))
+        beside = (in_world >= OCCUPIED_THRESHOLD) & self.near_wall
+        return int(np.count_nonzero((free | beside) & self.reachable))
 
 
 def nearest_sampling(

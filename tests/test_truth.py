@@ -144,13 +144,18 @@ def test_contradiction_counts_free_on_walls_and_walls_far_from_walls() -> None:
     assert map_contradiction(m, np.eye(3), walls) == pytest.approx(2 / claims)
 
 
-def test_held_free_counts_reachable_free_claims() -> None:
+def test_held_free_counts_reachable_claims_that_do_not_contradict_the_truth() -> None:
     walls = np.zeros((5, 5), dtype=bool)
     reachable = np.zeros((5, 5), dtype=bool)
     reachable[1:4, 1:4] = True
     m = np.full((5, 5), -1, dtype=np.int8)
     m[0:3, 0:3] = 0
     assert MapScorer(walls, reachable).held_free(m) == 4
+    # a wall drawn a cell onto the floor beside a true wall is held; one on open floor is not
+    walls[4, :] = True
+    m[3, 1] = 100  # beside the wall of row 4
+    m[1, 1] = 100  # two cells from it: contradicts the truth
+    assert MapScorer(walls, reachable).held_free(m) == 4 - 1 + 1
     with pytest.raises(GridError):
         MapScorer(walls).held_free(m)
     with pytest.raises(GridError):

@@ -148,13 +148,15 @@ class EnvConfig(Options):
         coverage_mode: what counts as covered (evaluation; the robots never see it):
             ``"observed"`` (default): the team's union of the cells its sensors observed;
             ``"held"``: the largest, over robots, share of reachable free cells that the
-            robot's own-or-fused map marks free at the true place (the map warped into the
-            world with the true transform). While a robot holds a wrong transform (the time
-            ``merged_wrongly_s`` counts), it is credited with its own map's cells only: it
-            cannot tell which of its teammates' knowledge is right, so misplaced free cells
-            that land on true free space (a twin room on its twin) do not count either. A wrong
-            merge thus costs task time, and a team finishes only when some robot holds a
-            correct map. Costs one world-sized warp per changed map per step.
+            robot's own-or-fused map holds at the true place (the map warped into the world
+            with the true transform): marked free, or marked occupied with a true wall within
+            one cell (walls a cell thick on the floor beside them are no wrong knowledge).
+            While a robot holds a wrong transform (the time ``merged_wrongly_s`` counts), it is
+            credited with its own map's cells only: it cannot tell which of its teammates'
+            knowledge is right, so misplaced free cells that land on true free space (a twin
+            room on its twin) do not count either. A wrong merge thus costs task time, and a
+            team finishes only when some robot holds a correct map. Costs one world-sized warp
+            per changed map per step.
         max_time_s: truncation time; ``max_cycles`` (steps) truncates too when given.
         reward_mode: ``"time"`` (``-dt_s`` per step: return = -task time) or ``"coverage"``
             (``coverage_reward_per_m2`` per newly observed m^2 minus ``time_penalty_per_s * dt_s``).

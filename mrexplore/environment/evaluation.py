@@ -213,8 +213,9 @@ class TruthMonitor:
     # ------------------------------------------------------------------ maps
     def held_free(self, i: int, transforms: Mapping[str, NDArray[np.float64]]) -> int:
         """The reachable free cells robot i is credited with (``coverage_mode="held"``): those
-        its map marks free at their true place (the map warped into the world with the true
-        transform). The map is its own-or-fused map while all its ``transforms`` (teammate ->
+        its map holds at their true place (the map warped into the world with the true
+        transform; :meth:`~mrexplore.truth.MapScorer.held_free`: marked free, or occupied beside
+        a true wall). The map is its own-or-fused map while all its ``transforms`` (teammate ->
         3x3, as :meth:`merge_errors` takes them) are right; its own map alone while it holds a
         wrong one (:meth:`holds_wrong`): it cannot tell which of its teammates' knowledge is
         right, and a wrongly placed teammate map's free cells often land on true free space
@@ -240,7 +241,7 @@ class TruthMonitor:
 
     def map_accuracy(self, i: int) -> tuple[float, int | None]:
         """Robot i's own-or-fused map against the truth: (contradiction share, NaN when the
-        map claims nothing inside the world; reachable free cells it marks free at the true
+        map claims nothing inside the world; reachable free cells it holds at the true
         place when ``held``, else None). Cached on the fused-map version. The held coverage
         credits a robot that holds a wrong transform with its own map only: see
         :meth:`held_free`."""

@@ -22,8 +22,8 @@ def claim_counts(
     """One pass of :class:`mrexplore.truth.MapScorer` over a map warped into the world (all
     (H, W)): ``(claims, contradicting claims, held free cells)``. A claim is a free cell
     (``0 <= v <= free_hi``) or an occupied one (``v >= occ_lo``); it contradicts the truth when
-    free on a wall or occupied with no wall within one cell (``near_wall``); held free cells are
-    free claims on ``reachable`` cells (counted only when ``want_held``)."""
+    free on a wall or occupied with no wall within one cell (``near_wall``); held cells are the
+    claims on ``reachable`` cells that do not contradict it (counted only when ``want_held``)."""
     h, w = in_world.shape
     n = 0
     bad = 0
@@ -41,6 +41,8 @@ def claim_counts(
                 n += 1
                 if not near_wall[r, c]:
                     bad += 1
+                elif want_held and reachable[r, c]:
+                    held += 1
     return n, bad, held
 
 
@@ -65,8 +67,8 @@ def score_region(
     ``sample[r, c]``: the flat index into ``src`` (the map, flat int8) that world cell (r, c)
     takes (nearest neighbour), -1 outside the map. ``cls`` (H, W) uint8 holds each world cell's
     class as last scored (0 no claim, 1 free, 2 occupied); ``counts`` int64 (3,) the running
-    ``claims, contradicting claims, reachable free claims`` over the world (as
-    :func:`claim_counts`): both are updated for the cells whose class changed.
+    ``claims, contradicting claims, held cells`` over the world (as :func:`claim_counts`): both
+    are updated for the cells whose class changed.
     """
     for r in range(r0, r1):
         for c in range(c0, c1):
@@ -87,6 +89,7 @@ def score_region(
             elif old == 2:
                 counts[0] -= 1
                 counts[1] -= not near_wall[r, c]
+                counts[2] -= reachable[r, c] and near_wall[r, c]
             if new == 1:
                 counts[0] += 1
                 counts[1] += walls[r, c]
@@ -94,6 +97,7 @@ def score_region(
             elif new == 2:
                 counts[0] += 1
                 counts[1] += not near_wall[r, c]
+                counts[2] += reachable[r, c] and near_wall[r, c]
             cls[r, c] = new
 
 

@@ -69,6 +69,14 @@ def _options_of(name: str) -> Callable[[Any], None]:
     return check
 
 
+def _semantic_named(merger: Any) -> bool:
+    """:func:`mrexplore.merge.fusion.semantic_named`, imported when asked (the merger loads only
+    when options for it are given)."""
+    from mrexplore.merge.fusion import semantic_named
+
+    return semantic_named(merger)
+
+
 def _is_dict(v: Any) -> None:
     if not isinstance(v, dict):
         raise ValueError("a dict of the merge method's options")
@@ -256,9 +264,7 @@ class EnvConfig(Options):
     tracker_options: Any = option(None, optional(_options_of("TrackerOptions")))
 
     def check_together(self) -> None:
-        if self.semantic_options is not None and not (
-            isinstance(self.merger, str) and self.merger.lower() == "semantic"
-        ):
+        if self.semantic_options is not None and not _semantic_named(self.merger):
             raise ConfigError(
                 f"option semantic_options are the semantic merger's; merger is {self.merger!r}"
             )

@@ -532,6 +532,8 @@ class MapMergeTracker:
         self._results: dict[tuple[int, int], MergeResult] = {}
         self._paths: dict[tuple[int, int], Transform | None] | None = None
         self._groups: dict[int, set[int]] = {}  # robot -> its merged group, kept with _paths
+        # per robot s, each robot v it reaches -> the robot before v on the path from s
+        self._parents: dict[int, dict[int, int]] = {}
         self._links: NDArray[np.bool_] | None = None
         # (i, j) -> the first re-check that found the kept transform contradicted (cleared when
         # a re-check finds it agreeing again)
@@ -660,19 +662,9 @@ class MapMergeTracker:
 
     def _chain_edges(self, i: int, j: int) -> list[tuple[int, int]]:
         """The kept edges (as stored, low index first) on the path that :meth:`transform`
-        chains from robot i to robot j (the same breadth-first search)."""
-        adj: dict[int, list[int]] = {k: [] for k in range(self.n)}
-        for a, b in self._edges:
-            adj[a].append(b)
-            adj[b].append(a)
-        parent: dict[int, int] = {i: i}
-        q = deque([i])
-        while q:
-            u = q.popleft()
-            for v in adj[u]:
-                if v not in parent:
-                    parent[v] = u
-                    q.append(v)
+        chains from robot i to robot j (connected)."""
+        self._all_paths()
+        parent = self._parents[i]
         edges = []
         v = j
         while v != i:
@@ -1150,14 +1142,17 @@ class MapMergeTracker:
             adj[i].append((j, T))  # T_ij: j -> i
             adj[j].append((i, invert_transform(T)))
         paths: dict[tuple[int, int], Transform | None] = {}
+        self._parents = {}
         for s in range(self.n):
             seen: dict[int, Transform] = {s: np.eye(3)}
+            parent = self._parents[s] = {}
             q = deque([s])
             while q:
                 u = q.popleft()
                 for v, T_uv in adj[u]:
                     if v not in seen:
                         seen[v] = chain(seen[u], T_uv)  # T_sv = T_su @ T_uv, without BLAS
+                        parent[v] = u
                         q.append(v)
             for v, T in seen.items():
                 if v != s:

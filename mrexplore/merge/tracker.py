@@ -132,6 +132,10 @@ OUTRANKED_DROP: bool = True
 #: their own vouches for), and re-checks look only inside it (False: sightings guide the
 #: attempts of unmerged pairs only).
 SIGHTING_BINDS: bool = True
+#: A pose the merger accepts in an attempt guided by a sighting is merged at once: the sighting
+#: measured the pose independently of the maps, so it is the second agreeing measurement that
+#: ``confirmations`` otherwise waits for from a later attempt (False: it waits as any attempt).
+SIGHTING_CONFIRMS: bool = True
 #: A sighting-guided attempt looks within this many cells of the guess (2 m at 0.05 m).
 PRIOR_RADIUS_CELLS: float = 40.0
 #: A sighting-guided attempt looks within this many degrees of the guess's heading.
@@ -224,6 +228,8 @@ class _Outcome:
     # re-check: the merger's best pose lies far from the kept transform and the kept one would
     # not stand as a rival to it on these maps (the maps now prefer another place)
     outranked: bool = False
+    # attempt: the merger looked only in a sighting's region (a PosePrior from the guess)
+    guided: bool = False
 
 
 @dataclass(frozen=True)
@@ -369,6 +375,9 @@ class TrackerOptions(Options):
             pair merged through teammates, every edge of the chain its own sighting does not
             vouch for), and a sighted pair's re-checks look only in the latest sighting's region
             (default True; False: sightings guide unmerged pairs' attempts only).
+        SIGHTING_CONFIRMS: a pose accepted by an attempt a sighting guided is merged at once,
+            whatever ``confirmations`` asks: the sighting measured it independently of the maps
+            (default True; False: it waits for a later agreeing attempt like any other).
         RIVAL_MEMORY: rivals remembered per unmerged pair (default 8; 0 = none): a pose an
             attempt found nearly as good as its best, far from it. A later attempt's pose is
             accepted only when the maps now rule out every remembered rival (it explains less
@@ -707,6 +716,7 @@ class MapMergeTracker:
         changes, so it may run in the worker thread."""
         (ca, ra), (cb, rb) = offsets
         old_now = held_now = drift_held = None
+        guided = False
         if kind == "recheck":
             assert T_old is not None
             T_crop = _to_crop(T_old, offsets)
@@ -734,6 +744,7 @@ class MapMergeTracker:
             # The shared-space floor guards against a look-alike room elsewhere, which the
             # sighting's region already excludes: a guided attempt asks a few square metres.
             res = prior_merge(a, b, prior=prior, min_common_m2=GUIDED_MIN_COMMON_M2)
+            guided = True
             # the sighting rules out every place outside its region, remembered rivals too
             # (the region about the centre of j's known box, in canvas cells)
             region = PosePrior(guess, PRIOR_RADIUS_CELLS, PRIOR_TURN_DEG)
@@ -774,7 +785,9 @@ class MapMergeTracker:
         if T is not None and rivals:
             verify = Verifier(MapCodes(a), MapCodes(b))
             standing = tuple(self._standing(verify, offsets, T, rivals, box_j))
-        return _Outcome(res, T, old_now, held_now, rivals=found, standing=standing, best=best_T)
+        return _Outcome(
+            res, T, old_now, held_now, rivals=found, standing=standing, best=best_T, guided=guided
+        )
 
     def _drift_refit(
         self,
@@ -981,7 +994,9 @@ class MapMergeTracker:
         T = out.T
         evidence = int(out.result.overlap_cells)
         count = 1
-        if pending is not None and self._same(pending[0], T, bbox_j):
+        if out.guided and SIGHTING_CONFIRMS:
+            count = self.options.confirmations  # the sighting is the other measurement
+        elif pending is not None and self._same(pending[0], T, bbox_j):
             # The same transform again counts as a confirmation only when it now rests on
             # clearly more shared evidence (wall cells both maps see under it): a look-alike
             # match stays confined to the look-alike part, the truth spreads as the maps grow.

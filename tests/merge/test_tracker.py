@@ -635,6 +635,31 @@ def test_a_sighting_merges_look_alike_rooms_the_maps_alone_cannot_tell_apart(
         np.testing.assert_allclose(T[:2, 2], T_true[:2, 2], atol=1.0)
 
 
+@pytest.mark.parametrize("confirms", [True, False])
+def test_a_pose_a_sighting_guided_is_merged_without_a_second_attempt(
+    confirms: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """With two confirmations asked, the first attempt guided by a sighting merges the pair
+    when ``SIGHTING_CONFIRMS`` is on (the sighting is the other measurement of the pose); off,
+    the accepted pose only starts a run, and the same maps never extend it."""
+    from mrexplore.merge.semantic import _turn_about
+
+    monkeypatch.setattr(tracker_module, "SIGHTING_CONFIRMS", confirms)
+    canvas_a, canvas_b, T_true = look_alike_canvases()
+    guess = chain(T_true, _turn_about(3.0, 85.0, 90.0), translation(5.0, -4.0))
+    tr = MapMergeTracker(2, merge_every=1, confirmations=2, resolution_m=0.05)
+    maps = [canvas_a, canvas_b]
+    tr.update(maps, step=1, sightings={(0, 1): guess})
+    assert tr.merged(0) is confirms
+    for step in range(2, 5):
+        tr.update(maps, step=step)
+    assert tr.merged(0) is confirms
+    if confirms:
+        T = tr.transform(0, 1)
+        assert T is not None
+        np.testing.assert_allclose(T[:2, 2], T_true[:2, 2], atol=1.0)
+
+
 def test_hypotheses_hold_both_look_alike_rooms_until_the_pair_merges() -> None:
     """Refused as ambiguous between two identical rooms, the tracker offers both places as
     candidates (``hypotheses``, for a policy that goes to tell them apart), the inverses for the

@@ -9,7 +9,9 @@ Each step the caller hands over the robots' own-frame maps. The tracker
   transform (within ``confirm_tol_cells``), each resting on ``confirm_growth`` more shared wall
   cells than the one before: evidence accumulated over time. A look-alike match stays confined
   to the look-alike part (its shared evidence cannot grow without a contradiction, which
-  refuses and breaks the run), the true one spreads as the maps grow;
+  refuses and breaks the run), the true one spreads as the maps grow. A pose accepted by an
+  attempt a sighting guided needs no later attempt (``SIGHTING_CONFIRMS``): the sighting is
+  the other measurement;
 - keeps an accepted transform; every ``recheck_every`` steps re-runs the merger on merged pairs
   and replaces the transform only when the new one scores clearly better (by
   ``REPLACE_MARGIN``) than the kept one does *on the same current maps*: no flip-flopping;

@@ -187,12 +187,45 @@ def binomial_upper_bound(k: int, n: int, confidence: float = 0.95) -> float | No
     return hi
 
 
-def aggregate(episodes: Sequence[Mapping[str, Any]], variants: Sequence[str]) -> dict[str, Any]:
+def aggregate(
+    episodes: Sequence[Mapping[str, Any]],
+    variants: Sequence[str],
+    layouts: Mapping[str, str] | None = None,
+) -> dict[str, Any]:
     """Over all worlds of a family run, per variant: episodes, merged, reached, episodes that
     ever held a wrong merge with the upper 95 % bound of that rate
-    (:func:`binomial_upper_bound`), the mean task time (s); and ``semantic`` against
-    ``oracle_room`` and ``none`` (when they ran): its mean task time relative to theirs, the
-    paired difference (mean, 95 % CI, s), and the episodes one merged and the other did not."""
+    (:func:`binomial_upper_bound`), the mean task time (s), and with ``oracle_room`` beside it
+    the episodes merged of those the room oracle merged; ``semantic`` against ``oracle_room``
+    and ``none`` (when they ran): its mean task time relative to theirs, the paired difference
+    (mean, 95 % CI, s), and the episodes one merged and the other did not. With ``layouts``
+    (world spec -> the generator's layout) naming two or more, the same per layout
+    (``by_layout``)."""
+    out = _per_variant(episodes, variants)
+    if layouts and len(set(layouts.values())) > 1:
+        out["by_layout"] = {
+            lay: _per_variant([e for e in episodes if layouts.get(e["world"]) == lay], variants)[
+                "variants"
+            ]
+            for lay in sorted(set(layouts.values()))
+        }
+    return out
+
+
+def _where_room_oracle_merged(
+    episodes: Sequence[Mapping[str, Any]], variant: str
+) -> tuple[int, int] | None:
+    """(episodes ``variant`` merged among those ``oracle_room`` merged, those) on the same
+    world and seed; None without room oracle episodes."""
+    runs = {(e["world"], e["variant"], e["seed"]): e for e in episodes}
+    keys = [(w, s) for (w, v, s), e in runs.items() if v == "oracle_room" and e["merged"]]
+    if not any(v == "oracle_room" for _, v, _ in runs):
+        return None
+    both = sum(bool(runs[(w, variant, s)]["merged"]) for w, s in keys if (w, variant, s) in runs)
+    return both, len(keys)
+
+
+def _per_variant(episodes: Sequence[Mapping[str, Any]], variants: Sequence[str]) -> dict[str, Any]:
+    """:func:`aggregate` of one set of episodes (all the run's, or one layout's)."""
     out: dict[str, Any] = {"variants": {}, "semantic_against": {}}
     for v in variants:
         eps = [e for e in episodes if e["variant"] == v]
@@ -217,6 +250,9 @@ def aggregate(episodes: Sequence[Mapping[str, Any]], variants: Sequence[str]) ->
             "contradiction_to_drop_max_s": max(recovery) if recovery else None,
             "task_time_mean_s": float(statistics.fmean(times)) if times else None,
         }
+        shared = _where_room_oracle_merged(episodes, v)
+        if shared is not None and v not in ("none", "single", "oracle_room"):
+            out["variants"][v]["merged_where_room_oracle_merged"] = list(shared)
     if "semantic" in variants:
         runs = {(e["world"], e["variant"], e["seed"]): e for e in episodes}
         sem = out["variants"]["semantic"]["task_time_mean_s"]
@@ -267,6 +303,7 @@ def _aggregate_lines(doc: Mapping[str, Any], markdown: bool) -> list[str]:
         "dropped",
         "contradicted s (max)",
         "task time mean",
+        "merged where room oracle merged",
     )
     body = []
     for v, s in agg["variants"].items():
@@ -288,11 +325,13 @@ def _aggregate_lines(doc: Mapping[str, Any], markdown: bool) -> list[str]:
                 _drops_text(s) if merging else "-",
                 "-" if held is None else f"{held:.1f}",
                 "-" if mean is None else f"{mean:.1f} s",
+                _share_text(s.get("merged_where_room_oracle_merged")),
             )
         )
     title = f"All worlds ({_where(doc)}):"
     lines = [f"### {title}" if markdown else title]
     lines += _table(cols, body, markdown)
+    lines += _layout_lines(doc, markdown)
     for base, d in agg["semantic_against"].items():
         rel = d["relative_task_time"]
         lines += [
@@ -309,9 +348,54 @@ def _aggregate_lines(doc: Mapping[str, Any], markdown: bool) -> list[str]:
         "summed; dropped: merges the tracker let go, in brackets those not for the grown maps' "
         "contradiction (outranked: the maps single out another place, un-merged; moved: ... "
         "and the pair moved there; sighting: the robots were seen elsewhere); contradicted s: "
-        "the longest a dropped merge stood contradicted before the drop."
+        "the longest a dropped merge stood contradicted before the drop; merged where room "
+        "oracle merged: of the episodes the room oracle merged, those the variant merged too."
     )
     return lines
+
+
+def _share_text(pair: Sequence[int] | None) -> str:
+    """``[k, n]`` -> ``"k/n (share)"``; ``"-"`` for None or n = 0."""
+    if not pair or not pair[1]:
+        return "-"
+    return f"{pair[0]}/{pair[1]} ({pair[0] / pair[1]:.0%})"
+
+
+def _layout_lines(doc: Mapping[str, Any], markdown: bool) -> list[str]:
+    """The aggregate per layout of the family's worlds (``by_layout``), when it has one: where
+    the merger waits and where it errs."""
+    by = doc["aggregate"].get("by_layout")
+    if not by:
+        return []
+    fam = doc["family"]
+    count = {lay: fam["layouts"].count(lay) for lay in by}
+    cols = (
+        "layout",
+        "worlds",
+        "variant",
+        "merged",
+        "wrong",
+        "task time mean",
+        "merged where room oracle merged",
+    )
+    body = []
+    for lay, variants in by.items():
+        for v, s in variants.items():
+            merging = v not in ("none", "single")
+            mean = s["task_time_mean_s"]
+            body.append(
+                (
+                    lay,
+                    str(count[lay]),
+                    v,
+                    f"{s['merged']}/{s['episodes']}" if merging else "-",
+                    str(s["wrong_merge_episodes"]) if merging else "-",
+                    "-" if mean is None else f"{mean:.1f} s",
+                    _share_text(s.get("merged_where_room_oracle_merged")),
+                )
+            )
+    title = f"By layout ({_where(doc)}):"
+    return ["", f"### {title}" if markdown else title, *_table(cols, body, markdown)]
 
 
 def _drops_text(s: Mapping[str, Any]) -> str:

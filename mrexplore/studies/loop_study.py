@@ -165,15 +165,16 @@ def family_worlds(family: str, part: str, n: int) -> list[str]:
 
 
 def family_block(family: str, part: str, n: int) -> dict[str, Any]:
-    """What a family run records of where it was measured: family, part, the worlds' specs
-    and world seeds."""
-    from mrexplore.world.family import family_seeds
+    """What a family run records of where it was measured: family, part, the worlds' specs,
+    world seeds and layouts (the generator's ``layout``: corridor, hall, open plan, ...)."""
+    from mrexplore.world.family import family_seeds, family_world
 
     return {
         "name": family,
         "part": part,
         "specs": family_worlds(family, part, n),
         "world_seeds": family_seeds(family, part, n),
+        "layouts": [str(family_world(family, part, k).meta.get("layout", "-")) for k in range(n)],
     }
 
 
@@ -491,8 +492,10 @@ def run_study(
         "summary": summarize(episodes, worlds, variants),
         **(
             {
-                "family": family_block(*family, len(worlds)),
-                "aggregate": aggregate(episodes, variants),
+                "family": (block := family_block(*family, len(worlds))),
+                "aggregate": aggregate(
+                    episodes, variants, dict(zip(block["specs"], block["layouts"], strict=True))
+                ),
             }
             if family is not None
             else {}

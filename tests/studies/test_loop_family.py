@@ -17,6 +17,7 @@ from mrexplore.studies.loop_study import (
     main,
     run_study,
 )
+from mrexplore.world.family import family_world
 
 
 @pytest.mark.parametrize(
@@ -78,6 +79,33 @@ def test_aggregate_counts_over_worlds() -> None:
     assert room["relative_task_time"] == pytest.approx(100.0 / 90.0 - 1.0)
     assert (room["merged_only_semantic"], room["merged_only_oracle_room"]) == (0, 1)
     assert agg["semantic_against"]["none"]["relative_task_time"] == pytest.approx(100 / 120 - 1)
+    # of the two episodes the room oracle merged, the merger merged one
+    assert sem["merged_where_room_oracle_merged"] == [1, 2]
+    assert "merged_where_room_oracle_merged" not in agg["variants"]["none"]
+    assert "by_layout" not in agg
+    by = aggregate(eps, ["semantic", "oracle_room", "none"], {"a": "hall", "b": "open_plan"})
+    hall, plan = by["by_layout"]["hall"]["semantic"], by["by_layout"]["open_plan"]["semantic"]
+    assert (hall["episodes"], hall["merged"], hall["wrong_merge_episodes"]) == (1, 1, 1)
+    assert (plan["merged"], plan["merged_where_room_oracle_merged"]) == (0, [0, 1])
+    assert plan["task_time_mean_s"] == 110.0
+    # one layout: no table by layout
+    assert "by_layout" not in aggregate(eps, ["semantic"], {"a": "hall", "b": "hall"})
+
+
+def test_the_report_prints_the_share_and_the_layouts() -> None:
+    from mrexplore.studies.loop_report import _layout_lines, _share_text
+
+    assert _share_text([3, 4]) == "3/4 (75%)" and _share_text(None) == _share_text([0, 0]) == "-"
+    s = {"episodes": 2, "merged": 1, "wrong_merge_episodes": 0, "task_time_mean_s": 50.0}
+    s["merged_where_room_oracle_merged"] = [1, 2]
+    doc = {
+        "seeds": [1000],
+        "family": {"name": "f", "part": "tune", "world_seeds": [0, 1], "layouts": ["x", "y"]},
+        "aggregate": {"by_layout": {"x": {"semantic": s}, "y": {"semantic": s}}},
+    }
+    text = "\n".join(_layout_lines(doc, markdown=False))
+    assert "By layout (family f, tune part" in text and "1/2 (50%)" in text
+    assert _layout_lines({"aggregate": {}}, markdown=True) == []
 
 
 @pytest.mark.parametrize(
@@ -124,6 +152,7 @@ def test_bench_loop_on_a_family_end_to_end(
         "part": "tune",
         "specs": ["family:paper_like/tune/0"],
         "world_seeds": [0],
+        "layouts": [family_world("paper_like", "tune", 0).meta["layout"]],
     }
     assert [e["world"] for e in doc["episodes"]] == ["family:paper_like/tune/0"]
     assert doc["aggregate"]["variants"]["none"]["episodes"] == 1

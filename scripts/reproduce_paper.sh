@@ -232,6 +232,21 @@ other_steps() {
   mrexplore bench loop --family office_row --part test5 --worlds 40 --seeds 5 \
     --variants semantic sighting --merge-options THINGS_RULED_OUT=false --jobs 2 \
     --out "$out/loop_office_row_test5_before" --force
+  # the sixth test part (world seeds 600000..; opened for a sighting confirming the pose it
+  # guided, chosen after the fifth was read), 40 worlds: the merger, sightings, the room oracle
+  # and never merging; and sightings without the rule, on the same episodes, paired against it
+  mrexplore bench loop --family paper_like --part test6 --worlds 40 --seeds 5 \
+    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_paper_like_test6" --force
+  mrexplore bench loop --family paper_like --part test6 --worlds 40 --seeds 5 \
+    --variants sighting --merge-options SIGHTING_CONFIRMS=false \
+    --against "$out/loop_paper_like_test6.json" --jobs 2 \
+    --out "$out/loop_paper_like_test6_before" --force
+  mrexplore bench loop --family office_row --part test6 --worlds 40 --seeds 5 \
+    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_office_row_test6" --force
+  mrexplore bench loop --family office_row --part test6 --worlds 40 --seeds 5 \
+    --variants sighting --merge-options SIGHTING_CONFIRMS=false \
+    --against "$out/loop_office_row_test6.json" --jobs 2 \
+    --out "$out/loop_office_row_test6_before" --force
   # the four fixed worlds with the place test, beside the room oracle
   mrexplore bench loop --seeds 20 --variants semantic oracle_room --jobs 2 \
     --out "$out/loop_fixed_worlds" --force

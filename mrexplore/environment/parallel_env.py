@@ -170,6 +170,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
             executor=merge_executor,
             semantic_options=cfg.semantic_options,
             tracker_options=cfg.tracker_options,
+            sightings=cfg.sighting_range_m is not None,
         )
         self._obs_builder = ObservationBuilder(
             self._resolution_m,

@@ -178,6 +178,9 @@ class FusionStage:
             :func:`in_loop_semantic_options`); None: the loop's. Only with ``merger="semantic"``.
         tracker_options: the tracker's options, used as given but for the schedule above
             (start from :func:`in_loop_tracker_options`); None: the loop's.
+        sightings: whether the owner hands the tracker sightings (``update``'s ``sightings``);
+            without them a tracker that merges only robots that met (``rendezvous_only``)
+            would never merge, which is refused here.
     """
 
     def __init__(
@@ -192,6 +195,7 @@ class FusionStage:
         executor: Executor | None = None,
         semantic_options: SemanticOptions | None = None,
         tracker_options: TrackerOptions | None = None,
+        sightings: bool = False,
     ) -> None:
         self.agents = list(agents)
         self.index = {a: i for i, a in enumerate(self.agents)}
@@ -221,6 +225,11 @@ class FusionStage:
                 tracker_options,
                 resolution_m,
             )
+            if tuning.rendezvous_only and not sightings:
+                raise ConfigError(
+                    "the tracker's rendezvous_only merges only robots that saw each other, and "
+                    "no sightings reach it: turn sightings on (the env's sighting_range_m)"
+                )
             self.tracker = MapMergeTracker(
                 len(self.agents), merger=merger, options=tuning, executor=executor, **options
             )

@@ -336,6 +336,11 @@ class TrackerOptions(Options):
             waits for the merger (default 0: computed and applied in the step that starts it).
             A fixed delay, not "when ready": the same seed gives the same run on any machine.
             With a delay, at most one attempt or re-check starts per step.
+        rendezvous_only: try a pair only once its robots have seen each other (a sighting,
+            ``update``'s ``sightings``); the maps then decide the pose within the sighting's
+            region. Default False: the maps alone may merge a pair the robots never met. On
+            floors with identical rooms the maps alone merge some look-alikes before the robots
+            meet, which this never does, at the cost of the merges of robots that never meet.
 
     The in-loop rules' other settings are constants of this module (one value each, measured
     on the tuning worlds; a test may set one for a run):
@@ -399,6 +404,7 @@ class TrackerOptions(Options):
     confirm_growth: float = option(0.0, number(0.0, 10.0))
     keep_run_on_refusal: bool = option(False, boolean)
     merge_latency_steps: int = option(0, MERGE_LATENCY_CHECK)
+    rendezvous_only: bool = option(False, boolean)
 
 
 #: The tracker's option names (:class:`TrackerOptions`' fields).
@@ -946,6 +952,8 @@ class MapMergeTracker:
                     continue
                 if (i, j) in busy:
                     continue  # its last attempt is still under way
+                if self.options.rendezvous_only and (i, j) not in self._sighted:
+                    continue  # the robots have not met
                 known = self._px.known_cells(i) + self._px.known_cells(j)
                 last = self._last_attempt_known.get((i, j))
                 if last is not None and known < last * (1.0 + RETRY_GROWTH):

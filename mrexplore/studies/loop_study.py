@@ -364,9 +364,18 @@ def validate(
 
         try:  # the tracker checks every name and value, as the env would at its first reset
             proper, _ = split_constants(merge_options)
-            FusionStage(["a", "b"], "semantic", merge_options=proper, resolution_m=0.05)
+            stage = FusionStage(
+                ["a", "b"], "semantic", merge_options=proper, resolution_m=0.05, sightings=True
+            )
         except ConfigError as exc:
             raise ConfigError(f"loop study: --merge-options: {exc}") from exc
+        blind = [v for v in variants if v in MERGER_VARIANTS and v != "sighting"]
+        if stage.tracker.options.rendezvous_only and blind:
+            raise ConfigError(
+                f"loop study: --merge-options rendezvous_only=true merges only robots that saw "
+                f"each other; of the variants it applies to, only 'sighting' has sightings "
+                f"(drop {blind})"
+            )
     if env_options:
         from mrexplore.environment.config import EnvConfig
 

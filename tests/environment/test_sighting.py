@@ -120,3 +120,41 @@ def test_an_env_with_sightings_runs_the_same_for_the_same_seed() -> None:
     # the actions do not depend on the maps here, so what the sensors observed is the same
     # with sightings on and off: the sightings' draws leave the run's own noise alone
     assert [c for _, c in runs[0][0]] == [c for _, c in runs[2][0]]
+
+
+def test_rendezvous_only_needs_sightings_at_the_door() -> None:
+    """A tracker that merges only robots that met would never merge without sightings: the
+    env and the wrapper refuse it; with sightings the env takes it (typed or untyped)."""
+    from mrexplore.merge import in_loop_tracker_options
+    from mrexplore.wrappers import MapMergeWrapper
+
+    with pytest.raises(ConfigError, match=r"rendezvous_only.*sighting_range_m"):
+        mrexplore.parallel_env(merge_options={"rendezvous_only": True})
+    with pytest.raises(ConfigError, match="rendezvous_only"):
+        mrexplore.parallel_env(tracker_options=in_loop_tracker_options(rendezvous_only=True))
+    env = mrexplore.parallel_env(sighting_range_m=4.0, merge_options={"rendezvous_only": True})
+    assert env.fusion.tracker.options.rendezvous_only
+    with pytest.raises(ConfigError, match="rendezvous_only"):
+        MapMergeWrapper(mrexplore.parallel_env(merger=None), rendezvous_only=True)
+
+
+@pytest.mark.parametrize("rendezvous", [False, True])
+def test_rendezvous_only_tries_no_pair_before_the_robots_meet(rendezvous: bool) -> None:
+    """Two robots that never see each other in this run (random actions, 120 steps): the maps
+    alone try the pair; with ``rendezvous_only`` no attempt is made and nothing merges."""
+    env = mrexplore.parallel_env(
+        world="small_office",
+        sighting_range_m=4.0,
+        merge_options={"rendezvous_only": rendezvous},
+    )
+    env.reset(seed=1)
+    rng = np.random.default_rng(1)
+    tracker = env.fusion.tracker
+    tried: list[int] = []
+    tracker.attempt_observer = lambda rec: tried.append(rec.step)
+    for _ in range(120):
+        env.step({a: int(rng.integers(3)) for a in env.agents})
+    assert not tracker._sighted  # they never met
+    assert bool(tried) is not rendezvous
+    if rendezvous:
+        assert tracker.transform(0, 1) is None

@@ -188,3 +188,13 @@ def test_the_dropped_column_names_the_causes_other_than_contradiction() -> None:
     assert s["drops"] == 4 and s["drop_causes"] == {"contradicted": 1, "moved": 1, "sighting": 1}
     assert _drops_text(s) == "4 (1 moved, 1 sighting)"
     assert _drops_text({"drops": 2, "drop_causes": {}}) == "2"
+
+
+def test_rendezvous_only_is_refused_for_variants_without_sightings(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    argv = ["--family", "paper_like", "--part", "tune", "--worlds", "1", "--seeds", "1"]
+    argv += ["--merge-options", "rendezvous_only=true", "--out", str(tmp_path / "x")]
+    assert main([*argv, "--variants", "semantic", "sighting"]) == 2
+    assert "only 'sighting' has sightings (drop ['semantic'])" in capsys.readouterr().out
+    assert not list(tmp_path.iterdir())

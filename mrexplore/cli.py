@@ -31,7 +31,13 @@ def _demo(args: argparse.Namespace) -> int:
 
 
 def _task_time(args: argparse.Namespace) -> int:
+    from mrexplore.errors import ConfigError
     from mrexplore.experiments.task_time import run_task_time
+
+    if args.rendezvous_only and args.sighting_range_m is None:
+        raise ConfigError(
+            "--rendezvous-only merges only robots that saw each other: give --sighting-range-m"
+        )
 
     run_task_time(
         world=args.world,
@@ -46,6 +52,7 @@ def _task_time(args: argparse.Namespace) -> int:
             **(
                 {} if args.sighting_range_m is None else {"sighting_range_m": args.sighting_range_m}
             ),
+            **({"merge_options": {"rendezvous_only": True}} if args.rendezvous_only else {}),
         },
         nav_warmup_s=args.nav_warmup_s,
         force=args.force,
@@ -203,6 +210,13 @@ def build_parser() -> argparse.ArgumentParser:
         "their relative pose, which guides and binds the merger (a rendezvous); 4.0 is "
         "recommended on floors with repeated rooms, where the maps alone merge look-alike "
         "rooms (default: off)",
+    )
+    t.add_argument(
+        "--rendezvous-only",
+        action="store_true",
+        help="with --sighting-range-m: merge a pair of robots only once they have seen each "
+        "other (the maps then place them within the sighting's region): no merge of "
+        "look-alike rooms before the robots meet, none for robots that never meet",
     )
     t.add_argument(
         "--nav-warmup-s",

@@ -403,3 +403,27 @@ def test_task_time_sighting_range_reaches_every_episode(
             main(["task-time", "--world", "small_office", "--seeds", "1", "--out",
                   str(tmp_path / str(want)), *extra])  # fmt: skip
         assert seen[-1] == want
+
+
+def test_task_time_rendezvous_only_reaches_every_episode(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--rendezvous-only`` sets the tracker's ``rendezvous_only`` in every episode's env, and
+    without ``--sighting-range-m`` it is refused at the door naming the flag."""
+    seen: list[object] = []
+
+    class _Stop(Exception):
+        pass
+
+    def capture(env_options: dict[str, object], *args: object, **kwargs: object) -> None:
+        seen.append(env_options.get("merge_options"))
+        raise _Stop
+
+    monkeypatch.setattr(task_time, "run_episode", capture)
+    argv = ["task-time", "--world", "small_office", "--seeds", "1", "--rendezvous-only"]
+    with pytest.raises(_Stop):
+        main([*argv, "--sighting-range-m", "4", "--out", str(tmp_path / "a")])
+    assert seen == [{"rendezvous_only": True}]
+    assert main([*argv, "--out", str(tmp_path / "b")]) == 2
+    assert "give --sighting-range-m" in capsys.readouterr().err
+    assert not (tmp_path / "b").exists()

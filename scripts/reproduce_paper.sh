@@ -247,6 +247,26 @@ other_steps() {
     --variants sighting --merge-options SIGHTING_CONFIRMS=false \
     --against "$out/loop_office_row_test6.json" --jobs 2 \
     --out "$out/loop_office_row_test6_before" --force
+  # the seventh test part (world seeds 700000..; opened for merging only robots that met,
+  # chosen after the sixth was read), 40 worlds: sightings and the room oracle, then the same
+  # with rendezvous_only, paired against them
+  mrexplore bench loop --family paper_like --part test7 --worlds 40 --seeds 5 \
+    --variants sighting oracle_room --jobs 2 --out "$out/loop_paper_like_test7" --force
+  mrexplore bench loop --family paper_like --part test7 --worlds 40 --seeds 5 \
+    --variants sighting oracle_room --merge-options rendezvous_only=true \
+    --against "$out/loop_paper_like_test7.json" --jobs 2 \
+    --out "$out/loop_paper_like_test7_rendezvous" --force
+  mrexplore bench loop --family office_row --part test7 --worlds 40 --seeds 5 \
+    --variants sighting oracle_room --jobs 2 --out "$out/loop_office_row_test7" --force
+  mrexplore bench loop --family office_row --part test7 --worlds 40 --seeds 5 \
+    --variants sighting oracle_room --merge-options rendezvous_only=true \
+    --against "$out/loop_office_row_test7.json" --jobs 2 \
+    --out "$out/loop_office_row_test7_rendezvous" --force
+  # ... and never merging on the same episodes
+  mrexplore bench loop --family paper_like --part test7 --worlds 40 --seeds 5 \
+    --variants none --jobs 2 --out "$out/loop_paper_like_test7_none" --force
+  mrexplore bench loop --family office_row --part test7 --worlds 40 --seeds 5 \
+    --variants none --jobs 2 --out "$out/loop_office_row_test7_none" --force
   # the four fixed worlds with the place test, beside the room oracle
   mrexplore bench loop --seeds 20 --variants semantic oracle_room --jobs 2 \
     --out "$out/loop_fixed_worlds" --force

@@ -270,6 +270,9 @@ other_steps() {
   # the four fixed worlds with the place test, beside the room oracle
   mrexplore bench loop --seeds 20 --variants semantic oracle_room --jobs 2 \
     --out "$out/loop_fixed_worlds" --force
+  # ... and the recipe for repeated rooms there: sightings, merging only robots that met
+  mrexplore bench loop --seeds 20 --variants sighting --merge-options rendezvous_only=true \
+    --jobs 2 --out "$out/loop_fixed_worlds_rendezvous" --force
   mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --out "$out" --force
   mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --tasks navigate \
     --nav-goal teammate --out "$out/nav_teammate" --force

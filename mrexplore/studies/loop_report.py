@@ -212,14 +212,14 @@ def aggregate(
 
 
 def _where_room_oracle_merged(
-    episodes: Sequence[Mapping[str, Any]], variant: str
+    runs: Mapping[tuple[str, str, int], Mapping[str, Any]], variant: str
 ) -> tuple[int, int] | None:
     """(episodes ``variant`` merged among those ``oracle_room`` merged, those) on the same
-    world and seed; None without room oracle episodes."""
-    runs = {(e["world"], e["variant"], e["seed"]): e for e in episodes}
-    keys = [(w, s) for (w, v, s), e in runs.items() if v == "oracle_room" and e["merged"]]
+    world and seed (``runs``: (world, variant, seed) -> episode); None without room oracle
+    episodes."""
     if not any(v == "oracle_room" for _, v, _ in runs):
         return None
+    keys = [(w, s) for (w, v, s), e in runs.items() if v == "oracle_room" and e["merged"]]
     both = sum(bool(runs[(w, variant, s)]["merged"]) for w, s in keys if (w, variant, s) in runs)
     return both, len(keys)
 
@@ -227,6 +227,7 @@ def _where_room_oracle_merged(
 def _per_variant(episodes: Sequence[Mapping[str, Any]], variants: Sequence[str]) -> dict[str, Any]:
     """:func:`aggregate` of one set of episodes (all the run's, or one layout's)."""
     out: dict[str, Any] = {"variants": {}, "semantic_against": {}}
+    runs = {(e["world"], e["variant"], e["seed"]): e for e in episodes}
     for v in variants:
         eps = [e for e in episodes if e["variant"] == v]
         wrong = sum(bool(e["wrong_merge"]) for e in eps)
@@ -250,11 +251,10 @@ def _per_variant(episodes: Sequence[Mapping[str, Any]], variants: Sequence[str])
             "contradiction_to_drop_max_s": max(recovery) if recovery else None,
             "task_time_mean_s": float(statistics.fmean(times)) if times else None,
         }
-        shared = _where_room_oracle_merged(episodes, v)
+        shared = _where_room_oracle_merged(runs, v)
         if shared is not None and v not in ("none", "single", "oracle_room"):
             out["variants"][v]["merged_where_room_oracle_merged"] = list(shared)
     if "semantic" in variants:
-        runs = {(e["world"], e["variant"], e["seed"]): e for e in episodes}
         sem = out["variants"]["semantic"]["task_time_mean_s"]
         for base in ("oracle_room", "none"):
             if base not in variants:

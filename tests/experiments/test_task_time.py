@@ -384,25 +384,32 @@ def test_task_time_refuses_the_options_it_sets_itself(tmp_path: Path, monkeypatc
         )
 
 
+class _Stop(Exception):
+    """Raised by :func:`_capture_env_options` in place of the first episode."""
+
+
+def _capture_env_options(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, object]]:
+    """Make ``task-time``'s first episode record its env options and stop the run."""
+    seen: list[dict[str, object]] = []
+
+    def capture(env_options: dict[str, object], *args: object, **kwargs: object) -> None:
+        seen.append(env_options)
+        raise _Stop
+
+    monkeypatch.setattr(task_time, "run_episode", capture)
+    return seen
+
+
 def test_task_time_sighting_range_reaches_every_episode(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """``--sighting-range-m`` turns sightings on in every episode's env (off without it)."""
-    seen: list[object] = []
-
-    class _Stop(Exception):
-        pass
-
-    def capture(env_options: dict[str, object], *args: object, **kwargs: object) -> None:
-        seen.append(env_options.get("sighting_range_m"))
-        raise _Stop
-
-    monkeypatch.setattr(task_time, "run_episode", capture)
+    seen = _capture_env_options(monkeypatch)
     for extra, want in (["--sighting-range-m", "4"], 4.0), ([], None):
         with pytest.raises(_Stop):
             main(["task-time", "--world", "small_office", "--seeds", "1", "--out",
                   str(tmp_path / str(want)), *extra])  # fmt: skip
-        assert seen[-1] == want
+        assert seen[-1].get("sighting_range_m") == want
 
 
 def test_task_time_rendezvous_only_reaches_every_episode(
@@ -410,20 +417,11 @@ def test_task_time_rendezvous_only_reaches_every_episode(
 ) -> None:
     """``--rendezvous-only`` sets the tracker's ``rendezvous_only`` in every episode's env, and
     without ``--sighting-range-m`` it is refused at the door naming the flag."""
-    seen: list[object] = []
-
-    class _Stop(Exception):
-        pass
-
-    def capture(env_options: dict[str, object], *args: object, **kwargs: object) -> None:
-        seen.append(env_options.get("merge_options"))
-        raise _Stop
-
-    monkeypatch.setattr(task_time, "run_episode", capture)
+    seen = _capture_env_options(monkeypatch)
     argv = ["task-time", "--world", "small_office", "--seeds", "1", "--rendezvous-only"]
     with pytest.raises(_Stop):
         main([*argv, "--sighting-range-m", "4", "--out", str(tmp_path / "a")])
-    assert seen == [{"rendezvous_only": True}]
+    assert [o.get("merge_options") for o in seen] == [{"rendezvous_only": True}]
     assert main([*argv, "--out", str(tmp_path / "b")]) == 2
     assert "give --sighting-range-m" in capsys.readouterr().err
     assert not (tmp_path / "b").exists()

@@ -631,7 +631,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument(
         "--family",
         default=None,
-        help="run on a world family's worlds instead (paper_like, office_row): worlds 0 .. "
+        help="run on a world family's worlds instead (paper_like, office_row, radial): worlds 0 .. "
         "N-1 of --part",
     )
     p.add_argument(

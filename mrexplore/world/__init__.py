@@ -22,6 +22,7 @@ from mrexplore.world.family import (
     family_world,
     office_row,
     paper_like,
+    radial,
 )
 from mrexplore.world.generators import GENERATORS, symmetric_office, twin_wings
 from mrexplore.world.map_io import (
@@ -48,6 +49,7 @@ __all__ = [
     "load_world",
     "office_row",
     "paper_like",
+    "radial",
     "read_map_yaml",
     "symmetric_office",
     "twin_wings",

@@ -28,6 +28,8 @@ episode from the env's generator):
   few cells, as a real map's would).
 * :func:`office_row`: rows of 3 to 8 identical offices along a corridor, sometimes on both
   sides.
+* :func:`radial`: floors the same under a turn: 2 to 6 identical wings of rooms round a round
+  hall, one every ``360 / n`` degrees (a building with rotational symmetry).
 
 Floors are at most :data:`MAX_LONG_M` x :data:`MAX_SHORT_M` metres (long x short side), so a
 2-robot episode stays cheap; every free cell is reachable by the robot from the start area
@@ -42,8 +44,10 @@ lowest y, boxes ``(col, row, w, h)`` in cells with the walls.
 ``np.rot90``'s sense), ``twin_rooms`` (the copies' boxes), ``twin_rotation_deg`` (copy 1 against
 copy 0), ``doors_differ`` (copies' doors at different offsets: the copies are then identical
 but for their door walls), ``rooms`` (every room's box), ``corridor_box`` (the main hall or
-corridor), ``start_cell``, ``clutter`` (pieces), ``noise`` (cells changed, or None), ``options``
-and ``seed_info``.
+corridor; a radial floor's: the square inside its hall, about the centre the floor turns
+about), ``start_cell``, ``clutter`` (pieces), ``noise`` (cells changed, or None), ``options``
+and ``seed_info``; a radial floor's ``wings``, and its copies' ``rotation_deg`` any multiple
+of ``360 / wings`` (boxes of copies not turned by quarter turns bound the turned room).
 """
 
 from __future__ import annotations
@@ -91,6 +95,7 @@ __all__ = [
     "office_row",
     "paper_like",
     "parse_family_spec",
+    "radial",
 ]
 
 #: The spec prefix: ``"family:paper_like/test/7"``.
@@ -117,6 +122,8 @@ CORRIDOR_M = (1.5, 3.0)
 REPEATED_WIDTH_M = (3.0, 12.0)
 #: Depths of rooms (interior, metres).
 ROOM_DEPTH_M = (3.0, 7.0)
+#: Wings of :func:`radial`: its floors are the same under a turn of 360 / n degrees.
+RADIAL_WINGS = (2, 3, 4, 5, 6)
 _MAX_ATTEMPTS = 60
 
 
@@ -133,6 +140,9 @@ class _Floor:
     placed: list[Placed]
     free_areas: list[Box]  # where clutter may stand (corridors, halls), interior boxes
     facts: dict[str, Any] = field(default_factory=dict)
+    # degrees a copy is turned beyond its quarter turns (copy index -> degrees): the wings of
+    # a radial floor; its box is then the turned room's bounding box
+    copy_deg: dict[int, float] = field(default_factory=dict)
 
 
 # --------------------------------------------------------------------------------------------
@@ -504,6 +514,118 @@ def _open_plan(rng: np.random.Generator, p: _Params, n: int, _tw: int, _th: int)
 
 
 # --------------------------------------------------------------------------------------------
+# floors the same under a turn
+
+
+def _turned(mask: NDArray[np.uint8], deg: float) -> NDArray[np.uint8]:
+    """A square ``mask`` (odd side) turned by ``deg`` counter-clockwise in the array (as
+    :func:`numpy.rot90`) about its centre cell: exact for quarter turns, else nearest cell."""
+    q = deg / 90.0
+    if abs(q - round(q)) < 1e-9:
+        return np.ascontiguousarray(np.rot90(mask, round(q) % 4))
+    c = (mask.shape[0] - 1) / 2.0
+    rot = cv2.getRotationMatrix2D((c, c), deg, 1.0)
+    out = cv2.warpAffine(mask, rot, mask.shape[::-1], flags=cv2.INTER_NEAREST)
+    return np.asarray(out, dtype=np.uint8)
+
+
+def _turned_box(box: Box, side: int, deg: float) -> Box:
+    """The bounding box of ``box`` (cells of a ``side`` x ``side`` array) turned as
+    :func:`_turned` turns the array."""
+    c = (side - 1) / 2.0
+    rot = cv2.getRotationMatrix2D((c, c), deg, 1.0)
+    col, row, w, h = box
+    corners = np.array(
+        [
+            [col, row, 1.0],
+            [col + w - 1, row, 1.0],
+            [col, row + h - 1, 1.0],
+            [col + w - 1, row + h - 1, 1.0],
+        ]
+    )
+    pts = corners @ rot.T
+    lo = np.floor(pts.min(axis=0) + 0.5).astype(int)
+    hi = np.floor(pts.max(axis=0) + 0.5).astype(int)
+    return (int(lo[0]), int(lo[1]), int(hi[0] - lo[0] + 1), int(hi[1] - lo[1] + 1))
+
+
+def _radial_floor(
+    rng: np.random.Generator, p: _Params, n: int, tpls: list[NDArray[np.bool_]], tw: int, th: int
+) -> _Floor:
+    """``n`` identical wings round a round central hall, one every ``360 / n`` degrees: each wing a
+    corridor from the hall with the copies in rows on one or both of its sides. The floor is
+    the same turned by ``360 / n`` degrees (cell for cell for 2 and 4 wings; for 3, 5 and 6 the
+    turned wings are drawn to the nearest cell, so copies differ in a few edge cells)."""
+    z = _Sizes.of(p)
+    t = z.t
+    cw = _m(rng, *CORRIDOR_M, p)
+    sides = ["e", "w"] if len(tpls) > 1 and rng.random() < 0.6 else ["e"]
+    dealt = _deal(rng, len(tpls), sides)
+    # the hall: a disc, wide enough that the wings' corridors meet it apart
+    radius = _m(rng, 1.5, 3.0, p)
+    if n > 2:
+        radius = max(radius, math.ceil((cw / 2 + t + 2) / math.tan(math.pi / n)))
+    start = radius - t - 1  # the wing's first row, inside the hall: its mouth opens into it
+    need = max(_need(len(ks), tw, t) for ks in dealt.values())
+    # widest reach of a wing from its corridor's axis (cells), rooms on the wider side
+    reach = cw / 2 + 2 * t + th
+    # rooms begin where the wings' rooms cannot meet, and beyond the hall
+    clear = max((reach + t + 2) / math.tan(math.pi / n) if n > 2 else 0.0, radius + t + 2)
+    off = max(math.ceil(clear - start), radius - start + _m(rng, 0.5, 2.0, p))
+    length = off + need + _m(rng, 0.0, 2.0, p)
+    rows: dict[str, tuple[list[Slot], int]] = {}
+    for s in sides:
+        ks = dealt.get(s, [])
+        if ks:
+            rows[s] = ([Slot(tw, th, tpls[k], k) for k in ks], off)
+    wing, corridor, placed = hall_floor(Hall(cw, length, rows), t)
+    hc, hr, _, _ = corridor
+    wing[:hr, hc : hc + cw] = False  # the mouth
+    axis = hc + (cw - 1) // 2
+    far = math.hypot(start + wing.shape[0], max(axis, wing.shape[1] - axis))
+    side = 2 * (math.ceil(far) + t + 2) + 1
+    if side > 2 * max(z.long, z.short):
+        raise _Retry
+    mid = (side - 1) // 2
+    col0, row0 = mid - axis, mid + start
+    wing_free = np.zeros((side, side), dtype=np.uint8)
+    wing_free[row0 : row0 + wing.shape[0], col0 : col0 + wing.shape[1]] = ~wing
+    # the hall: every cell whose centre lies within the hall's radius of the centre cell
+    ys, xs = np.ogrid[-mid : side - mid, -mid : side - mid]
+    hall = (xs * xs + ys * ys <= radius * radius).astype(np.uint8)
+    wings = [_turned(wing_free, 360.0 * k / n) for k in range(n)]
+    # neighbouring wings' free cells stay a wall apart (outside the hall)
+    near = np.ones((2 * t + 1, 2 * t + 1), np.uint8)
+    outside = cv2.dilate(hall, near) == 0
+    for i in range(n):
+        grown = cv2.dilate(wings[i], near) > 0
+        for j in range(i + 1, n):
+            if (grown & (wings[j] > 0) & outside).any():
+                raise _Retry
+    free = hall.astype(bool)
+    for turned in wings:
+        free |= turned > 0
+    rr, cc = np.nonzero(free)
+    r0, r1 = int(rr.min()) - t, int(rr.max()) + t + 1
+    c0, c1 = int(cc.min()) - t, int(cc.max()) + t + 1
+    walls = np.ascontiguousarray(~free[r0:r1, c0:c1])
+    per_wing = len(tpls)
+    out: list[Placed] = []
+    copy_deg: dict[int, float] = {}
+    for k in range(n):
+        deg = 360.0 * k / n
+        for q in placed:
+            bc, br, bw, bh = q.box
+            tc, tr, w, h = _turned_box((bc + col0, br + row0, bw, bh), side, deg)
+            idx = k * per_wing + (q.copy or 0)
+            out.append(Placed((tc - c0, tr - r0, w, h), q.turns, idx))
+            copy_deg[idx] = deg
+    inner = max(1, int(radius / math.sqrt(2.0)) - 1)
+    box: Box = (mid - inner - c0, mid - inner - r0, 2 * inner + 1, 2 * inner + 1)
+    return _Floor(walls, box, out, [box], {"layout": f"radial_{n}"}, copy_deg)
+
+
+# --------------------------------------------------------------------------------------------
 # finishing: turn, clutter, noise, checks
 
 
@@ -633,7 +755,9 @@ def _finish(
     if d.noise:
         walls, noise = _noise(noise_rng, walls, p, start)
     copies = sorted((q for q in f.placed if q.copy is not None), key=lambda q: q.copy or 0)
-    rotations = [90 * ((q.turns + k) % 4) for q in copies]
+    rotations: list[float] = [
+        _turn_deg(90 * ((q.turns + k) % 4), f.copy_deg.get(q.copy or 0, 0.0)) for q in copies
+    ]
     copy_meta = [
         {"box": turn(q.box), "rotation_deg": deg} for q, deg in zip(copies, rotations, strict=True)
     ]
@@ -660,6 +784,14 @@ def _finish(
             "seed_info": {"attempts": attempt},
         },
     )
+
+
+def _turn_deg(quarter_deg: int, extra_deg: float) -> float:
+    """A copy's turn in degrees: whole quarter turns stay ints (as every axis-aligned family
+    records them), other turns are rounded to a thousandth of a degree."""
+    if extra_deg == 0.0:
+        return quarter_deg
+    return round((quarter_deg + extra_deg) % 360.0, 3)
 
 
 def _check_noise(noise: bool | None) -> None:
@@ -780,10 +912,49 @@ def office_row(
     raise WorldError(f"office_row: no valid floor after {_MAX_ATTEMPTS} draws")
 
 
+def radial(
+    rng: np.random.Generator, resolution_m: float = 0.05, noise: bool | None = None
+) -> World:
+    """A floor the same under a turn: 2 to 6 identical wings (equally likely) round a round
+    central hall, one every ``360 / n`` degrees, each a corridor with copies of one furnished
+    room (2.5-4.5 m wide, 2.5-4.5 m deep; 1-4 a wing, 1-3 with 4 wings, 1-2 with 5 or 6) on one
+    or both of its sides.
+    Which copy a robot stands in cannot be told from its map until it has seen beyond its wing
+    (the hall's clutter, when drawn, is the only thing that tells the wings apart). Clutter in
+    the hall 40 %, noise 25 %, the floor turned by 0-3 quarter turns.
+
+    Args, returns and errors as :func:`paper_like`; ``meta["copies"]`` boxes of wings turned by
+    other than quarter turns are the turned rooms' bounding boxes.
+    """
+    _check_noise(noise)
+    p = _params(resolution_m, GeneratorOptions())
+    layout_rng, noise_rng = rng.spawn(2)
+    r = layout_rng
+    n = int(r.choice(RADIAL_WINGS))  # drawn once: a large n must not be redrawn as a small one
+    most = 4 if n <= 3 else 3 if n == 4 else 2
+    for attempt in range(1, _MAX_ATTEMPTS + 1):
+        per_wing = int(r.integers(1, most + 1))
+        tw, th = _m(r, 2.5, 4.5, p), _m(r, 2.5, 4.5, p)
+        vary = bool(r.random() < 0.3)
+        draw = _Draw(bool(r.random() < 0.4), bool(r.random() < 0.25), int(r.integers(4)))
+        try:
+            tpls, differ = _copy_templates(r, p, tw, th, per_wing, vary)
+            f = _radial_floor(r, p, n, tpls, tw, th)
+        except _Retry:
+            continue
+        facts = {"doors_differ": differ, "repeated_size_m": (tw * p.res, th * p.res), "wings": n}
+        d = replace(draw, noise=draw.noise if noise is None else bool(noise))
+        w = _finish("radial", f, p, r, noise_rng, d, facts, attempt)
+        if w is not None:
+            return w
+    raise WorldError(f"radial: no valid floor after {_MAX_ATTEMPTS} draws")
+
+
 #: The families by name: ``generator(rng, resolution_m=0.05, noise=None) -> World``.
 FAMILY_GENERATORS: dict[str, Callable[..., World]] = {
     "paper_like": paper_like,
     "office_row": office_row,
+    "radial": radial,
 }
 #: Family names, sorted.
 FAMILIES: tuple[str, ...] = tuple(sorted(FAMILY_GENERATORS))

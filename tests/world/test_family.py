@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Callable
 
+import cv2
 import numpy as np
 import pytest
 
@@ -22,6 +23,7 @@ from mrexplore.world.family import (
     family_spec,
     family_world,
     parse_family_spec,
+    radial,
 )
 from mrexplore.world.generators import unreachable_free_cells
 
@@ -80,9 +82,12 @@ def test_same_seed_same_grid(gen: Gen) -> None:
 @pytest.mark.parametrize("gen", FAMILY_GENERATORS.values(), ids=FAMILY_GENERATORS.keys())
 def test_copies_identical_cell_for_cell(gen: Gen, seed: int) -> None:
     world = gen(np.random.default_rng(seed), noise=False)
-    copies = world.meta["copies"]
-    assert len(copies) >= (3 if world.meta["generator"] == "office_row" else 2)
-    assert world.meta["twin_rooms"] == [c["box"] for c in copies]
+    assert len(world.meta["copies"]) >= (3 if world.meta["generator"] == "office_row" else 2)
+    assert world.meta["twin_rooms"] == [c["box"] for c in world.meta["copies"]]
+    # copies turned by quarter turns are cell for cell the same (a radial floor's other wings
+    # are drawn turned to the nearest cell: test_radial_floor_is_the_same_under_its_turn)
+    copies = [c for c in world.meta["copies"] if isinstance(c["rotation_deg"], int)]
+    assert copies
     t = 3  # wall cells at 0.05 m
     ref = _canonical(world, copies[0])
     if world.meta["doors_differ"]:
@@ -124,6 +129,58 @@ def test_noise_changes_a_few_cells_not_the_layout(gen: Gen) -> None:
         assert noisy.meta["noise"] is not None
         assert 0 < changed <= noisy.meta["noise"]["speckles"] + noisy.meta["noise"]["bumps"]
         assert changed < 0.01 * clean.free.sum()
+
+
+def _square_round(walls: np.ndarray, centre: tuple[int, int]) -> np.ndarray:
+    """``walls`` padded with wall into a square of odd side whose centre cell is ``centre``
+    (col, row)."""
+    c, r = centre
+    h, w = walls.shape
+    half = max(c, r, w - 1 - c, h - 1 - r)
+    out = np.ones((2 * half + 1, 2 * half + 1), dtype=np.bool_)
+    out[half - r : half - r + h, half - c : half - c + w] = walls
+    return out
+
+
+@pytest.mark.parametrize("seed", range(16))
+def test_radial_floor_is_the_same_under_its_turn(seed: int) -> None:
+    world = radial(np.random.default_rng(seed), noise=False)
+    n = world.meta["wings"]
+    c, r, w, h = world.meta["corridor_box"]  # the hall's inscribed square, about its centre
+    sq = _square_round(world.walls, (c + w // 2, r + h // 2)).astype(np.uint8)
+    side = sq.shape[0]
+    mid = (side - 1) / 2
+    turned = cv2.warpAffine(
+        sq,
+        cv2.getRotationMatrix2D((mid, mid), 360.0 / n, 1.0),
+        (side, side),
+        flags=cv2.INTER_NEAREST,
+        borderValue=1,
+    )
+    # outside the hall (where clutter may stand): the same floor, cell for cell with 2 or 4
+    # wings, all but the turned walls' edge cells otherwise
+    ys, xs = np.ogrid[:side, :side]
+    away = (xs - mid) ** 2 + (ys - mid) ** 2 > (2 * max(w, h)) ** 2
+    free = (sq == 0) & away
+    differ = ((turned != sq) & away).sum() / free.sum()
+    if n in (2, 4):
+        assert differ == 0.0
+    else:
+        assert differ < 0.03
+    # every wing holds the same rooms: copies k * m + j of wing k, turned by 360 k / n more
+    copies = world.meta["copies"]
+    m = len(copies) // n
+    assert len(copies) == n * m and m >= 1
+    for k in range(n):
+        for j in range(m):
+            got = copies[k * m + j]["rotation_deg"]
+            want = (copies[j]["rotation_deg"] + 360.0 * k / n) % 360.0
+            assert got == pytest.approx(want, abs=1e-3) or abs(got - want) == pytest.approx(360.0)
+
+
+def test_radial_draws_every_number_of_wings() -> None:
+    wings = {family_world("radial", "tune", k).meta["wings"] for k in range(40)}
+    assert wings == {2, 3, 4, 5, 6}
 
 
 def test_paper_like_varies_widely() -> None:

@@ -10,8 +10,8 @@ Each step the caller hands over the robots' own-frame maps. The tracker
   cells than the one before: evidence accumulated over time. A look-alike match stays confined
   to the look-alike part (its shared evidence cannot grow without a contradiction, which
   refuses and breaks the run), the true one spreads as the maps grow. A pose accepted by an
-  attempt a sighting guided needs no later attempt (``SIGHTING_CONFIRMS``): the sighting is
-  the other measurement;
+  attempt a sighting guided needs no later attempt when it puts the seen robot where it was
+  seen (``SIGHTING_CONFIRMS``): the sighting is the other measurement;
 - keeps an accepted transform; every ``recheck_every`` steps re-runs the merger on merged pairs
   and replaces the transform only when the new one scores clearly better (by
   ``REPLACE_MARGIN``) than the kept one does *on the same current maps*: no flip-flopping;
@@ -134,9 +134,11 @@ OUTRANKED_DROP: bool = True
 #: their own vouches for), and re-checks look only inside it (False: sightings guide the
 #: attempts of unmerged pairs only).
 SIGHTING_BINDS: bool = True
-#: A pose the merger accepts in an attempt guided by a sighting is merged at once: the sighting
-#: measured the pose independently of the maps, so it is the second agreeing measurement that
-#: ``confirmations`` otherwise waits for from a later attempt (False: it waits as any attempt).
+#: A pose the merger accepts in an attempt guided by a sighting is merged at once when it puts
+#: the seen robot where the sighting saw it (within ``confirm_tol_cells``): the sighting measured
+#: the pose independently of the maps, so it is the second agreeing measurement that
+#: ``confirmations`` otherwise waits for from a later attempt; a pose the maps slid elsewhere in
+#: the sighting's region waits as any pose does (False: every pose waits).
 SIGHTING_CONFIRMS: bool = True
 #: A sighting-guided attempt looks within this many cells of the guess (2 m at 0.05 m).
 PRIOR_RADIUS_CELLS: float = 40.0
@@ -383,8 +385,10 @@ class TrackerOptions(Options):
             vouch for), and a sighted pair's re-checks look only in the latest sighting's region
             (default True; False: sightings guide unmerged pairs' attempts only).
         SIGHTING_CONFIRMS: a pose accepted by an attempt a sighting guided is merged at once,
-            whatever ``confirmations`` asks: the sighting measured it independently of the maps
-            (default True; False: it waits for a later agreeing attempt like any other).
+            whatever ``confirmations`` asks, when it puts the seen robot within
+            ``confirm_tol_cells`` of where the sighting saw it: the sighting measured it
+            independently of the maps (default True; False: it waits for a later agreeing
+            attempt like any other, as does a pose farther from the sighting).
         RIVAL_MEMORY: rivals remembered per unmerged pair (default 8; 0 = none): a pose an
             attempt found nearly as good as its best, far from it. A later attempt's pose is
             accepted only when the maps now rule out every remembered rival (it explains less
@@ -695,12 +699,19 @@ class MapMergeTracker:
         from where robot i last saw it (``SIGHTING_BINDS``; False without a sighting)? Only the
         position at the sighting is judged: there the guess is exact up to the measurement's
         noise, while its heading differs from a kept rigid pose's by the maps' bending."""
-        seen = self._sighted.get((i, j)) if SIGHTING_BINDS else None
+        gap = self._sighting_gap(i, j, T) if SIGHTING_BINDS else None
+        return gap is not None and gap > PRIOR_RADIUS_CELLS
+
+    def _sighting_gap(self, i: int, j: int, T: Transform) -> float | None:
+        """How far (cells) pose ``T_ij`` puts robot j from where the pair's latest sighting
+        saw it (None without a sighting): judged at the seen position, where the sighting's
+        guess is exact up to its measurement's noise."""
+        seen = self._sighted.get((i, j))
         if seen is None:
-            return False
+            return None
         at = np.array([seen.at_j], dtype=np.float64)
         (x1, y1), (x2, y2) = map_points(at, T), map_points(at, seen.T_ij)
-        return bool(np.hypot(x1 - x2, y1 - y2)[0] > PRIOR_RADIUS_CELLS)
+        return float(np.hypot(x1 - x2, y1 - y2)[0])
 
     def _linked(self, i: int, j: int) -> bool:
         return self._links is None or bool(self._links[i, j] and self._links[j, i])
@@ -1004,8 +1015,10 @@ class MapMergeTracker:
         T = out.T
         evidence = int(out.result.overlap_cells)
         count = 1
-        if out.guided and SIGHTING_CONFIRMS:
-            count = self.options.confirmations  # the sighting is the other measurement
+        gap = self._sighting_gap(i, j, T) if out.guided and SIGHTING_CONFIRMS else None
+        if gap is not None and gap <= self.options.confirm_tol_cells:
+            # the sighting is the other measurement, when the two agree as two attempts must
+            count = self.options.confirmations
         elif pending is not None and self._same(pending[0], T, bbox_j):
             # The same transform again counts as a confirmation only when it now rests on
             # clearly more shared evidence (wall cells both maps see under it): a look-alike

@@ -635,26 +635,34 @@ def test_a_sighting_merges_look_alike_rooms_the_maps_alone_cannot_tell_apart(
         np.testing.assert_allclose(T[:2, 2], T_true[:2, 2], atol=1.0)
 
 
-@pytest.mark.parametrize("confirms", [True, False])
+@pytest.mark.parametrize(("confirms", "slid"), [(True, False), (False, False), (True, True)])
 def test_a_pose_a_sighting_guided_is_merged_without_a_second_attempt(
-    confirms: bool, monkeypatch: pytest.MonkeyPatch
+    confirms: bool, slid: bool, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """With two confirmations asked, the first attempt guided by a sighting merges the pair
-    when ``SIGHTING_CONFIRMS`` is on (the sighting is the other measurement of the pose); off,
-    the accepted pose only starts a run, and the same maps never extend it."""
+    when ``SIGHTING_CONFIRMS`` is on and the pose puts robot 1 where the sighting saw it (the
+    sighting is the other measurement of the pose); off, or when the sighting saw robot 1 a
+    few cells (beyond ``confirm_tol_cells``) from where the maps put it, the accepted pose
+    only starts a run, and the same maps never extend it."""
     from mrexplore.merge.semantic import _turn_about
+    from mrexplore.types import Sighting
 
     monkeypatch.setattr(tracker_module, "SIGHTING_CONFIRMS", confirms)
     canvas_a, canvas_b, T_true = look_alike_canvases()
-    guess = chain(T_true, _turn_about(3.0, 85.0, 90.0), translation(5.0, -4.0))
+    # exact where robot 1 was seen, turned by 3 degrees about it (off elsewhere) ...
+    seen_at = (85.0, 90.0)
+    guess = chain(T_true, _turn_about(3.0, *seen_at))
+    if slid:  # ... or 5 cells off there too
+        guess = chain(translation(4.0, -3.0), guess)
     tr = MapMergeTracker(2, merge_every=1, confirmations=2, resolution_m=0.05)
     maps = [canvas_a, canvas_b]
-    tr.update(maps, step=1, sightings={(0, 1): guess})
-    assert tr.merged(0) is confirms
+    tr.update(maps, step=1, sightings={(0, 1): Sighting(guess, seen_at)})
+    merged = confirms and not slid
+    assert tr.merged(0) is merged
     for step in range(2, 5):
         tr.update(maps, step=step)
-    assert tr.merged(0) is confirms
-    if confirms:
+    assert tr.merged(0) is merged
+    if merged:
         T = tr.transform(0, 1)
         assert T is not None
         np.testing.assert_allclose(T[:2, 2], T_true[:2, 2], atol=1.0)

@@ -267,6 +267,21 @@ other_steps() {
     --variants none --jobs 2 --out "$out/loop_paper_like_test7_none" --force
   mrexplore bench loop --family office_row --part test7 --worlds 40 --seeds 5 \
     --variants none --jobs 2 --out "$out/loop_office_row_test7_none" --force
+  # the eighth test part (world seeds 800000..; opened to judge the rendezvous recipe again, no
+  # rule changed after the seventh), 40 worlds: the maps alone, sightings, the room oracle and
+  # never merging; then sightings with rendezvous_only on the same episodes, paired against them
+  mrexplore bench loop --family paper_like --part test8 --worlds 40 --seeds 5 \
+    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_paper_like_test8" --force
+  mrexplore bench loop --family paper_like --part test8 --worlds 40 --seeds 5 \
+    --variants sighting --merge-options rendezvous_only=true \
+    --against "$out/loop_paper_like_test8.json" --jobs 2 \
+    --out "$out/loop_paper_like_test8_rendezvous" --force
+  mrexplore bench loop --family office_row --part test8 --worlds 40 --seeds 5 \
+    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_office_row_test8" --force
+  mrexplore bench loop --family office_row --part test8 --worlds 40 --seeds 5 \
+    --variants sighting --merge-options rendezvous_only=true \
+    --against "$out/loop_office_row_test8.json" --jobs 2 \
+    --out "$out/loop_office_row_test8_rendezvous" --force
   # the four fixed worlds with the place test, beside the room oracle
   mrexplore bench loop --seeds 20 --variants semantic oracle_room --jobs 2 \
     --out "$out/loop_fixed_worlds" --force

@@ -282,6 +282,30 @@ other_steps() {
     --variants sighting --merge-options rendezvous_only=true \
     --against "$out/loop_office_row_test8.json" --jobs 2 \
     --out "$out/loop_office_row_test8_rendezvous" --force
+  # the ninth test part (world seeds 900000..; opened for a sighting confirming only where it
+  # agrees, chosen after the eighth was read), 40 worlds: sightings and the room oracle, then
+  # sightings with rendezvous_only on the same episodes, paired against them
+  mrexplore bench loop --family paper_like --part test9 --worlds 40 --seeds 5 \
+    --variants sighting oracle_room --jobs 2 --out "$out/loop_paper_like_test9" --force
+  mrexplore bench loop --family paper_like --part test9 --worlds 40 --seeds 5 \
+    --variants sighting --merge-options rendezvous_only=true \
+    --against "$out/loop_paper_like_test9.json" --jobs 2 \
+    --out "$out/loop_paper_like_test9_rendezvous" --force
+  mrexplore bench loop --family office_row --part test9 --worlds 40 --seeds 5 \
+    --variants sighting oracle_room --jobs 2 --out "$out/loop_office_row_test9" --force
+  mrexplore bench loop --family office_row --part test9 --worlds 40 --seeds 5 \
+    --variants sighting --merge-options rendezvous_only=true \
+    --against "$out/loop_office_row_test9.json" --jobs 2 \
+    --out "$out/loop_office_row_test9_rendezvous" --force
+  # the radial family (buildings the same under a turn; no rule was chosen on any of its parts),
+  # its test part, 20 worlds, with the sighting-confirms change made after the eighth part: the
+  # same variants, then the recipe paired against them
+  mrexplore bench loop --family radial --part test --worlds 20 --seeds 5 \
+    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_radial_test" --force
+  mrexplore bench loop --family radial --part test --worlds 20 --seeds 5 \
+    --variants sighting --merge-options rendezvous_only=true \
+    --against "$out/loop_radial_test.json" --jobs 2 \
+    --out "$out/loop_radial_test_rendezvous" --force
   # the four fixed worlds with the place test, beside the room oracle
   mrexplore bench loop --seeds 20 --variants semantic oracle_room --jobs 2 \
     --out "$out/loop_fixed_worlds" --force

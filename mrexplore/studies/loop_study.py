@@ -638,7 +638,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--part",
         default=None,
         help="with --family: tune (world seeds 0, 1, ...), test (100000, ...) or test2 .. "
-        "test9 (k * 100000, ...: each kept for a rule chosen after the part before it was "
+        "test99 (k * 100000, ...: each kept for a rule chosen after the part before it was "
         "read); tune rules on tune only",
     )
     p.add_argument("--seeds", type=int, default=20, help="seeds per world (default 20)")

@@ -8,7 +8,7 @@ rule is chosen, so that nothing is tuned on the worlds it is judged on.
 The split: world ``index`` of a part is drawn from ``numpy.random.default_rng(seed)`` alone,
 with ``seed = PART_FIRST_SEED[part] + index``: the tune part is world seeds 0, 1, 2, ...
 (:data:`TUNE_FIRST_SEED`), the test part world seeds 100_000, 100_001, ...
-(:data:`TEST_FIRST_SEED`), and further test parts ``test2`` .. ``test9``, world seeds
+(:data:`TEST_FIRST_SEED`), and further test parts ``test2`` .. ``test99``, world seeds
 ``k * 100_000``, ..., each kept closed for a rule chosen after the part before it was read; an
 index is below :data:`PART_SIZE`, so the parts never share a seed. Nobody tunes on a test part. A
 world is named by the spec ``"family:<family>/<part>/<index>"`` (:func:`family_spec`), which
@@ -110,9 +110,11 @@ TEST_FIRST_SEED = PART_SIZE
 PART_FIRST_SEED: dict[str, int] = {
     "tune": TUNE_FIRST_SEED,
     "test": TEST_FIRST_SEED,
-    **{f"test{k}": k * PART_SIZE for k in range(2, 10)},
+    **{f"test{k}": k * PART_SIZE for k in range(2, 100)},
 }
 PARTS: tuple[str, ...] = tuple(PART_FIRST_SEED)
+#: The parts as error messages name them.
+PARTS_TEXT = "tune, test, test2 .. test99"
 #: Largest floor, metres: the long side and the short side.
 MAX_LONG_M = 35.0
 MAX_SHORT_M = 25.0
@@ -152,7 +154,7 @@ class _Floor:
 def family_seed(part: str, index: int) -> int:
     """The world seed of world ``index`` of ``part`` (see the module doc)."""
     if part not in PART_FIRST_SEED:
-        raise WorldError(f"unknown part {part!r}; parts are {list(PARTS)}")
+        raise WorldError(f"unknown part {part!r}; parts are {PARTS_TEXT}")
     if isinstance(index, bool) or not isinstance(index, (int, np.integer)):
         raise WorldError(f"world index must be an integer, got {index!r}")
     if not 0 <= int(index) < PART_SIZE:
@@ -183,12 +185,12 @@ def parse_family_spec(spec: str) -> tuple[str, str, int]:
     if len(bits) != 3:
         raise WorldError(
             f"world spec {spec!r}: expected 'family:<family>/<part>/<index>', e.g. "
-            f"'family:paper_like/test/7'; families {sorted(FAMILY_GENERATORS)}, parts {list(PARTS)}"
+            f"'family:paper_like/test/7'; families {sorted(FAMILY_GENERATORS)}, parts {PARTS_TEXT}"
         )
     family, part, text = bits
     _check_family(family, spec)
     if part not in PART_FIRST_SEED:
-        raise WorldError(f"world spec {spec!r}: unknown part {part!r}; parts are {list(PARTS)}")
+        raise WorldError(f"world spec {spec!r}: unknown part {part!r}; parts are {PARTS_TEXT}")
     if not (text.isascii() and text.isdigit()):
         raise WorldError(
             f"world spec {spec!r}: the world index must be a whole number >= 0, got {text!r}"

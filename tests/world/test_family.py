@@ -47,6 +47,7 @@ def test_parts_are_disjoint_and_fixed(family: str) -> None:
     assert seeds["tune"][:3] == [0, 1, 2] and seeds["test"][:3] == [100_000, 100_001, 100_002]
     assert seeds["test2"][:2] == [200_000, 200_001]
     assert seeds["test5"][:2] == [500_000, 500_001]
+    assert seeds["test10"][0] == 1_000_000 and seeds["test99"][0] == 9_900_000
     assert len(set().union(*seeds.values())) == 50 * len(PARTS)
     # the parts cannot meet at any index, in the order they are opened
     for before, after in itertools.pairwise(PARTS):

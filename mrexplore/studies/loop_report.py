@@ -475,12 +475,32 @@ def against(doc: Mapping[str, Any], other: Mapping[str, Any], label: str) -> dic
                 all_pairs += pairs
         if all_pairs:
             pooled[v] = _compare_pairs(all_pairs)
+            pooled[v].update(_against_room_oracle(doc["episodes"], other["episodes"], v))
     return {
         "file": label,
         "env_options": dict(other.get("env_options", {})),
         "per_world": per,
         "all_worlds": pooled,
     }
+
+
+def _against_room_oracle(
+    mine: Sequence[Mapping[str, Any]], theirs: Sequence[Mapping[str, Any]], variant: str
+) -> dict[str, Any]:
+    """``variant`` of this run against the other run's ``oracle_room`` on the same (world,
+    seed): the episodes it merged of those the room oracle merged, and its mean task time
+    relative to the oracle's over the episodes both ran (empty without room oracle episodes)."""
+    ours = {(e["world"], e["seed"]): e for e in mine if e["variant"] == variant}
+    oracle = {(e["world"], e["seed"]): e for e in theirs if e["variant"] == "oracle_room"}
+    keys = sorted(set(ours) & set(oracle))
+    if not keys:
+        return {}
+    runs = {(w, variant, s): ours[(w, s)] for w, s in keys}
+    runs.update({(w, "oracle_room", s): oracle[(w, s)] for w, s in keys})
+    share = _where_room_oracle_merged(runs, variant)
+    t_ours = sum(float(ours[k]["task_time_s"]) for k in keys) / len(keys)
+    t_oracle = sum(float(oracle[k]["task_time_s"]) for k in keys) / len(keys)
+    return {"merged_where_room_oracle_merged": share, "vs_room_oracle": t_ours / t_oracle - 1.0}
 
 
 def _against_text(a: Mapping[str, Any]) -> list[str]:
@@ -493,6 +513,14 @@ def _against_text(a: Mapping[str, Any]) -> list[str]:
             f"episodes; first merge earlier in {d['first_merge_earlier']}, later in "
             f"{d['first_merge_later']}; reached {d['reached'][0]} vs {d['reached'][1]}"
         )
+    for v, d in a["all_worlds"].items():
+        if d.get("merged_where_room_oracle_merged"):
+            both, n = d["merged_where_room_oracle_merged"]
+            lines.append(
+                f"  all worlds, {v} against that run's room oracle: merged in {both} of the {n} "
+                f"episodes it merged ({100.0 * both / max(n, 1):.0f}%); mean task time "
+                f"{100.0 * d['vs_room_oracle']:+.1f}%"
+            )
     return lines
 
 

@@ -116,3 +116,29 @@ def test_gain_shares_compare_with_the_oracle_against_both_baselines() -> None:
     assert (
         summarize(eps[:2], ["w"], ["semantic", "oracle"])["w"]["semantic"]["gain_vs_none"] is None
     )
+
+
+def test_against_reads_the_room_oracle_of_the_other_run() -> None:
+    """A run without the room oracle, ``--against`` one with it: the episodes it merged of
+    those that run's room oracle merged, and its mean task time relative to the oracle's on
+    the same seeds, recorded and printed."""
+    from mrexplore.studies.loop_report import _against_text, against
+
+    mine = [_ep("sighting", 1, 110.0, 30.0), _ep("sighting", 2, 130.0, None)]
+    theirs = [
+        _ep("sighting", 1, 100.0, 20.0),
+        _ep("sighting", 2, 120.0, 25.0),
+        _ep("oracle_room", 1, 100.0, 10.0),
+        _ep("oracle_room", 2, 100.0, 15.0),
+        _ep("oracle_room", 3, 90.0, 15.0),  # a seed this run did not run: not counted
+    ]
+    doc = {"variants": ["sighting"], "worlds": ["w"], "episodes": mine}
+    a = against(doc, {"episodes": theirs}, "that.json")
+    d = a["all_worlds"]["sighting"]
+    assert d["merged_where_room_oracle_merged"] == (1, 2)
+    assert d["vs_room_oracle"] == pytest.approx(0.2)
+    text = "\n".join(_against_text(a))
+    assert "sighting against that run's room oracle: merged in 1 of the 2 episodes" in text
+    assert "+20.0%" in text
+    no_oracle = against(doc, {"episodes": theirs[:2]}, "that.json")["all_worlds"]["sighting"]
+    assert "merged_where_room_oracle_merged" not in no_oracle

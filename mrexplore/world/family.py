@@ -62,6 +62,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrexplore.errors import WorldError
+from mrexplore.grid import map_points
 from mrexplore.world.floorplans import Box, Hall, Placed, Slot, hall_floor, rotate_box
 from mrexplore.world.generators import (
     ROOM_MIN_M,
@@ -519,14 +520,20 @@ def _open_plan(rng: np.random.Generator, p: _Params, n: int, _tw: int, _th: int)
 # floors the same under a turn
 
 
+def _turn_about_centre(side: int, deg: float) -> NDArray[np.float64]:
+    """The 2 x 3 map of (col, row) cells of a ``side`` x ``side`` array turned by ``deg``
+    counter-clockwise in the array (as :func:`numpy.rot90`) about its centre cell."""
+    c = (side - 1) / 2.0
+    return np.asarray(cv2.getRotationMatrix2D((c, c), deg, 1.0), dtype=np.float64)
+
+
 def _turned(mask: NDArray[np.uint8], deg: float) -> NDArray[np.uint8]:
-    """A square ``mask`` (odd side) turned by ``deg`` counter-clockwise in the array (as
-    :func:`numpy.rot90`) about its centre cell: exact for quarter turns, else nearest cell."""
+    """A square ``mask`` (odd side) turned by ``deg`` (:func:`_turn_about_centre`): exact for
+    quarter turns, else to the nearest cell."""
     q = deg / 90.0
     if abs(q - round(q)) < 1e-9:
         return np.ascontiguousarray(np.rot90(mask, round(q) % 4))
-    c = (mask.shape[0] - 1) / 2.0
-    rot = cv2.getRotationMatrix2D((c, c), deg, 1.0)
+    rot = _turn_about_centre(mask.shape[0], deg)
     out = cv2.warpAffine(mask, rot, mask.shape[::-1], flags=cv2.INTER_NEAREST)
     return np.asarray(out, dtype=np.uint8)
 
@@ -534,21 +541,17 @@ def _turned(mask: NDArray[np.uint8], deg: float) -> NDArray[np.uint8]:
 def _turned_box(box: Box, side: int, deg: float) -> Box:
     """The bounding box of ``box`` (cells of a ``side`` x ``side`` array) turned as
     :func:`_turned` turns the array."""
-    c = (side - 1) / 2.0
-    rot = cv2.getRotationMatrix2D((c, c), deg, 1.0)
+    T = np.vstack([_turn_about_centre(side, deg), [0.0, 0.0, 1.0]])
     col, row, w, h = box
     corners = np.array(
-        [
-            [col, row, 1.0],
-            [col + w - 1, row, 1.0],
-            [col, row + h - 1, 1.0],
-            [col + w - 1, row + h - 1, 1.0],
-        ]
+        [[col, row], [col + w - 1, row], [col, row + h - 1], [col + w - 1, row + h - 1]],
+        dtype=np.float64,
     )
-    pts = corners @ rot.T
-    lo = np.floor(pts.min(axis=0) + 0.5).astype(int)
-    hi = np.floor(pts.max(axis=0) + 0.5).astype(int)
-    return (int(lo[0]), int(lo[1]), int(hi[0] - lo[0] + 1), int(hi[1] - lo[1] + 1))
+    # map_points, not BLAS: the same box on every CPU
+    xs, ys = map_points(corners, T)
+    c0, c1 = math.floor(float(xs.min()) + 0.5), math.floor(float(xs.max()) + 0.5)
+    r0, r1 = math.floor(float(ys.min()) + 0.5), math.floor(float(ys.max()) + 0.5)
+    return (c0, r0, c1 - c0 + 1, r1 - r0 + 1)
 
 
 def _radial_floor(

@@ -211,17 +211,49 @@ def aggregate(
     return out
 
 
-def _where_room_oracle_merged(
-    runs: Mapping[tuple[str, str, int], Mapping[str, Any]], variant: str
+#: The references a run's merging variants are measured against when it ran them (or, with
+#: ``--against``, when the other run did): variant -> (its name in the text, the key of the
+#: episodes merged of those it merged, the key of the mean task time relative to it).
+REFERENCES: dict[str, tuple[str, str, str]] = {
+    "oracle_room": ("room oracle", "merged_where_room_oracle_merged", "vs_room_oracle"),
+    "oracle_meet": ("meeting oracle", "merged_where_oracle_meet_merged", "vs_oracle_meet"),
+}
+
+
+def _where_reference_merged(
+    runs: Mapping[tuple[str, str, int], Mapping[str, Any]], variant: str, ref: str = "oracle_room"
 ) -> tuple[int, int] | None:
-    """(episodes ``variant`` merged among those ``oracle_room`` merged, those) on the same
-    world and seed (``runs``: (world, variant, seed) -> episode); None without room oracle
-    episodes."""
-    if not any(v == "oracle_room" for _, v, _ in runs):
+    """(episodes ``variant`` merged among those ``ref`` merged, those) on the same world and
+    seed (``runs``: (world, variant, seed) -> episode); None without ``ref`` episodes."""
+    if not any(v == ref for _, v, _ in runs):
         return None
-    keys = [(w, s) for (w, v, s), e in runs.items() if v == "oracle_room" and e["merged"]]
+    keys = [(w, s) for (w, v, s), e in runs.items() if v == ref and e["merged"]]
     both = sum(bool(runs[(w, variant, s)]["merged"]) for w, s in keys if (w, variant, s) in runs)
     return both, len(keys)
+
+
+def _against_reference(
+    mine: Sequence[Mapping[str, Any]],
+    theirs: Sequence[Mapping[str, Any]],
+    variant: str,
+    ref: str,
+) -> dict[str, Any]:
+    """``variant`` of ``mine`` against ``ref`` of ``theirs`` (a reference of
+    :data:`REFERENCES`) on the (world, seed) episodes both ran: the episodes it merged of those
+    the reference merged, and its mean task time relative to the reference's (keys named in
+    :data:`REFERENCES`; empty when they share no episode)."""
+    ours = {(e["world"], e["seed"]): e for e in mine if e["variant"] == variant}
+    other = {(e["world"], e["seed"]): e for e in theirs if e["variant"] == ref}
+    keys = sorted(set(ours) & set(other))
+    if not keys:
+        return {}
+    runs = {(w, variant, s): ours[(w, s)] for w, s in keys}
+    runs.update({(w, ref, s): other[(w, s)] for w, s in keys})
+    share = _where_reference_merged(runs, variant, ref)
+    t_ours = sum(float(ours[k]["task_time_s"]) for k in keys) / len(keys)
+    t_ref = sum(float(other[k]["task_time_s"]) for k in keys) / len(keys)
+    _, share_key, vs_key = REFERENCES[ref]
+    return {share_key: share, vs_key: t_ours / t_ref - 1.0}
 
 
 def _per_variant(episodes: Sequence[Mapping[str, Any]], variants: Sequence[str]) -> dict[str, Any]:
@@ -251,9 +283,12 @@ def _per_variant(episodes: Sequence[Mapping[str, Any]], variants: Sequence[str])
             "contradiction_to_drop_max_s": max(recovery) if recovery else None,
             "task_time_mean_s": float(statistics.fmean(times)) if times else None,
         }
-        shared = _where_room_oracle_merged(runs, v)
-        if shared is not None and v not in ("none", "single", "oracle_room"):
-            out["variants"][v]["merged_where_room_oracle_merged"] = list(shared)
+        for ref in REFERENCES:
+            if ref in variants and v not in ("none", "single", ref):
+                d = _against_reference(episodes, episodes, v, ref)
+                out["variants"][v].update(
+                    {k: list(x) if isinstance(x, tuple) else x for k, x in d.items()}
+                )
     if "semantic" in variants:
         sem = out["variants"]["semantic"]["task_time_mean_s"]
         for base in ("oracle_room", "none"):
@@ -332,6 +367,10 @@ def _aggregate_lines(doc: Mapping[str, Any], markdown: bool) -> list[str]:
     lines = [f"### {title}" if markdown else title]
     lines += _table(cols, body, markdown)
     lines += _layout_lines(doc, markdown)
+    refs = [x for v, s in agg["variants"].items() for x in _reference_texts(v, s)]
+    if refs:
+        lines += ["", f"Against the references ({_where(doc)}; the same worlds and seeds):"]
+        lines += [f"- {x}" if markdown else f"  {x}" for x in refs]
     for base, d in agg["semantic_against"].items():
         rel = d["relative_task_time"]
         lines += [
@@ -458,10 +497,13 @@ def load_study(path: str | Path, flag: str = "--against") -> dict[str, Any]:
 def against(doc: Mapping[str, Any], other: Mapping[str, Any], label: str) -> dict[str, Any]:
     """This run against another study's episodes of the same (world, variant, seed): per world
     and variant, and per variant over all worlds, the paired task-time difference (this minus
-    that: :func:`_compare_pairs`). ``label`` names the other run (its file)."""
+    that: :func:`_compare_pairs`); under ``references``, each variant against the other run's
+    references (:data:`REFERENCES`) on the same seeds. ``label`` names the other run (its
+    file)."""
     theirs = {(e["world"], e["variant"], e["seed"]): e for e in other["episodes"]}
     per: dict[str, dict[str, Any]] = {}
     pooled: dict[str, Any] = {}
+    refs: dict[str, dict[str, Any]] = {}
     for v in doc["variants"]:
         all_pairs = []
         for w in doc["worlds"]:
@@ -475,32 +517,17 @@ def against(doc: Mapping[str, Any], other: Mapping[str, Any], label: str) -> dic
                 all_pairs += pairs
         if all_pairs:
             pooled[v] = _compare_pairs(all_pairs)
-            pooled[v].update(_against_room_oracle(doc["episodes"], other["episodes"], v))
+        for ref in REFERENCES:
+            d = _against_reference(doc["episodes"], other["episodes"], v, ref)
+            if d:
+                refs.setdefault(v, {}).update(d)
     return {
         "file": label,
         "env_options": dict(other.get("env_options", {})),
         "per_world": per,
         "all_worlds": pooled,
+        "references": refs,
     }
-
-
-def _against_room_oracle(
-    mine: Sequence[Mapping[str, Any]], theirs: Sequence[Mapping[str, Any]], variant: str
-) -> dict[str, Any]:
-    """``variant`` of this run against the other run's ``oracle_room`` on the same (world,
-    seed): the episodes it merged of those the room oracle merged, and its mean task time
-    relative to the oracle's over the episodes both ran (empty without room oracle episodes)."""
-    ours = {(e["world"], e["seed"]): e for e in mine if e["variant"] == variant}
-    oracle = {(e["world"], e["seed"]): e for e in theirs if e["variant"] == "oracle_room"}
-    keys = sorted(set(ours) & set(oracle))
-    if not keys:
-        return {}
-    runs = {(w, variant, s): ours[(w, s)] for w, s in keys}
-    runs.update({(w, "oracle_room", s): oracle[(w, s)] for w, s in keys})
-    share = _where_room_oracle_merged(runs, variant)
-    t_ours = sum(float(ours[k]["task_time_s"]) for k in keys) / len(keys)
-    t_oracle = sum(float(oracle[k]["task_time_s"]) for k in keys) / len(keys)
-    return {"merged_where_room_oracle_merged": share, "vs_room_oracle": t_ours / t_oracle - 1.0}
 
 
 def _against_text(a: Mapping[str, Any]) -> list[str]:
@@ -513,13 +540,23 @@ def _against_text(a: Mapping[str, Any]) -> list[str]:
             f"episodes; first merge earlier in {d['first_merge_earlier']}, later in "
             f"{d['first_merge_later']}; reached {d['reached'][0]} vs {d['reached'][1]}"
         )
-    for v, d in a["all_worlds"].items():
-        if d.get("merged_where_room_oracle_merged"):
-            both, n = d["merged_where_room_oracle_merged"]
+    # older runs kept the references among the pooled pairs
+    for v, d in a.get("references", a["all_worlds"]).items():
+        lines += [f"  all worlds, {x}" for x in _reference_texts(v, d, "that run's ")]
+    return lines
+
+
+def _reference_texts(variant: str, d: Mapping[str, Any], whose: str = "the ") -> list[str]:
+    """One line per reference of :data:`REFERENCES` that ``d`` (a variant's figures) was
+    measured against: the episodes merged of those the reference merged, the mean task time."""
+    lines = []
+    for name, share_key, vs_key in REFERENCES.values():
+        if d.get(share_key) and d.get(vs_key) is not None:
+            both, n = d[share_key]
             lines.append(
-                f"  all worlds, {v} against that run's room oracle: merged in {both} of the {n} "
-                f"episodes it merged ({100.0 * both / max(n, 1):.0f}%); mean task time "
-                f"{100.0 * d['vs_room_oracle']:+.1f}%"
+                f"{variant} against {whose}{name}: merged in {both} of the {n} episodes it "
+                f"merged ({100.0 * both / max(n, 1):.0f}%); mean task time "
+                f"{100.0 * d[vs_key]:+.1f}%"
             )
     return lines
 

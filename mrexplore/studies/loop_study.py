@@ -25,6 +25,12 @@ odometry noise on (:data:`LOOP_ENV_OPTIONS`). Variants (same world, same seed, s
   merger's own floor) of known space under it. What a merger could do that needs a room's
   worth of overlap and never misses it: between it and ``oracle`` lies what no merger that must
   tell a room from its twin can take; between ``semantic`` and it, what ours leaves;
+- ``oracle_meet`` (asked for by name): 2 robots, the oracle for robots that have met: sightings
+  on as in ``sighting``, the tracker's ``rendezvous_only`` on, and the true transform at the
+  first attempt after the robots saw each other. What a merger that waits for a meeting could
+  do at best, where the maps cannot tell the copies apart (a building the same under a turn):
+  between it and ``oracle_room`` lies the price of waiting to meet; between the recipe
+  (``sighting`` with ``rendezvous_only``) and it, what the recipe leaves;
 - ``verify`` (asked for by name): 2 robots, the default merger, and the team policy
   :data:`VERIFY_POLICY`: before a merge, a frontier whose surroundings the teammate has mapped
   under one of the merger's candidate transforms is worth more (active disambiguation: the
@@ -87,7 +93,14 @@ WORLDS: tuple[str, ...] = ("symmetric_office", "twin_wings", "tb3_office", "depo
 #: Variants: merger for two robots, or one robot (the default set of the study).
 VARIANTS: tuple[str, ...] = ("semantic", "oracle", "none", "single")
 #: Every variant the study can run (``seeded`` and ``sighting`` are asked for by name).
-ALL_VARIANTS: tuple[str, ...] = (*VARIANTS, "seeded", "sighting", "verify", "oracle_room")
+ALL_VARIANTS: tuple[str, ...] = (
+    *VARIANTS,
+    "seeded",
+    "sighting",
+    "verify",
+    "oracle_room",
+    "oracle_meet",
+)
 #: The default variants of a family run (``--family``): the merger, the oracle, the oracle held
 #: to a room's worth of evidence, and never merging.
 FAMILY_VARIANTS: tuple[str, ...] = ("semantic", "oracle", "oracle_room", "none")
@@ -210,8 +223,10 @@ def episode_options(
     }
     opts["n_robots"] = 1 if variant == "single" else 2
     opts["merger"] = None if variant in ("none", "single") else "semantic"
-    if variant == "sighting":
+    if variant in ("sighting", "oracle_meet"):
         opts["sighting_range_m"] = SIGHTING_RANGE_M
+    if variant == "oracle_meet":
+        opts["merge_options"] = {"rendezvous_only": True}
     if merge_options and variant in MERGER_VARIANTS:
         opts["merge_options"] = dict(merge_options)
     return opts
@@ -258,7 +273,7 @@ def _run_loop_episode(
         world, variant, max_time_s, noise, task, nav_goal, merge_options, env_options
     )
     oracle: OracleMerger | None = None
-    if variant == "oracle":
+    if variant in ("oracle", "oracle_meet"):
         oracle = OracleMerger()
     elif variant == "oracle_room":
         oracle = OracleMerger(min_shared_m2=ROOM_EVIDENCE_M2)

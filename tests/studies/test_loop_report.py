@@ -134,11 +134,36 @@ def test_against_reads_the_room_oracle_of_the_other_run() -> None:
     ]
     doc = {"variants": ["sighting"], "worlds": ["w"], "episodes": mine}
     a = against(doc, {"episodes": theirs}, "that.json")
-    d = a["all_worlds"]["sighting"]
+    d = a["references"]["sighting"]
     assert d["merged_where_room_oracle_merged"] == (1, 2)
     assert d["vs_room_oracle"] == pytest.approx(0.2)
     text = "\n".join(_against_text(a))
     assert "sighting against that run's room oracle: merged in 1 of the 2 episodes" in text
     assert "+20.0%" in text
-    no_oracle = against(doc, {"episodes": theirs[:2]}, "that.json")["all_worlds"]["sighting"]
+    no_oracle = against(doc, {"episodes": theirs[:2]}, "that.json")["references"].get(
+        "sighting", {}
+    )
     assert "merged_where_room_oracle_merged" not in no_oracle
+
+
+def test_a_run_with_the_meeting_oracle_is_measured_against_it() -> None:
+    """``oracle_meet`` in the run (or in the ``--against`` run): each merging variant's episodes
+    merged of those it merged and its mean task time relative to it, recorded and printed."""
+    from mrexplore.studies.loop_report import _against_text, against, aggregate
+
+    eps = [
+        _ep("sighting", 1, 110.0, 30.0),
+        _ep("sighting", 2, 130.0, None),
+        _ep("oracle_meet", 1, 100.0, 20.0),
+        _ep("oracle_meet", 2, 100.0, 40.0),
+    ]
+    for e in eps:
+        e["wrong_merge"], e["merged_wrongly_s"] = False, 0.0
+    agg = aggregate(eps, ["sighting", "oracle_meet"])
+    s = agg["variants"]["sighting"]
+    assert s["merged_where_oracle_meet_merged"] == [1, 2]
+    assert s["vs_oracle_meet"] == pytest.approx(0.2)
+    assert "vs_oracle_meet" not in agg["variants"]["oracle_meet"]
+    doc = {"variants": ["sighting"], "worlds": ["w"], "episodes": eps[:2]}
+    text = "\n".join(_against_text(against(doc, {"episodes": eps[2:]}, "that.json")))
+    assert "sighting against that run's meeting oracle: merged in 1 of the 2 episodes" in text

@@ -289,3 +289,21 @@ def test_rule_constants_in_the_merge_options_are_set_for_each_episode_only(
         "depot", "semantic", 1000, 2.0, merge_options={"OUTRANKED_DROP": False, "confirmations": 3}
     )
     assert seen == [(False, {"confirmations": 3})] and tracker.OUTRANKED_DROP is True
+
+
+def test_the_meeting_oracle_is_the_oracle_for_robots_that_saw_each_other() -> None:
+    """``oracle_meet``: the oracle's env with sightings on and the tracker's ``rendezvous_only``,
+    so it merges no earlier than the ``oracle``, and only once the robots have met."""
+    from mrexplore.studies import loop_study
+
+    assert "oracle_meet" in loop_study.ALL_VARIANTS and "oracle_meet" not in loop_study.VARIANTS
+    opts = loop_study.episode_options("small_office", "oracle_meet", 60.0)
+    assert opts["sighting_range_m"] == loop_study.SIGHTING_RANGE_M
+    assert opts["merge_options"] == {"rendezvous_only": True}
+    rec = {
+        v: loop_study.run_loop_episode("small_office", v, 0, 20.0)
+        for v in ("oracle", "oracle_meet")
+    }
+    # the robots start 2 m apart and in view: both merge, the meeting oracle not sooner
+    assert rec["oracle_meet"]["merged"]
+    assert rec["oracle_meet"]["first_merge_time_s"] >= rec["oracle"]["first_merge_time_s"]

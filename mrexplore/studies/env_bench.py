@@ -32,9 +32,10 @@ env once on one thread (the worlds one after the other, as before it had threads
 every core. Per row: robot-steps per second of the stepping thread's CPU time
 (``time.thread_time``), of the whole process's CPU time (``time.process_time``: pool threads and
 the merge worker included) and of wall time, the cores used (process CPU / wall) and the
-robot-steps/s in wall time as a ratio to the single envs'. World k acts as in ``--batched``.
-With ``--team coordinated-frontier`` every world is driven by that team, its decisions
-(``team.act`` on every robot's view; in the batched rows on the stepping threads,
+robot-steps/s in wall time as a ratio to the single envs'. Each timed span ends when the merge
+attempts it started have finished, so no row's merge work is counted in another's. World k acts
+as in ``--batched``. With ``--team coordinated-frontier`` every world is driven by that team,
+its decisions (``team.act`` on every robot's view; in the batched rows on the stepping threads,
 :meth:`~mrexplore.environment.batched.BatchedExploreEnv.map_worlds`) timed with the steps: a
 realistic rollout. The machine's core count and load are printed: on a
 shared machine the wall ratio is a ratio under contention.
@@ -350,9 +351,15 @@ class _Clock:
     def __init__(self) -> None:
         self.thread = self.process = self.wall = 0.0
 
-    def span(self, fn: Callable[[], Any]) -> Any:
+    def span(self, fn: Callable[[], Any], envs: Sequence[Any] = ()) -> Any:
+        """Time ``fn()`` and then the wait for the merge attempts it started in ``envs``, so
+        that one span's merge work is not counted in the next one's (whichever row that is)."""
         w0, p0, t0 = time.perf_counter(), time.process_time(), time.thread_time()
         out = fn()
+        for env in envs:
+            tracker = env.unwrapped.fusion.tracker
+            if tracker is not None:
+                tracker.wait_idle()
         self.thread += time.thread_time() - t0
         self.process += time.process_time() - p0
         self.wall += time.perf_counter() - w0
@@ -378,7 +385,10 @@ def side_by_side(
     same actions), each by its own :func:`mrexplore.parallel_env` stepped alone: in a round,
     world 0's env takes its ``steps_per_round`` steps, then world 1's, ... (each with its own
     merge worker, as one env has). So all rows do the same work and differ only in how it is
-    stepped.
+    stepped. Each timed span ends when the merge attempts its steps started have finished
+    (:meth:`~mrexplore.merge.MapMergeTracker.wait_idle`): the merge workers run beside the
+    stepping, and without the wait a row's last attempts would be counted in the next row's
+    process CPU and wall time.
 
     Returns a dict: ``num_envs``, ``team``, ``cores``, ``threads`` and per row (``single``,
     ``batched_1_thread``, ``batched_threads``) the robot-steps, ``thread_s``, ``process_s``,
@@ -429,11 +439,12 @@ def side_by_side(
             **{name: run_batch(name) for name in batches},
         }
         clocks = {name: _Clock() for name in runs}
-        for run in runs.values():
-            run(warmup)
+        envs = {"single": singles, **{name: b.envs for name, b in batches.items()}}
+        for name, run in runs.items():
+            _Clock().span(functools.partial(run, warmup), envs[name])
         for _ in range(rounds):
             for name, run in runs.items():  # in alternation: the load falls on all alike
-                clocks[name].span(functools.partial(run, steps_per_round))
+                clocks[name].span(functools.partial(run, steps_per_round), envs[name])
     finally:
         for env in singles:
             env.close()

@@ -80,3 +80,33 @@ def test_latency_option_is_validated() -> None:
         mrexplore.parallel_env(merge_latency_steps=-1)
     with pytest.raises(ConfigError, match="merge_latency_steps"):
         mrexplore.parallel_env(merge_latency_steps=2.5)
+
+
+def test_wait_idle_finishes_the_started_attempts_and_changes_nothing() -> None:
+    """``MapMergeTracker.wait_idle`` (for timing): after it, no attempt is running on the
+    worker, and a run that waits after every step is the run that does not."""
+    from concurrent.futures import Future
+
+    def run(wait: bool) -> tuple[list[bytes], int]:
+        merger = _Semantic(slow=True)
+        penv = mrexplore.parallel_env(
+            world="symmetric_office", merger=merger, merge_latency_steps=8, max_time_s=60.0
+        )
+        penv.reset(seed=3)
+        team = make_team_policy("coordinated-frontier", penv.possible_agents)
+        team.reset(np.random.default_rng(3))
+        tracker = penv.fusion.tracker
+        seen, waited = [], 0
+        for _ in range(120):
+            obs, _, _, _, _ = penv.step(team.act({a: penv.robot_view(a) for a in penv.agents}))
+            seen.append(b"".join(obs[a].tobytes() for a in sorted(obs)))
+            if wait and any(isinstance(jb.outcome, Future) for jb in tracker._jobs):
+                tracker.wait_idle()
+                waited += 1
+                assert all(jb.outcome.done() for jb in tracker._jobs)
+        penv.close()
+        return seen, waited
+
+    waited_run, waits = run(wait=True)
+    assert waits > 0, "no attempt started: the test would prove nothing"
+    assert waited_run == run(wait=False)[0]

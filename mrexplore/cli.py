@@ -52,7 +52,11 @@ def _task_time(args: argparse.Namespace) -> int:
             **(
                 {} if args.sighting_range_m is None else {"sighting_range_m": args.sighting_range_m}
             ),
-            **({"merge_options": {"rendezvous_only": True}} if args.rendezvous_only else {}),
+            **(
+                {}
+                if args.rendezvous_only is None
+                else {"merge_options": {"rendezvous_only": args.rendezvous_only}}
+            ),
         },
         nav_warmup_s=args.nav_warmup_s,
         force=args.force,
@@ -213,10 +217,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     t.add_argument(
         "--rendezvous-only",
-        action="store_true",
+        action=argparse.BooleanOptionalAction,
+        default=None,
         help="with --sighting-range-m: merge a pair of robots only once they have seen each "
         "other (the maps then place them within the sighting's region): no merge of "
-        "look-alike rooms before the robots meet, none for robots that never meet",
+        "look-alike rooms before the robots meet, none for robots that never meet. On by "
+        "default with sightings; --no-rendezvous-only lets the maps alone merge robots that "
+        "never met",
     )
     t.add_argument(
         "--nav-warmup-s",

@@ -179,8 +179,9 @@ class FusionStage:
         tracker_options: the tracker's options, used as given but for the schedule above
             (start from :func:`in_loop_tracker_options`); None: the loop's.
         sightings: whether the owner hands the tracker sightings (``update``'s ``sightings``);
-            without them a tracker that merges only robots that met (``rendezvous_only``)
-            would never merge, which is refused here.
+            the tracker's ``rendezvous_only`` left at None follows it (with sightings, a pair
+            merges only once its robots have met); without them a tracker that merges only
+            robots that met would never merge, which is refused here.
     """
 
     def __init__(
@@ -225,6 +226,10 @@ class FusionStage:
                 tracker_options,
                 resolution_m,
             )
+            if tuning.rendezvous_only is None:
+                # robots that can see each other merge only once they have: the maps alone lay
+                # look-alike rooms on each other before the robots meet (docs/guide/merger.md)
+                tuning = dataclasses.replace(tuning, rendezvous_only=bool(sightings))
             if tuning.rendezvous_only and not sightings:
                 raise ConfigError(
                     "the tracker's rendezvous_only merges only robots that saw each other, and "

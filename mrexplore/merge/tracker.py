@@ -91,6 +91,7 @@ from mrexplore.options import (
     integer,
     number,
     option,
+    optional,
     positive,
     validate,
 )
@@ -341,9 +342,11 @@ class TrackerOptions(Options):
             With a delay, at most one attempt or re-check starts per step.
         rendezvous_only: try a pair only once its robots have seen each other (a sighting,
             ``update``'s ``sightings``); the maps then decide the pose within the sighting's
-            region. Default False: the maps alone may merge a pair the robots never met. On
-            floors with identical rooms the maps alone merge some look-alikes before the robots
-            meet, which this never does, at the cost of the merges of robots that never meet.
+            region. On floors with identical rooms the maps alone merge some look-alikes before
+            the robots meet, which this never does, at the cost of the merges of robots that
+            never meet. None (default): on where the tracker's owner hands it sightings (the
+            env with ``sighting_range_m``, :class:`~mrexplore.merge.fusion.FusionStage`), off
+            for a bare tracker; False lets the maps alone merge robots that never met.
 
     The in-loop rules' other settings are constants of this module (one value each, measured
     on the tuning worlds; a test may set one for a run):
@@ -409,7 +412,7 @@ class TrackerOptions(Options):
     confirm_growth: float = option(0.0, number(0.0, 10.0))
     keep_run_on_refusal: bool = option(False, boolean)
     merge_latency_steps: int = option(0, MERGE_LATENCY_CHECK)
-    rendezvous_only: bool = option(False, boolean)
+    rendezvous_only: bool | None = option(None, optional(boolean))
 
 
 #: The tracker's option names (:class:`TrackerOptions`' fields).

@@ -379,13 +379,14 @@ def validate(
 
         try:  # the tracker checks every name and value, as the env would at its first reset
             proper, _ = split_constants(merge_options)
-            stage = FusionStage(
+            FusionStage(
                 ["a", "b"], "semantic", merge_options=proper, resolution_m=0.05, sightings=True
             )
         except ConfigError as exc:
             raise ConfigError(f"loop study: --merge-options: {exc}") from exc
         blind = [v for v in variants if v in MERGER_VARIANTS and v != "sighting"]
-        if stage.tracker.options.rendezvous_only and blind:
+        # given, not followed from the sightings this check's stage has
+        if proper.get("rendezvous_only") is True and blind:
             raise ConfigError(
                 f"loop study: --merge-options rendezvous_only=true merges only robots that saw "
                 f"each other; of the variants it applies to, only 'sighting' has sightings "

@@ -138,14 +138,33 @@ def test_rendezvous_only_needs_sightings_at_the_door() -> None:
         MapMergeWrapper(mrexplore.parallel_env(merger=None), rendezvous_only=True)
 
 
-@pytest.mark.parametrize("rendezvous", [False, True])
-def test_rendezvous_only_tries_no_pair_before_the_robots_meet(rendezvous: bool) -> None:
+def test_rendezvous_only_follows_the_sightings_unless_given() -> None:
+    """Left at None, ``rendezvous_only`` is on where sightings reach the tracker and off where
+    none do (and for a bare tracker); given, it is kept."""
+    from mrexplore.merge import MapMergeTracker, in_loop_tracker_options
+
+    def resolved(**kw: object) -> object:
+        return mrexplore.parallel_env(**kw).fusion.tracker.options.rendezvous_only
+
+    assert resolved(sighting_range_m=4.0) is True
+    assert resolved() is False
+    assert resolved(sighting_range_m=4.0, merge_options={"rendezvous_only": False}) is False
+    typed = in_loop_tracker_options()
+    assert typed.rendezvous_only is None
+    assert resolved(sighting_range_m=4.0, tracker_options=typed) is True
+    bare = MapMergeTracker(2, merger="semantic")
+    assert bare.options.rendezvous_only is None  # off: it tries pairs nobody saw meet
+
+
+@pytest.mark.parametrize("rendezvous", [False, True, None])
+def test_rendezvous_only_tries_no_pair_before_the_robots_meet(rendezvous: bool | None) -> None:
     """Two robots that never see each other in this run (random actions, 120 steps): the maps
-    alone try the pair; with ``rendezvous_only`` no attempt is made and nothing merges."""
+    alone try the pair; with ``rendezvous_only`` (given, or by default with sightings) no
+    attempt is made and nothing merges."""
     env = mrexplore.parallel_env(
         world="small_office",
         sighting_range_m=4.0,
-        merge_options={"rendezvous_only": rendezvous},
+        merge_options={} if rendezvous is None else {"rendezvous_only": rendezvous},
     )
     env.reset(seed=1)
     rng = np.random.default_rng(1)
@@ -155,6 +174,6 @@ def test_rendezvous_only_tries_no_pair_before_the_robots_meet(rendezvous: bool) 
     for _ in range(120):
         env.step({a: int(rng.integers(3)) for a in env.agents})
     assert not tracker._sighted  # they never met
-    assert bool(tried) is not rendezvous
-    if rendezvous:
+    assert bool(tried) is (rendezvous is False)
+    if rendezvous is not False:
         assert tracker.transform(0, 1) is None

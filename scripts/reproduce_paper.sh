@@ -153,9 +153,9 @@ other_steps() {
     --out "$out/loop_heldout2" --force
   mrexplore bench loop --variants semantic --seeds 20 --jobs 2 \
     --merge-options slide_test=true,keep_run_on_refusal=true --out "$out/loop_rules_on" --force
-  mrexplore bench loop --variants semantic sighting oracle --seeds 20 --jobs 2 \
+  mrexplore bench loop --variants semantic sighting oracle --merge-options rendezvous_only=false --seeds 20 --jobs 2 \
     --reuse "$out/loop_study.json" --out "$out/loop_sighting" --force
-  mrexplore bench loop --variants semantic sighting oracle --seeds 20 --first-seed 2000 --jobs 2 \
+  mrexplore bench loop --variants semantic sighting oracle --merge-options rendezvous_only=false --seeds 20 --first-seed 2000 --jobs 2 \
     --reuse "$out/loop_heldout.json" --out "$out/loop_sighting_heldout" --force
   mrexplore bench loop --variants semantic verify oracle --seeds 20 --jobs 2 \
     --reuse "$out/loop_study.json" --out "$out/loop_verify" --force
@@ -179,85 +179,85 @@ other_steps() {
     --out "$out/loop_office_row_test_before" --force
   # what else the robots know: sightings (a rendezvous) beside the merger, on the same episodes
   mrexplore bench loop --family paper_like --part test --worlds 20 --seeds 5 \
-    --variants semantic sighting --jobs 2 --out "$out/loop_paper_like_test_sighting" --force
+    --variants semantic sighting --merge-options rendezvous_only=false --jobs 2 --out "$out/loop_paper_like_test_sighting" --force
   mrexplore bench loop --family office_row --part test --worlds 20 --seeds 5 \
-    --variants semantic sighting --jobs 2 --out "$out/loop_office_row_test_sighting" --force
+    --variants semantic sighting --merge-options rendezvous_only=false --jobs 2 --out "$out/loop_office_row_test_sighting" --force
   # the second test part (world seeds 200000..; opened for the re-check's rival test, chosen
   # after the test part was read): the merger, sightings, the room oracle and never merging;
   # and the merger without the re-check's rival test, on the same episodes
   mrexplore bench loop --family paper_like --part test2 --worlds 20 --seeds 5 \
-    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_paper_like_test2" --force
+    --variants semantic sighting oracle_room none --merge-options rendezvous_only=false --jobs 2 --out "$out/loop_paper_like_test2" --force
   mrexplore bench loop --family paper_like --part test2 --worlds 20 --seeds 5 --variants semantic \
     --merge-options OUTRANKED_DROP=false --jobs 2 --out "$out/loop_paper_like_test2_before" --force
   mrexplore bench loop --family office_row --part test2 --worlds 20 --seeds 5 \
-    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_office_row_test2" --force
+    --variants semantic sighting oracle_room none --merge-options rendezvous_only=false --jobs 2 --out "$out/loop_office_row_test2" --force
   mrexplore bench loop --family office_row --part test2 --worlds 20 --seeds 5 --variants semantic \
     --merge-options OUTRANKED_DROP=false --jobs 2 --out "$out/loop_office_row_test2_before" --force
   # the third test part (world seeds 300000..; opened for a sighting binding its pair, chosen
   # after the second was read): the merger, sightings, the room oracle and never merging; and
   # sightings without the binding, on the same episodes
   mrexplore bench loop --family paper_like --part test3 --worlds 20 --seeds 5 \
-    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_paper_like_test3" --force
+    --variants semantic sighting oracle_room none --merge-options rendezvous_only=false --jobs 2 --out "$out/loop_paper_like_test3" --force
   mrexplore bench loop --family paper_like --part test3 --worlds 20 --seeds 5 --variants sighting \
-    --merge-options SIGHTING_BINDS=false --jobs 2 --out "$out/loop_paper_like_test3_sighting_before" \
+    --merge-options rendezvous_only=false,SIGHTING_BINDS=false --jobs 2 --out "$out/loop_paper_like_test3_sighting_before" \
     --force
   mrexplore bench loop --family office_row --part test3 --worlds 20 --seeds 5 \
-    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_office_row_test3" --force
+    --variants semantic sighting oracle_room none --merge-options rendezvous_only=false --jobs 2 --out "$out/loop_office_row_test3" --force
   mrexplore bench loop --family office_row --part test3 --worlds 20 --seeds 5 --variants sighting \
-    --merge-options SIGHTING_BINDS=false --jobs 2 --out "$out/loop_office_row_test3_sighting_before" \
+    --merge-options rendezvous_only=false,SIGHTING_BINDS=false --jobs 2 --out "$out/loop_office_row_test3_sighting_before" \
     --force
   # the fourth test part (world seeds 400000..; opened for rivals that must be contradicted,
   # chosen after the third was read), 40 worlds: the merger, sightings, the room oracle and
   # never merging; and the merger and sightings without the rule, on the same episodes
   mrexplore bench loop --family paper_like --part test4 --worlds 40 --seeds 5 \
-    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_paper_like_test4" --force
+    --variants semantic sighting oracle_room none --merge-options rendezvous_only=false --jobs 2 --out "$out/loop_paper_like_test4" --force
   mrexplore bench loop --family paper_like --part test4 --worlds 40 --seeds 5 \
-    --variants semantic sighting --merge-options RIVALS_CONTRADICTED=false --jobs 2 \
+    --variants semantic sighting --merge-options rendezvous_only=false,RIVALS_CONTRADICTED=false --jobs 2 \
     --out "$out/loop_paper_like_test4_before" --force
   mrexplore bench loop --family office_row --part test4 --worlds 40 --seeds 5 \
-    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_office_row_test4" --force
+    --variants semantic sighting oracle_room none --merge-options rendezvous_only=false --jobs 2 --out "$out/loop_office_row_test4" --force
   mrexplore bench loop --family office_row --part test4 --worlds 40 --seeds 5 \
-    --variants semantic sighting --merge-options RIVALS_CONTRADICTED=false --jobs 2 \
+    --variants semantic sighting --merge-options rendezvous_only=false,RIVALS_CONTRADICTED=false --jobs 2 \
     --out "$out/loop_office_row_test4_before" --force
   # the fifth test part (world seeds 500000..; opened for a thing the other map saw as open
   # floor, chosen after the fourth was read), 40 worlds: the merger, sightings, the room oracle
   # and never merging; and the merger and sightings without the rule, on the same episodes
   mrexplore bench loop --family paper_like --part test5 --worlds 40 --seeds 5 \
-    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_paper_like_test5" --force
+    --variants semantic sighting oracle_room none --merge-options rendezvous_only=false --jobs 2 --out "$out/loop_paper_like_test5" --force
   mrexplore bench loop --family paper_like --part test5 --worlds 40 --seeds 5 \
-    --variants semantic sighting --merge-options THINGS_RULED_OUT=false --jobs 2 \
+    --variants semantic sighting --merge-options rendezvous_only=false,THINGS_RULED_OUT=false --jobs 2 \
     --out "$out/loop_paper_like_test5_before" --force
   mrexplore bench loop --family office_row --part test5 --worlds 40 --seeds 5 \
-    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_office_row_test5" --force
+    --variants semantic sighting oracle_room none --merge-options rendezvous_only=false --jobs 2 --out "$out/loop_office_row_test5" --force
   mrexplore bench loop --family office_row --part test5 --worlds 40 --seeds 5 \
-    --variants semantic sighting --merge-options THINGS_RULED_OUT=false --jobs 2 \
+    --variants semantic sighting --merge-options rendezvous_only=false,THINGS_RULED_OUT=false --jobs 2 \
     --out "$out/loop_office_row_test5_before" --force
   # the sixth test part (world seeds 600000..; opened for a sighting confirming the pose it
   # guided, chosen after the fifth was read), 40 worlds: the merger, sightings, the room oracle
   # and never merging; and sightings without the rule, on the same episodes, paired against it
   mrexplore bench loop --family paper_like --part test6 --worlds 40 --seeds 5 \
-    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_paper_like_test6" --force
+    --variants semantic sighting oracle_room none --merge-options rendezvous_only=false --jobs 2 --out "$out/loop_paper_like_test6" --force
   mrexplore bench loop --family paper_like --part test6 --worlds 40 --seeds 5 \
-    --variants sighting --merge-options SIGHTING_CONFIRMS=false \
+    --variants sighting --merge-options rendezvous_only=false,SIGHTING_CONFIRMS=false \
     --against "$out/loop_paper_like_test6.json" --jobs 2 \
     --out "$out/loop_paper_like_test6_before" --force
   mrexplore bench loop --family office_row --part test6 --worlds 40 --seeds 5 \
-    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_office_row_test6" --force
+    --variants semantic sighting oracle_room none --merge-options rendezvous_only=false --jobs 2 --out "$out/loop_office_row_test6" --force
   mrexplore bench loop --family office_row --part test6 --worlds 40 --seeds 5 \
-    --variants sighting --merge-options SIGHTING_CONFIRMS=false \
+    --variants sighting --merge-options rendezvous_only=false,SIGHTING_CONFIRMS=false \
     --against "$out/loop_office_row_test6.json" --jobs 2 \
     --out "$out/loop_office_row_test6_before" --force
   # the seventh test part (world seeds 700000..; opened for merging only robots that met,
   # chosen after the sixth was read), 40 worlds: sightings and the room oracle, then the same
   # with rendezvous_only, paired against them
   mrexplore bench loop --family paper_like --part test7 --worlds 40 --seeds 5 \
-    --variants sighting oracle_room --jobs 2 --out "$out/loop_paper_like_test7" --force
+    --variants sighting oracle_room --merge-options rendezvous_only=false --jobs 2 --out "$out/loop_paper_like_test7" --force
   mrexplore bench loop --family paper_like --part test7 --worlds 40 --seeds 5 \
     --variants sighting oracle_room --merge-options rendezvous_only=true \
     --against "$out/loop_paper_like_test7.json" --jobs 2 \
     --out "$out/loop_paper_like_test7_rendezvous" --force
   mrexplore bench loop --family office_row --part test7 --worlds 40 --seeds 5 \
-    --variants sighting oracle_room --jobs 2 --out "$out/loop_office_row_test7" --force
+    --variants sighting oracle_room --merge-options rendezvous_only=false --jobs 2 --out "$out/loop_office_row_test7" --force
   mrexplore bench loop --family office_row --part test7 --worlds 40 --seeds 5 \
     --variants sighting oracle_room --merge-options rendezvous_only=true \
     --against "$out/loop_office_row_test7.json" --jobs 2 \
@@ -271,13 +271,13 @@ other_steps() {
   # rule changed after the seventh), 40 worlds: the maps alone, sightings, the room oracle and
   # never merging; then sightings with rendezvous_only on the same episodes, paired against them
   mrexplore bench loop --family paper_like --part test8 --worlds 40 --seeds 5 \
-    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_paper_like_test8" --force
+    --variants semantic sighting oracle_room none --merge-options rendezvous_only=false --jobs 2 --out "$out/loop_paper_like_test8" --force
   mrexplore bench loop --family paper_like --part test8 --worlds 40 --seeds 5 \
     --variants sighting --merge-options rendezvous_only=true \
     --against "$out/loop_paper_like_test8.json" --jobs 2 \
     --out "$out/loop_paper_like_test8_rendezvous" --force
   mrexplore bench loop --family office_row --part test8 --worlds 40 --seeds 5 \
-    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_office_row_test8" --force
+    --variants semantic sighting oracle_room none --merge-options rendezvous_only=false --jobs 2 --out "$out/loop_office_row_test8" --force
   mrexplore bench loop --family office_row --part test8 --worlds 40 --seeds 5 \
     --variants sighting --merge-options rendezvous_only=true \
     --against "$out/loop_office_row_test8.json" --jobs 2 \
@@ -286,26 +286,40 @@ other_steps() {
   # agrees, chosen after the eighth was read), 40 worlds: sightings and the room oracle, then
   # sightings with rendezvous_only on the same episodes, paired against them
   mrexplore bench loop --family paper_like --part test9 --worlds 40 --seeds 5 \
-    --variants sighting oracle_room --jobs 2 --out "$out/loop_paper_like_test9" --force
+    --variants sighting oracle_room --merge-options rendezvous_only=false --jobs 2 --out "$out/loop_paper_like_test9" --force
   mrexplore bench loop --family paper_like --part test9 --worlds 40 --seeds 5 \
     --variants sighting --merge-options rendezvous_only=true \
     --against "$out/loop_paper_like_test9.json" --jobs 2 \
     --out "$out/loop_paper_like_test9_rendezvous" --force
   mrexplore bench loop --family office_row --part test9 --worlds 40 --seeds 5 \
-    --variants sighting oracle_room --jobs 2 --out "$out/loop_office_row_test9" --force
+    --variants sighting oracle_room --merge-options rendezvous_only=false --jobs 2 --out "$out/loop_office_row_test9" --force
   mrexplore bench loop --family office_row --part test9 --worlds 40 --seeds 5 \
     --variants sighting --merge-options rendezvous_only=true \
     --against "$out/loop_office_row_test9.json" --jobs 2 \
     --out "$out/loop_office_row_test9_rendezvous" --force
+  # ... and the recipe against the meeting oracle (the truth once the robots have seen each other)
+  mrexplore bench loop --family paper_like --part test9 --worlds 40 --seeds 5 \
+    --variants sighting oracle_meet --merge-options rendezvous_only=true \
+    --against "$out/loop_paper_like_test9.json" --jobs 2 \
+    --out "$out/loop_paper_like_test9_meet" --force
+  mrexplore bench loop --family office_row --part test9 --worlds 40 --seeds 5 \
+    --variants sighting oracle_meet --merge-options rendezvous_only=true \
+    --against "$out/loop_office_row_test9.json" --jobs 2 \
+    --out "$out/loop_office_row_test9_meet" --force
   # the radial family (buildings the same under a turn; no rule was chosen on any of its parts),
   # its test part, 20 worlds, with the sighting-confirms change made after the eighth part: the
   # same variants, then the recipe paired against them
   mrexplore bench loop --family radial --part test --worlds 20 --seeds 5 \
-    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_radial_test" --force
+    --variants semantic sighting oracle_room none --merge-options rendezvous_only=false --jobs 2 --out "$out/loop_radial_test" --force
   mrexplore bench loop --family radial --part test --worlds 20 --seeds 5 \
     --variants sighting --merge-options rendezvous_only=true \
     --against "$out/loop_radial_test.json" --jobs 2 \
     --out "$out/loop_radial_test_rendezvous" --force
+  # the recipe against the meeting oracle (the truth once the robots have seen each other)
+  mrexplore bench loop --family radial --part test --worlds 20 --seeds 5 \
+    --variants sighting oracle_meet --merge-options rendezvous_only=true \
+    --against "$out/loop_radial_test.json" --jobs 2 \
+    --out "$out/loop_radial_test_meet" --force
   # the four fixed worlds with the place test, beside the room oracle
   mrexplore bench loop --seeds 20 --variants semantic oracle_room --jobs 2 \
     --out "$out/loop_fixed_worlds" --force

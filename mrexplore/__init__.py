@@ -67,7 +67,9 @@ def vector_env(
     (N, R, ...). Both auto-reset in the same step (``final_obs`` / ``final_info`` in the infos);
     ``reset(seed=s)`` seeds world k with ``s + k``. The options are those of
     :func:`parallel_env` (low-level actions only), and ``num_threads``: the threads that step
-    the worlds (default: every usable core; the run is the same at any number). For
+    the worlds (default: every usable core; the run is the same at any number), or for a team
+    ``num_workers``: worker processes that step blocks of the worlds, each with its own GIL
+    (:class:`~mrexplore.environment.processes.ProcessBatchedEnv`; the same run). For
     stable-baselines3:
     ``mrexplore.wrappers.make_vec_env(n_copies=N, batched=True, ...)``.
 
@@ -79,10 +81,20 @@ def vector_env(
         ExploreVectorEnv,
         check_num_envs,
     )
+    from mrexplore.errors import ConfigError
 
     check_num_envs(num_envs)
     if options.get("n_robots", 2) == 1:
+        if "num_workers" in options:
+            raise ConfigError(
+                "vector_env: num_workers is for teams (n_robots >= 2); one robot per world "
+                "steps on threads (num_threads)"
+            )
         return ExploreVectorEnv(num_envs, render_mode=render_mode, **options)
+    if "num_workers" in options:
+        from mrexplore.environment.processes import ProcessBatchedEnv
+
+        return ProcessBatchedEnv(num_envs, render_mode=render_mode, **options)
     return BatchedExploreEnv(num_envs, render_mode=render_mode, **options)
 
 

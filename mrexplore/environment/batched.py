@@ -241,7 +241,12 @@ class BatchedExploreEnv:
             if self._pool is not None:
                 self._pool.shutdown(wait=False)
             raise
-        first = self.envs[0]
+        self._spaces_from(self.envs[0])
+        self._running = False
+        self.closed = False
+
+    def _spaces_from(self, first: MultiRobotExplorationEnv) -> None:
+        """The robots and the spaces of the batch, from one of its worlds."""
         self.possible_agents = list(first.possible_agents)
         self.n_robots = len(self.possible_agents)
         self.single_observation_space = first.observation_space(self.possible_agents[0])
@@ -254,8 +259,6 @@ class BatchedExploreEnv:
         )
         self._obs_shape = tuple(self.single_observation_space.shape)
         self._obs_dtype = self.single_observation_space.dtype
-        self._running = False
-        self.closed = False
 
     # ------------------------------------------------------------------ engine
     def reset_copies(
@@ -292,20 +295,7 @@ class BatchedExploreEnv:
         (same-step auto-reset) and keep their last observations and infos in ``final``."""
         if not self._running:
             raise RuntimeError("step() called before reset()")
-        act = np.asarray(actions)
-        if act.shape != (self.num_envs, self.n_robots):
-            raise ValueError(
-                f"actions must have shape ({self.num_envs}, {self.n_robots}) (copies, robots), "
-                f"got {act.shape}"
-            )
-        # checked here, not by each world, so that a bad action steps no world at all
-        n_act = int(self.single_action_space.n)
-        if act.dtype.kind not in "iu" or ((act < 0) | (act >= n_act)).any():
-            raise ValueError(
-                f"actions must be integers in [0, {n_act}) (the action space "
-                f"{self.single_action_space}), got {act.dtype} values "
-                f"{np.unique(act)[:8].tolist()}"
-            )
+        act = self._checked_actions(actions)
         agents = self.possible_agents
         n, r = self.num_envs, self.n_robots
         obs = np.empty((n, r, *self._obs_shape), dtype=self._obs_dtype)
@@ -338,6 +328,24 @@ class BatchedExploreEnv:
         # in world order, whichever thread finished first
         final = {k: e for k, e in enumerate(ended) if e is not None}
         return BatchStep(obs, rewards, terms, truncs, infos, final)
+
+    def _checked_actions(self, actions: NDArray[Any] | Sequence[Any]) -> NDArray[Any]:
+        """``actions`` as an int (N, R) array in the action space, else a ``ValueError``;
+        checked before any world steps, so that a bad action steps no world at all."""
+        act = np.asarray(actions)
+        if act.shape != (self.num_envs, self.n_robots):
+            raise ValueError(
+                f"actions must have shape ({self.num_envs}, {self.n_robots}) (copies, robots), "
+                f"got {act.shape}"
+            )
+        n_act = int(self.single_action_space.n)
+        if act.dtype.kind not in "iu" or ((act < 0) | (act >= n_act)).any():
+            raise ValueError(
+                f"actions must be integers in [0, {n_act}) (the action space "
+                f"{self.single_action_space}), got {act.dtype} values "
+                f"{np.unique(act)[:8].tolist()}"
+            )
+        return act
 
     def map_worlds(self, fn: Callable[[int, MultiRobotExplorationEnv], _T]) -> list[_T]:
         """``[fn(k, envs[k]) for every world k]``, computed on the stepping threads.

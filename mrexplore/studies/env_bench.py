@@ -382,17 +382,21 @@ class _Clock:
     def __init__(self) -> None:
         self.thread = self.process = self.wall = 0.0
 
-    def span(self, fn: Callable[[], Any], envs: Sequence[Any] = ()) -> Any:
+    def span(self, fn: Callable[[], Any], envs: Sequence[Any] = (), workers: Any = None) -> Any:
         """Time ``fn()`` and then the wait for the merge attempts it started in ``envs``, so
-        that one span's merge work is not counted in the next one's (whichever row that is)."""
+        that one span's merge work is not counted in the next one's (whichever row that is);
+        ``workers``: a :class:`ProcessBatchedEnv` whose worker processes' CPU (after the same
+        wait) is counted as the process's."""
+        before = 0.0 if workers is None else workers.worker_cpu_s()
         w0, p0, t0 = time.perf_counter(), time.process_time(), time.thread_time()
         out = fn()
         for env in envs:
             tracker = env.unwrapped.fusion.tracker
             if tracker is not None:
                 tracker.wait_idle()
+        after = 0.0 if workers is None else workers.worker_cpu_s()
         self.thread += time.thread_time() - t0
-        self.process += time.process_time() - p0
+        self.process += time.process_time() - p0 + after - before
         self.wall += time.perf_counter() - w0
         return out
 
@@ -421,12 +425,18 @@ def side_by_side(
     stepping, and without the wait a row's last attempts would be counted in the next row's
     process CPU and wall time.
 
+    With random actions a fourth row steps the batched env in worker processes, one per usable
+    core (``vector_env(num_workers=...)``, :mod:`mrexplore.environment.processes`): its process
+    CPU is the parent's and the workers' together (a team's decisions need the robots' views,
+    which stay in the workers, so the team rows have no such row).
+
     Returns a dict: ``num_envs``, ``team``, ``cores``, ``threads`` and per row (``single``,
-    ``batched_1_thread``, ``batched_threads``) the robot-steps, ``thread_s``, ``process_s``,
-    ``wall_s``, robot-steps per second of each, ``cores_used`` and ``wall_ratio`` (robot-steps/s
-    in wall time / the single envs').
+    ``batched_1_thread``, ``batched_threads``, with random actions ``batched_processes``) the
+    robot-steps, ``thread_s``, ``process_s``, ``wall_s``, robot-steps per second of each,
+    ``cores_used`` and ``wall_ratio`` (robot-steps/s in wall time / the single envs').
     """
     from mrexplore.environment.batched import BatchedExploreEnv, usable_cores
+    from mrexplore.environment.processes import ProcessBatchedEnv
 
     warm_merging()
     opts = {**DEFAULT_WORLD, "n_robots": 2, "merger": merger, **options}
@@ -437,6 +447,8 @@ def side_by_side(
         singles.extend(mrexplore.parallel_env(**opts) for _ in range(num_envs))
         batches["batched_1_thread"] = BatchedExploreEnv(num_envs, num_threads=1, **opts)
         batches["batched_threads"] = BatchedExploreEnv(num_envs, num_threads=cores, **opts)
+        if team is None:
+            batches["batched_processes"] = ProcessBatchedEnv(num_envs, num_workers=cores, **opts)
         for k, env in enumerate(singles):
             env.reset(seed=seed + k)
         drivers: dict[str, list[_Driver]] = {
@@ -444,7 +456,10 @@ def side_by_side(
         }
         for name, b in batches.items():
             b.reset(seed=seed)
-            drivers[name] = [_Driver(e, seed + k, team) for k, e in enumerate(b.envs)]
+            # random actions need only the robots' count: the single envs stand in for worlds
+            # that live in worker processes
+            hosts = singles if isinstance(b, ProcessBatchedEnv) else b.envs
+            drivers[name] = [_Driver(e, seed + k, team) for k, e in enumerate(hosts)]
 
         def run_single(steps: int) -> None:
             for env, d in zip(singles, drivers["single"], strict=True):
@@ -458,8 +473,10 @@ def side_by_side(
             def run(steps: int) -> None:
                 ds, b = drivers[name], batches[name]
                 for _ in range(steps):
-                    # the decisions on the stepping threads too (a team's planning is nogil)
-                    acts = b.map_worlds(lambda k, _env: ds[k].act())
+                    if isinstance(b, ProcessBatchedEnv):  # random actions (no team row)
+                        acts = [d.act() for d in ds]
+                    else:  # the decisions on the stepping threads (a team's planning is nogil)
+                        acts = b.map_worlds(lambda k, _env: ds[k].act())
                     _, _, terms, truncs, _ = b.step(np.array(acts))
                     for k in np.flatnonzero(terms[:, 0] | truncs[:, 0]):
                         ds[k].reset()  # the world was reset in the step (same-step auto-reset)
@@ -471,12 +488,20 @@ def side_by_side(
             **{name: run_batch(name) for name in batches},
         }
         clocks = {name: _Clock() for name in runs}
-        envs = {"single": singles, **{name: b.envs for name, b in batches.items()}}
+        envs: dict[str, Sequence[Any]] = {"single": singles}
+        workers: dict[str, Any] = {}
+        for name, b in batches.items():
+            if isinstance(b, ProcessBatchedEnv):
+                envs[name], workers[name] = (), b
+            else:
+                envs[name] = b.envs
         for name, run in runs.items():
-            _Clock().span(functools.partial(run, warmup), envs[name])
+            _Clock().span(functools.partial(run, warmup), envs[name], workers.get(name))
         for _ in range(rounds):
             for name, run in runs.items():  # in alternation: the load falls on all alike
-                clocks[name].span(functools.partial(run, steps_per_round), envs[name])
+                clocks[name].span(
+                    functools.partial(run, steps_per_round), envs[name], workers.get(name)
+                )
     finally:
         for env in singles:
             env.close()
@@ -488,6 +513,7 @@ def side_by_side(
         "team": team or "random",
         "cores": cores,
         "threads": batches["batched_threads"].num_threads,
+        "workers": getattr(batches.get("batched_processes"), "num_workers", None),
         "rounds": rounds,
         "steps_per_round": steps_per_round,
     }
@@ -525,9 +551,12 @@ def side_by_side_lines(r: dict[str, Any]) -> list[str]:
         "single": f"{r['num_envs']} single envs, each stepped alone",
         "batched_1_thread": f"batched, {r['num_envs']} worlds, 1 thread",
         "batched_threads": f"batched, {r['num_envs']} worlds, {r['threads']} threads",
+        "batched_processes": f"batched, {r['num_envs']} worlds, {r.get('workers')} processes",
     }
     lines = []
     for name, label in labels.items():
+        if name not in r:
+            continue
         x = r[name]
         lines.append(
             f"{r['team'] + ', ' + label:<52} {x['robot_steps_per_thread_s']:>10.0f} "

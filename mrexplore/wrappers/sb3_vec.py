@@ -366,8 +366,14 @@ class BatchedVecEnv(ParallelEnvVecEnv):
         self.use_subprocess = False
         self.closed = False
         self.waiting = False
-        # The copies as CopyRunners serve get_attr / set_attr / env_method / render.
-        self._copies = [CopyRunner(e) for e in batch.envs]
+        # The copies as CopyRunners serve get_attr / set_attr / env_method / render; worlds in
+        # worker processes answer there, through handles (as use_subprocess copies do).
+        handles = getattr(batch, "world_handles", None)
+        if handles is not None:
+            self._copies = handles()
+            self.use_subprocess = True
+        else:
+            self._copies = [CopyRunner(e) for e in batch.envs]
         self.n_copies = batch.num_envs
         self.agents_per_copy = batch.n_robots
         self.possible_agents = list(batch.possible_agents)
@@ -451,7 +457,9 @@ def make_vec_env(
         start_method: multiprocessing start method (see :class:`ParallelEnvVecEnv`).
         batched: step the copies as one batched env (:class:`BatchedVecEnv` over
             :func:`mrexplore.vector_env`: one engine, one merge worker for all copies); not with
-            ``use_subprocess``. The same slots, seeds and results as the default.
+            ``use_subprocess``. The same slots, seeds and results as the default. With
+            ``num_workers`` among the env options, the batched copies are stepped in that many
+            worker processes (:class:`~mrexplore.environment.processes.ProcessBatchedEnv`).
         **env_options: options of :func:`mrexplore.parallel_env` (``world``, ``n_robots``, ...).
             ``render_mode`` is accepted too.
 
@@ -470,8 +478,11 @@ def make_vec_env(
                 "combined with use_subprocess=True"
             )
         from mrexplore.environment.batched import BatchedExploreEnv
+        from mrexplore.environment.processes import ProcessBatchedEnv
 
-        bvenv = BatchedVecEnv(BatchedExploreEnv(n_copies, render_mode=render_mode, **env_options))
+        # num_workers: the copies stepped in worker processes, each with its own GIL
+        engine = ProcessBatchedEnv if "num_workers" in env_options else BatchedExploreEnv
+        bvenv = BatchedVecEnv(engine(n_copies, render_mode=render_mode, **env_options))
         if seed is not None:
             bvenv.seed(seed)
         return bvenv

@@ -31,6 +31,12 @@ def test_side_by_side_prints_single_and_batched_rows_with_the_cores(
     assert r["batched_1_thread"]["robot_steps"] == r["batched_threads"]["robot_steps"] == 8
     assert r["single"]["wall_ratio"] == 1.0
     assert all(r[k]["wall_s"] > 0 for k in ("single", "batched_1_thread", "batched_threads"))
+    # worker processes with random actions only (a team's decisions need the robots' views)
+    assert "batched_processes" not in r
+    rnd = json.loads(out_json.read_text())["side by side, random"]
+    procs = rnd["batched_processes"]
+    assert procs["robot_steps"] == 8 and procs["process_s"] > procs["thread_s"] > 0
+    assert f"random, batched, 2 worlds, {rnd['workers']} processes" in out
 
 
 @pytest.mark.parametrize(

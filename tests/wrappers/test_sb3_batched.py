@@ -20,9 +20,11 @@ from tests.helpers import assert_same
 OPTS: dict[str, Any] = {"world": "small_office", "n_robots": 2, "max_cycles": 9}
 
 
-def test_batched_vec_env_equals_the_parallel_env_vec_env() -> None:
+# {}: the worlds stepped in this process; num_workers: in two worker processes
+@pytest.mark.parametrize("engine", [{}, {"num_workers": 2}])
+def test_batched_vec_env_equals_the_parallel_env_vec_env(engine: dict[str, Any]) -> None:
     n = 3
-    venv = make_vec_env(n_copies=n, seed=4, batched=True, **OPTS)
+    venv = make_vec_env(n_copies=n, seed=4, batched=True, **OPTS, **engine)
     ref = make_vec_env(n_copies=n, seed=4, **OPTS)
     assert isinstance(venv, BatchedVecEnv) and not isinstance(ref, BatchedVecEnv)
     assert venv.num_envs == ref.num_envs == 2 * n
@@ -97,9 +99,26 @@ def test_vec_env_contract_of_the_batched_adapter() -> None:
     assert venv.closed
 
 
+def test_worlds_in_worker_processes_answer_the_vec_env_queries() -> None:
+    """get_attr / set_attr / env_method / env_is_wrapped reach the world in its worker."""
+    from mrexplore.environment.processes import ProcessBatchedEnv
+
+    venv = make_vec_env(n_copies=3, seed=0, batched=True, num_workers=2, **OPTS)
+    assert isinstance(venv.batch, ProcessBatchedEnv) and venv.batch.worker_sizes == [2, 1]
+    venv.reset()
+    venv.set_attr("marker", 5, indices=[4])  # slot 4: world 2, in the second worker
+    assert venv.get_attr("marker", indices=[4, 5]) == [5, 5]
+    with pytest.raises(AttributeError):
+        venv.get_attr("marker", indices=[0])
+    assert venv.env_method("action_space", "robot_0", indices=0)[0].n == 4
+    assert venv.env_is_wrapped(MultiRobotExplorationEnv) == [True] * 6
+    venv.close()
+
+
 @pytest.mark.usefixtures("one_torch_thread")
-def test_ppo_learns_through_the_batched_env() -> None:
-    venv = VecMonitor(make_vec_env(n_copies=2, seed=0, batched=True, **OPTS))
+@pytest.mark.parametrize("engine", [{}, {"num_workers": 2}])
+def test_ppo_learns_through_the_batched_env(engine: dict[str, Any]) -> None:
+    venv = VecMonitor(make_vec_env(n_copies=2, seed=0, batched=True, **OPTS, **engine))
     model = PPO("CnnPolicy", venv, n_steps=64, batch_size=64, n_epochs=1, seed=0, device="cpu")
     model.learn(256)
     assert model.num_timesteps >= 256

@@ -3,6 +3,7 @@
     python studies/ppo_split.py                       # 8 worlds x 2 robots, 8,192 robot-steps
     python studies/ppo_split.py --copies 8 --timesteps 16384
     python studies/ppo_split.py --unbatched           # the same through separate copies
+    python studies/ppo_split.py --workers 2           # the batched env in 2 worker processes
 
 Trains stable-baselines3 PPO exactly as ``mrexplore train --algo ppo`` sets it up (the
 ``mrexplore/configs/ppo.yaml`` policy, env options and hyperparameters, one torch thread), but
@@ -53,6 +54,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--n-steps", type=int, default=None, help="PPO n_steps per slot (ppo.yaml)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="step the batched env's worlds in this many worker processes (num_workers) "
+        "instead of threads",
+    )
+    p.add_argument(
         "--unbatched",
         action="store_true",
         help="through make_vec_env's default adapter (separate copies) instead, for comparison",
@@ -75,6 +83,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.n_steps is not None:
         hyper["n_steps"] = args.n_steps
     batched = not args.unbatched
+    if args.workers is not None:
+        if not batched:
+            p.error("--workers is for the batched env (not with --unbatched)")
+        env_opts["num_workers"] = args.workers
     inner = make_vec_env(n_copies=args.copies, seed=args.seed, batched=batched, **env_opts)
     acc: dict[str, float] = defaultdict(float)
     inner.step_wait = _timed(inner.step_wait, acc, "env")  # type: ignore[method-assign]
@@ -105,7 +117,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"PPO ({cfg['policy']}, ppo.yaml hyperparameters, n_steps {hyper['n_steps']} x "
         f"{slots} slots = {rollout} robot-steps per rollout, {hyper['n_epochs']} epochs, "
         f"batch {hyper['batch_size']}) through the "
-        f"{'batched env' if batched else 'default adapter (separate copies)'}: "
+        f"{'default adapter (separate copies)' if not batched else 'batched env'}"
+        f"{'' if args.workers is None else f' in {args.workers} worker processes'}: "
         f"{args.copies} worlds x "
         f"{args.robots} robots, world {env_opts['world']}; {model.num_timesteps} robot-steps; "
         f"torch threads {torch.get_num_threads()}; load average {load[0]:.2f} {load[1]:.2f}"
@@ -129,6 +142,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             t - acc[f"collect_{k}"] - acc[f"train_{k}"]
             for t, k in zip((wall, cpu, proc), WCP, strict=True)
         ),
+    )
+    print(
+        f"samples (robot-steps) per wall second: collection "
+        f"{model.num_timesteps / acc['collect_wall']:,.0f}, training overall "
+        f"{model.num_timesteps / wall:,.0f}"
     )
     env_cpu = acc["env_cpu"]
     print(

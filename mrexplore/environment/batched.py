@@ -46,7 +46,7 @@ merge worker           one single-thread executor for all copies' delayed merge 
 threads                ``num_threads`` (default: the cores this process may run on, at most N)
                        threads step the worlds: the calling thread and ``num_threads - 1`` pool
                        threads each take the next world not yet stepped until all are
-                       (``cv2.setNumThreads(1)`` is set once when there is more than one)
+                       (OpenCV runs on one thread: every env sets ``cv2.setNumThreads(1)``)
 =====================  ========================================================================
 
 Why threads, and why the same run at any thread count: every kernel of a world-step (lidar
@@ -227,7 +227,6 @@ class BatchedExploreEnv:
             self._pool = ThreadPoolExecutor(
                 max_workers=self.num_threads - 1, thread_name_prefix="mrexplore-step"
             )
-            _one_opencv_thread()
         self.envs: list[MultiRobotExplorationEnv] = []
         try:
             for _ in range(self.num_envs):
@@ -447,15 +446,6 @@ class BatchedExploreEnv:
         if self._pool is not None:
             self._pool.shutdown(wait=True)
         self.closed = True
-
-
-def _one_opencv_thread() -> None:
-    """``cv2.setNumThreads(1)``, once: the worlds already fill the cores, and OpenCV's own pool
-    (a few calls of the observation and the merger spread over it) would only contend with them.
-    Process-wide, as OpenCV's setting is."""
-    import cv2
-
-    cv2.setNumThreads(1)
 
 
 def _zero_like(v: Any) -> Any:

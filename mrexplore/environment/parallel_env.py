@@ -87,6 +87,22 @@ StageTimer = Callable[[str, float], None]
 STEP_STAGES = ("act", "merge", "observe")
 
 
+def one_opencv_thread() -> None:
+    """``cv2.setNumThreads(1)``, process-wide as OpenCV's setting is, once per process: the
+    env's and the merger's calls are small (a window, a map), so OpenCV's pool only spins beside
+    the stepping thread, the merge worker and, in a batched env, the other worlds' threads. The
+    results do not depend on it (the pinned rollouts hash the same)."""
+    global _OPENCV_SET
+    if not _OPENCV_SET:
+        import cv2
+
+        cv2.setNumThreads(1)
+        _OPENCV_SET = True
+
+
+_OPENCV_SET = False
+
+
 class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
     """PettingZoo parallel env; build it with :func:`mrexplore.parallel_env`.
 
@@ -102,6 +118,11 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
     nothing is timed) is told each stage of every ``step()`` with its thread CPU seconds, for
     profiling (``mrexplore bench env --breakdown``). It only reads the clock: the episode, its
     random draws and its results are the same with it or without.
+
+    Making an env sets OpenCV to one thread, process-wide (:func:`one_opencv_thread`): the
+    step's and the merger's OpenCV calls are small, and OpenCV's pool spent a fifth of a
+    realistic rollout's process CPU for no faster step (``docs/speed.md``). Call
+    ``cv2.setNumThreads(n)`` after it to give your own OpenCV work its threads back.
     """
 
     metadata: ClassVar[dict[str, Any]] = {
@@ -122,6 +143,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         **options: Any,
     ) -> None:
         self.config = cfg = EnvConfig.from_kwargs(**options)
+        one_opencv_thread()
         if stage_timer is not None and not callable(stage_timer):
             raise ConfigError(
                 f"stage_timer must be a callable (stage, seconds), got {stage_timer!r}"

@@ -315,3 +315,23 @@ def test_teammate_goal_is_near_robot_1_start_and_the_same_for_every_team_size() 
     np.testing.assert_array_equal(goals[0], goals[1])
     with pytest.raises(ConfigError, match="nav_goal"):
         mrexplore.parallel_env(task="navigate", nav_goal="near")
+
+
+def test_making_an_env_sets_opencv_to_one_thread_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The first env of a process sets ``cv2.setNumThreads(1)``; a user's later setting
+    stands through the envs made after it."""
+    import cv2
+
+    from mrexplore.environment import parallel_env as module
+
+    monkeypatch.setattr(module, "_OPENCV_SET", False)
+    before = cv2.getNumThreads()
+    try:
+        cv2.setNumThreads(2)
+        mrexplore.parallel_env(world="small_office").close()
+        assert cv2.getNumThreads() == 1
+        cv2.setNumThreads(2)
+        mrexplore.parallel_env(world="small_office").close()
+        assert cv2.getNumThreads() == 2
+    finally:
+        cv2.setNumThreads(before)

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import contextlib
 import multiprocessing
+import pickle
 import time
 import traceback
 from collections.abc import Callable, Sequence
@@ -97,6 +98,7 @@ def _worker(
     """A worker process: worlds ``start .. start + size - 1`` as a one-thread batched env,
     stepped on the parent's commands; observations written into its rows of the shared array."""
     shm = SharedMemory(name=shm_name)
+    obs: NDArray[Any] | None = None
     try:
         obs = np.ndarray(shape, dtype=np.dtype(dtype), buffer=shm.buf)[start : start + size]
         batch: BatchedExploreEnv | None = None
@@ -144,7 +146,7 @@ def _worker(
         if batch is not None:
             batch.close()
     finally:
-        del obs
+        obs = None  # the view must go before the shared memory it looks at
         shm.close()
         conn.close()
 
@@ -227,6 +229,13 @@ class ProcessBatchedEnv(BatchedExploreEnv):
         self.num_threads = 1
         self.closed = True  # until the workers run: close() has nothing to stop
         self._running = False
+        try:  # the options travel to the workers
+            pickle.dumps(env_options)
+        except Exception as exc:
+            raise ConfigError(
+                f"vector_env: with num_workers every env option must pickle (a merger object "
+                f"too), and one does not: {exc}"
+            ) from exc
         # one world here checks every option at the door and gives the spaces
         probe = MultiRobotExplorationEnv(**env_options)
         try:

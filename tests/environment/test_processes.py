@@ -91,6 +91,13 @@ def test_bad_options_are_refused_before_any_worker_starts() -> None:
     with pytest.raises(ConfigError, match="num_workers is for teams"):
         mrexplore.vector_env(num_envs=2, world=WORLD, n_robots=1, num_workers=2)
 
+    class LocalMerger:  # a class inside a function does not pickle
+        def merge(self, a: Any, b: Any) -> Any:
+            raise AssertionError("never called")
+
+    with pytest.raises(ConfigError, match="must pickle"):
+        mrexplore.vector_env(num_envs=2, world=WORLD, num_workers=2, merger=LocalMerger())
+
 
 def test_what_a_process_cannot_do_says_so() -> None:
     venv = mrexplore.vector_env(num_envs=2, world=WORLD, max_cycles=3, num_workers=2)

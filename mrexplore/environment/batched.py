@@ -105,9 +105,9 @@ def usable_cores() -> int:
         return os.cpu_count() or 1
 
 
-def check_num_threads(num_threads: Any, num_envs: int) -> int:
+def check_num_threads(num_threads: Any, num_envs: int, name: str = "num_threads") -> int:
     """``num_threads`` (None: :func:`usable_cores`) capped at ``num_envs``, else a
-    :class:`ConfigError` naming the option."""
+    :class:`ConfigError` naming the option (``name``: also the worker processes' count)."""
     if num_threads is None:
         return max(1, min(usable_cores(), num_envs))
     if (
@@ -116,9 +116,24 @@ def check_num_threads(num_threads: Any, num_envs: int) -> int:
         or num_threads < 1
     ):
         raise ConfigError(
-            f"vector_env: num_threads must be None or an integer >= 1, got {num_threads!r}"
+            f"vector_env: {name} must be None or an integer >= 1, got {num_threads!r}"
         )
     return min(int(num_threads), num_envs)
+
+
+def check_batch_options(render_mode: str | None, env_options: dict[str, Any]) -> None:
+    """Refuse what a batch of worlds cannot do (the goal-level env, a human window); drops a
+    ``"low"`` ``action_mode`` from ``env_options``."""
+    if env_options.get("action_mode", "low") != "low":
+        raise ConfigError(
+            "vector_env: action_mode must be 'low' (the goal-level env is not batched), "
+            f"got {env_options['action_mode']!r}"
+        )
+    env_options.pop("action_mode", None)
+    if render_mode not in (None, "rgb_array"):
+        raise ConfigError(
+            f"vector_env: render_mode must be None or 'rgb_array', got {render_mode!r}"
+        )
 
 
 def _seeds(seed: int | Sequence[int | None] | None, n: int) -> list[int | None]:
@@ -208,16 +223,7 @@ class BatchedExploreEnv:
     ) -> None:
         self.num_envs = check_num_envs(num_envs)
         self.num_threads = check_num_threads(num_threads, self.num_envs)
-        if env_options.get("action_mode", "low") != "low":
-            raise ConfigError(
-                "vector_env: action_mode must be 'low' (the goal-level env is not batched), "
-                f"got {env_options['action_mode']!r}"
-            )
-        env_options.pop("action_mode", None)
-        if render_mode not in (None, "rgb_array"):
-            raise ConfigError(
-                f"vector_env: render_mode must be None or 'rgb_array', got {render_mode!r}"
-            )
+        check_batch_options(render_mode, env_options)
         self.render_mode = render_mode
         # One worker for every copy's delayed merge attempts (threads start on first submit).
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mrexplore-merge")

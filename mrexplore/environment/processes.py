@@ -48,8 +48,9 @@ from mrexplore.environment.batched import (
     BatchedExploreEnv,
     BatchStep,
     _seeds,
+    check_batch_options,
     check_num_envs,
-    usable_cores,
+    check_num_threads,
 )
 from mrexplore.environment.parallel_env import MultiRobotExplorationEnv
 from mrexplore.errors import ConfigError, MrexploreError
@@ -58,19 +59,9 @@ __all__ = ["ProcessBatchedEnv", "check_num_workers"]
 
 
 def check_num_workers(num_workers: Any, num_envs: int) -> int:
-    """``num_workers`` (None: :func:`usable_cores`) capped at ``num_envs``, else a
+    """``num_workers`` (None: the usable cores) capped at ``num_envs``, else a
     :class:`ConfigError` naming the option."""
-    if num_workers is None:
-        return max(1, min(usable_cores(), num_envs))
-    if (
-        isinstance(num_workers, (bool, np.bool_))
-        or not isinstance(num_workers, (int, np.integer))
-        or num_workers < 1
-    ):
-        raise ConfigError(
-            f"vector_env: num_workers must be None or an integer >= 1, got {num_workers!r}"
-        )
-    return min(int(num_workers), num_envs)
+    return check_num_threads(num_workers, num_envs, "num_workers")
 
 
 def _blocks(n: int, k: int) -> list[tuple[int, int]]:
@@ -215,16 +206,7 @@ class ProcessBatchedEnv(BatchedExploreEnv):
                 "vector_env: num_threads and num_workers exclude each other (each worker "
                 "process steps its worlds on one thread)"
             )
-        if env_options.get("action_mode", "low") != "low":
-            raise ConfigError(
-                "vector_env: action_mode must be 'low' (the goal-level env is not batched), "
-                f"got {env_options['action_mode']!r}"
-            )
-        env_options.pop("action_mode", None)
-        if render_mode not in (None, "rgb_array"):
-            raise ConfigError(
-                f"vector_env: render_mode must be None or 'rgb_array', got {render_mode!r}"
-            )
+        check_batch_options(render_mode, env_options)
         self.render_mode = render_mode
         self.num_threads = 1
         self.closed = True  # until the workers run: close() has nothing to stop

@@ -145,21 +145,11 @@ def _worker(
 def _world_command(env: MultiRobotExplorationEnv, what: str, data: Any) -> Any:
     """An SB3 ``VecEnv`` query of one world (``get_attr``, ``set_attr``, ``env_method``,
     ``is_wrapped``, ``render``), answered as the in-process copies answer it."""
-    from mrexplore.wrappers._vec_runner import CopyRunner
+    from mrexplore.wrappers._vec_runner import CopyRunner, answer
 
-    runner = CopyRunner(env)
-    if what == "get_attr":
-        return runner.get_attr(data)
-    if what == "set_attr":
-        runner.set_attr(*data)
-        return None
-    if what == "env_method":
-        return runner.env_method(*data)
-    if what == "is_wrapped":
-        return runner.is_wrapped(data)
-    if what == "render":
-        return runner.render()
-    raise RuntimeError(f"worker: unknown world command {what!r}")
+    if what == "reset":  # the batch resets its worlds itself
+        raise RuntimeError("worker: a world is reset by the batch, not alone")
+    return answer(CopyRunner(env), what, data)
 
 
 class _WorldHandle:

@@ -194,6 +194,26 @@ class CopyRunner:
         self.env.close()
 
 
+def answer(runner: CopyRunner, cmd: str, data: Any = None) -> Any:
+    """One copy's answer to a ``VecEnv`` command other than ``step`` and ``close``: ``reset``,
+    ``get_attr``, ``set_attr``, ``env_method``, ``is_wrapped``, ``render`` (``data``: the
+    command's arguments, as the ``VecEnv`` sends them); a ``ValueError`` for any other."""
+    if cmd == "reset":
+        return runner.reset(*data)
+    if cmd == "get_attr":
+        return runner.get_attr(data)
+    if cmd == "set_attr":
+        runner.set_attr(*data)
+        return None
+    if cmd == "env_method":
+        return runner.env_method(*data)
+    if cmd == "is_wrapped":
+        return runner.is_wrapped(data)
+    if cmd == "render":
+        return runner.render()
+    raise ValueError(f"unknown worker command {cmd!r}")
+
+
 def worker(
     remote: multiprocessing.connection.Connection,
     parent_remote: multiprocessing.connection.Connection,
@@ -223,25 +243,12 @@ def worker(
         try:
             if cmd == "step":
                 result: Any = runner.step(data)
-            elif cmd == "reset":
-                result = runner.reset(*data)
-            elif cmd == "get_attr":
-                result = runner.get_attr(data)
-            elif cmd == "set_attr":
-                runner.set_attr(*data)
-                result = None
-            elif cmd == "env_method":
-                result = runner.env_method(*data)
-            elif cmd == "is_wrapped":
-                result = runner.is_wrapped(data)
-            elif cmd == "render":
-                result = runner.render()
             elif cmd == "close":
                 runner.close()
                 remote.send(("ok", None))
                 break
             else:
-                raise ValueError(f"unknown worker command {cmd!r}")
+                result = answer(runner, cmd, data)
         except Exception as exc:
             remote.send(("error", exc))
         else:

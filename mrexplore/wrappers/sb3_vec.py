@@ -59,7 +59,7 @@ from stable_baselines3.common.vec_env.base_vec_env import (
 )
 
 from mrexplore.errors import ConfigError
-from mrexplore.wrappers._vec_runner import CopyRunner, worker
+from mrexplore.wrappers._vec_runner import CopyRunner, answer, worker
 
 EnvFn = Callable[[], Any]
 
@@ -208,20 +208,7 @@ class ParallelEnvVecEnv(VecEnv):
         c = self._copies[k]
         if self.use_subprocess:
             return c.call(cmd, data)
-        if cmd == "reset":
-            return c.reset(*data)
-        if cmd == "get_attr":
-            return c.get_attr(data)
-        if cmd == "set_attr":
-            c.set_attr(*data)
-            return None
-        if cmd == "env_method":
-            return c.env_method(*data)
-        if cmd == "is_wrapped":
-            return c.is_wrapped(data)
-        if cmd == "render":
-            return c.render()
-        raise ValueError(f"unknown command {cmd!r}")  # pragma: no cover
+        return answer(c, cmd, data)
 
     # ------------------------------------------------------------------ VecEnv API
     def reset(self) -> VecEnvObs:

@@ -173,9 +173,10 @@ class ProcessBatchedEnv(BatchedExploreEnv):
             ``num_threads`` is not one (each worker steps its block on one thread).
 
     Attributes:
-        num_workers: the worker processes; worker_sizes: the worlds each steps.
-        possible_agents, n_robots, single_observation_space, single_action_space,
-        observation_space, action_space: as :class:`BatchedExploreEnv`'s.
+        num_workers: the worker processes.
+        worker_sizes: the worlds each worker steps, in world order.
+        possible_agents: the robots of one world (and ``n_robots``, the spaces: as
+            :class:`BatchedExploreEnv`'s).
 
     Raises:
         ConfigError: a bad ``num_envs``, ``num_workers`` or env option (checked in this

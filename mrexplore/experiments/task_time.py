@@ -604,6 +604,23 @@ def wrong_merge_warning(doc: Mapping[str, Any]) -> str | None:
     )
 
 
+def merging_mode(options: Mapping[str, Any]) -> str:
+    """How the teams merged, in words, from the env options of the run: never, from the maps
+    alone, or with sightings (only robots that have met, unless ``rendezvous_only`` is off)."""
+    if "merger" in options and options["merger"] is None:
+        return "none (the robots never merge)"
+    sight = options.get("sighting_range_m")
+    if sight is None:
+        return "from the maps alone (look-alike rooms may be merged wrongly: see the wrong column)"
+    rendezvous = (options.get("merge_options") or {}).get("rendezvous_only")
+    if rendezvous is False:
+        return (
+            f"maps and sightings within {sight:g} m; the maps alone may merge robots that never "
+            "met (rendezvous_only off)"
+        )
+    return f"only robots that have met (sightings within {sight:g} m, rendezvous_only)"
+
+
 def _document(
     runs: Mapping[str, Mapping[str, Sequence[TaskTimeEpisode]]],
     world: str,
@@ -618,6 +635,7 @@ def _document(
         "options": {
             k: v for k, v in options.items() if isinstance(v, (int, float, str, bool, type(None)))
         },
+        "merging": merging_mode(options),
         "units": "simulated seconds",
         "coverage_modes": {
             "observed": "task_times_s: the team's sensors together saw target_coverage",
@@ -842,6 +860,7 @@ def format_table(doc: Mapping[str, Any]) -> str:
     lines = [
         f"Task time on '{doc['world']}' with policy '{doc['policy']}' over "
         f"{len(doc['seeds'])} seeds (simulated s)",
+        *([f"merging: {doc['merging']}"] if doc.get("merging") else []),
         _row([h for h, _ in _COLUMNS]),
     ]
     for task, e in doc["tasks"].items():

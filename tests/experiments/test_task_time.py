@@ -425,3 +425,16 @@ def test_task_time_rendezvous_only_reaches_every_episode(
     assert main([*argv, "--out", str(tmp_path / "b")]) == 2
     assert "give --sighting-range-m" in capsys.readouterr().err
     assert not (tmp_path / "b").exists()
+
+
+def test_the_table_says_how_the_teams_merged() -> None:
+    """The merge mode in words, from the run's options: the maps alone by default, only robots
+    that met with sightings (unless ``rendezvous_only`` is off), none without a merger."""
+    mode = task_time.merging_mode
+    assert mode({}).startswith("from the maps alone")
+    assert mode({"sighting_range_m": 4.0}).startswith("only robots that have met")
+    off = {"sighting_range_m": 4.0, "merge_options": {"rendezvous_only": False}}
+    assert "never met" in mode(off)
+    assert mode({"merger": None}).startswith("none")
+    doc = task_time._document(_runs(0.0), "w.yaml", "coordinated-frontier", [7, 8], {})
+    assert task_time.format_table(doc).splitlines()[1] == f"merging: {mode({})}"

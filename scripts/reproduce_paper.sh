@@ -320,6 +320,14 @@ other_steps() {
     --variants sighting oracle_meet --merge-options rendezvous_only=true \
     --against "$out/loop_radial_test.json" --jobs 2 \
     --out "$out/loop_radial_test_meet" --force
+  # the tenth test part (world seeds 1000000..; opened for the defaults as shipped, the recipe
+  # the default with sightings): the maps alone, sightings, and both oracles
+  mrexplore bench loop --family paper_like --part test10 --worlds 40 --seeds 5 \
+    --variants semantic sighting oracle_meet oracle_room --jobs 2 \
+    --out "$out/loop_paper_like_test10" --force
+  mrexplore bench loop --family office_row --part test10 --worlds 40 --seeds 5 \
+    --variants semantic sighting oracle_meet oracle_room --jobs 2 \
+    --out "$out/loop_office_row_test10" --force
   # the four fixed worlds with the place test, beside the room oracle
   mrexplore bench loop --seeds 20 --variants semantic oracle_room --jobs 2 \
     --out "$out/loop_fixed_worlds" --force

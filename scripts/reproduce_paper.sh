@@ -328,6 +328,13 @@ other_steps() {
   mrexplore bench loop --family office_row --part test10 --worlds 40 --seeds 5 \
     --variants semantic sighting oracle_meet oracle_room --jobs 2 \
     --out "$out/loop_office_row_test10" --force
+  # ... and never merging on the same episodes (the merging variants taken from the runs above)
+  mrexplore bench loop --family paper_like --part test10 --worlds 40 --seeds 5 \
+    --variants semantic sighting none --reuse "$out/loop_paper_like_test10.json" --jobs 2 \
+    --out "$out/loop_paper_like_test10_none" --force
+  mrexplore bench loop --family office_row --part test10 --worlds 40 --seeds 5 \
+    --variants semantic sighting none --reuse "$out/loop_office_row_test10.json" --jobs 2 \
+    --out "$out/loop_office_row_test10_none" --force
   # the four fixed worlds with the place test, beside the room oracle
   mrexplore bench loop --seeds 20 --variants semantic oracle_room --jobs 2 \
     --out "$out/loop_fixed_worlds" --force

@@ -340,12 +340,10 @@ class ProcessBatchedEnv(BatchedExploreEnv):
     def call_world(self, k: int, what: str, data: Any = None) -> Any:
         """An SB3 ``VecEnv`` query (``get_attr``, ``set_attr``, ``env_method``, ``is_wrapped``,
         ``render``) of world k, answered in its worker."""
-        w = next(i for i, (s, n) in enumerate(self._blocks) if s <= k < s + n)
-        args: list[Any] = [None] * self.num_workers
-        args[w] = (k - self._blocks[w][0], what, data)
         if self.closed:
             raise RuntimeError("ProcessBatchedEnv is closed")
-        self._conns[w].send(("world", args[w]))
+        w = next(i for i, (s, n) in enumerate(self._blocks) if s <= k < s + n)
+        self._conns[w].send(("world", (k - self._blocks[w][0], what, data)))
         status, out = self._conns[w].recv()
         if status == "error":
             raise out[0]

@@ -52,8 +52,7 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
-from concurrent import futures
-from concurrent.futures import Executor, Future, ThreadPoolExecutor
+from concurrent.futures import Executor, Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass, fields, replace
 from typing import Any, ClassVar
 
@@ -930,7 +929,7 @@ class MapMergeTracker:
         """Block until every attempt started on the worker has finished. Nothing is applied:
         each result is still applied at its scheduled step, so the run does not change. For
         timing, so that a timed span holds the merge work it started."""
-        futures.wait([jb.outcome for jb in self._jobs if isinstance(jb.outcome, Future)])
+        wait([jb.outcome for jb in self._jobs if isinstance(jb.outcome, Future)])
 
     def _apply_due(self, step: int) -> None:
         """Apply the worker's jobs due by ``step``, in the order they started (waiting for any

@@ -221,7 +221,7 @@ REFERENCES: dict[str, tuple[str, str, str]] = {
 
 
 def _where_reference_merged(
-    runs: Mapping[tuple[str, str, int], Mapping[str, Any]], variant: str, ref: str = "oracle_room"
+    runs: Mapping[tuple[str, str, int], Mapping[str, Any]], variant: str, ref: str
 ) -> tuple[int, int] | None:
     """(episodes ``variant`` merged among those ``ref`` merged, those) on the same world and
     seed (``runs``: (world, variant, seed) -> episode); None without ``ref`` episodes."""

@@ -286,11 +286,21 @@ def describe_task_time(doc: Mapping[str, Any]) -> tuple[str, str]:
     )
     parts = []
     for task, t in doc["tasks"].items():
-        parts.append(
-            f"{task}: {float(t['single']['mean']):.1f} s -> {float(t['multi']['mean']):.1f} s "
+        multi = t["multi"]
+        part = (
+            f"{task}: {float(t['single']['mean']):.1f} s -> {float(multi['mean']):.1f} s "
             f"({-100 * float(t['reduction']):+.1f} %)"
         )
-    return what, "; ".join(parts)
+        if "wrong_merge_episodes" in multi:  # files made before wrong merges were reported lack it
+            n = len(multi["task_times_s"])
+            part += (
+                f", merged {multi['merged_episodes']}/{n}, "
+                f"wrong {multi['wrong_merge_episodes']}/{n}"
+            )
+        parts.append(part)
+    # the mode without its advice to the table's reader ("... (see the wrong column)")
+    merging = f"merging {doc['merging'].split(' (')[0]}: " if doc.get("merging") else ""
+    return what, merging + "; ".join(parts)
 
 
 def describe_eval(doc: Mapping[str, Any]) -> tuple[str, str]:

@@ -721,7 +721,8 @@ def _plot(
     doc: Mapping[str, Any],
 ) -> None:
     """Coverage curves (observed solid, held dashed) and task-time bars (observed solid, held
-    hatched); a team that held a wrong merge gets a red marker and its count over its bars."""
+    hatched); a team that held a wrong merge gets a red marker and its count over its bars, and
+    each task's label says how often the team merged and merged wrongly."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -813,7 +814,7 @@ def _plot(
                             fontsize=7,
                             color="red",
                         )
-    ax1.set_xticks(x, [f"{t}\n(-{_pct(doc['tasks'][t]['reduction'])} observed)" for t in tasks])
+    ax1.set_xticks(x, [_tick_label(doc, t) for t in tasks])
     ax1.set_ylabel("task time (s)")
     ax1.set_title("task time, 1 vs 2 robots (observed solid, held hatched)")
     ax1.margins(y=0.15)  # room for the wrong-merge markers
@@ -821,6 +822,20 @@ def _plot(
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _tick_label(doc: Mapping[str, Any], task: str) -> str:
+    """A task's label under its bars: the reduction, and how often the team merged and merged
+    wrongly (said when none did too, so a plot without a wrong-merge marker is not read as
+    unchecked)."""
+    t = doc["tasks"][task]
+    multi = t["multi"]
+    n = len(multi["task_times_s"])
+    return (
+        f"{task}\n(-{_pct(t['reduction'])} observed)\n"
+        f"{team_label(TEAMS['multi'])} merged {multi['merged_episodes']}/{n}, "
+        f"wrong merge {multi['wrong_merge_episodes']}/{n}"
+    )
 
 
 def _pct(x: float | None) -> str:

@@ -282,6 +282,7 @@ def test_a_wrong_merge_shows_in_table_csv_json_and_plot(tmp_path: Path) -> None:
     assert wrong[0]["max_fused_contradiction"] == "0.2500"
     assert wrong[0]["held_task_time_s"] == "150.00" and wrong[0]["held_success"] == "1"
 
+    assert task_time._tick_label(doc, "explore").endswith("merged 2/2, wrong merge 1/2")
     pytest.importorskip("matplotlib")
     task_time._plot(tmp_path / "t.png", runs, doc)
     assert cv2.imread(str(tmp_path / "t.png")) is not None
@@ -290,6 +291,8 @@ def test_a_wrong_merge_shows_in_table_csv_json_and_plot(tmp_path: Path) -> None:
 def test_no_wrong_merge_no_warning() -> None:
     doc = task_time._document(_runs(wrong_s=0.0), "their.yaml", "p", [7, 8], {})
     assert doc["wrong_merge_warning"] is None
+    # the plot says so too: a plot without a marker is not read as unchecked
+    assert task_time._tick_label(doc, "explore").endswith("wrong merge 0/2")
     assert doc["tasks"]["explore"]["multi"]["wrong_merge_episodes"] == 0
     assert "WARNING" not in task_time.format_table(doc)
 

@@ -49,7 +49,8 @@
 #   3. task_time.{json,csv,png}: single- vs multi-robot task time (the paper's 105 s -> 65 s and
 #      125 s -> 85 s); nav_teammate/: navigation to a place near robot_1's start (the paper's
 #      protocol: a robot goes where its teammate mapped);
-#      user_twin_rooms/: a new user's first map (scripts/user_twin_rooms.py), its task times
+#      user_twin_rooms/task_time{,_sighting}/: a new user's first map (drawn by
+#      scripts/user_twin_rooms.py), its task times
 #      with and without sightings; loop_user_twin_rooms.{json,md}: the loop study there
 #   4. goal_policy_eval/{office,twin,tb3}/eval.{json,png}: the shipped learned goal chooser
 #      (policies/goal_size_2r) against the frontier planners on 50 held-out worlds of each family,
@@ -346,10 +347,10 @@ other_steps() {
   mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --out "$out" --force
   mrexplore task-time --world symmetric_office --seeds 20 --policy coordinated-frontier --tasks navigate \
     --nav-goal teammate --out "$out/nav_teammate" --force
-  # a new user's first map (two identical rooms over a corridor, drawn by
-  # scripts/user_twin_rooms.py): task-time as the user ran it, then with sightings; and the loop
-  # study there (random headings, noise): the maps alone, sightings, both oracles, never merging
-  python scripts/user_twin_rooms.py --out "$out/user_twin_rooms" --force
+  # a new user's first map (two identical rooms over a corridor; an input drawn by
+  # scripts/user_twin_rooms.py, which a test holds the committed copy to): task-time as the user
+  # ran it, then with sightings; and the loop study there (random headings, noise): the maps
+  # alone, sightings, both oracles, never merging
   mrexplore task-time --world "$out/user_twin_rooms/their.yaml" --seeds 20 \
     --policy coordinated-frontier --tasks explore --out "$out/user_twin_rooms/task_time" --force
   mrexplore task-time --world "$out/user_twin_rooms/their.yaml" --seeds 20 \

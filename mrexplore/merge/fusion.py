@@ -33,24 +33,21 @@ if TYPE_CHECKING:
 #: (docs/merging_history.md, "A far pose that nothing contradicts is a rival": one depot
 #: episode of 20 never merged).
 IN_LOOP_RIVAL_PERFECT_CELLS = 0
-#: ``min_accept_cells`` of the tracker for the semantic merger: an attempt's pose counts only
-#: when it rests on this many wall cells of both maps (``MergeResult.overlap_cells``), 250
-#: (the scale of the one-shot perfect-rival test) where the merger asks 80. Early in an episode
-#: two robots in two look-alike warehouse aisles whose maps shared no wall at all were matched
-#: on 104-164 such cells and merged wrongly; every correct first merge of 73 traced rested on
-#: 299 or more (docs/merging_history.md, "No merge of two look-alike aisles"). A floor on the
-#: accepted pose only: the merger still weighs smaller poses as rivals.
-IN_LOOP_MIN_ACCEPT_CELLS = 250
 #: The semantic merger's options in the loop (the env's tracker and the loop study's seeded
 #: diagnostic); options the caller gives win. The look-alike guard is the place test
 #: (:mod:`~mrexplore.merge.places`): a match waits until agreement beyond the places holding
-#: most of it pins the pose, whatever the rooms' size. It replaces the area floors a single
-#: call keeps (``min_common_m2``, ``room_match_m2``: sizes of rooms), which decided nothing
-#: more on the tuning part of the world families (docs/merging.md).
+#: most of it pins the pose, whatever the rooms' size. It replaces the floors a single call
+#: keeps, each a size chosen on our worlds: the shared space and the room match
+#: (``min_common_m2``, ``room_match_m2``: rooms), the agreeing walls' area and the one-object
+#: rule (``min_wall_area_m2``, ``min_object_m2``: a rack, a pillar). Agreement on one room or
+#: one object lies in the places the test leaves out, so with it on they decided nothing more
+#: (docs/merging.md).
 IN_LOOP_SEMANTIC_OPTIONS: dict[str, Any] = {
     "place_test": True,
     "min_common_m2": 0.0,
     "room_match_m2": 0.0,
+    "min_wall_area_m2": 0.0,
+    "min_object_m2": 0.0,
     "rival_perfect_cells": IN_LOOP_RIVAL_PERFECT_CELLS,
 }
 
@@ -78,18 +75,21 @@ def in_loop_semantic_options(**changes: Any) -> SemanticOptions:
 
 
 def in_loop_tracker_options(merger: Any = "semantic", **changes: Any) -> TrackerOptions:
-    """The tracker's options in the loop for ``merger`` (``min_accept_cells``
-    :data:`IN_LOOP_MIN_ACCEPT_CELLS` with the semantic merger, 0 with another) with
-    ``changes``: what to give the env's ``tracker_options``. The schedule (``merge_every``,
-    ``recheck_every``, ``merge_latency_steps``) is the env's own options; set it there.
+    """The tracker's options in the loop for ``merger`` with ``changes``: what to give the env's
+    ``tracker_options``. They are the tracker's defaults for every merger: the semantic
+    merger's former floor on the accepted pose's wall cells (``min_accept_cells`` 250, a length
+    of wall chosen on our worlds) decided nothing more once the place test was on
+    (docs/merging.md). The schedule (``merge_every``, ``recheck_every``,
+    ``merge_latency_steps``) is the env's own options; set it there.
 
-    >>> in_loop_tracker_options(drop_below=0.9).min_accept_cells
-    250
+    >>> o = in_loop_tracker_options(drop_below=0.9)
+    >>> o.drop_below, o.min_accept_cells
+    (0.9, 0)
     """
     from mrexplore.merge.tracker import TrackerOptions
 
-    floor = IN_LOOP_MIN_ACCEPT_CELLS if semantic_named(merger) else 0
-    return TrackerOptions.from_kwargs(**{"min_accept_cells": floor, **changes})
+    del merger  # the same for every merger now; kept so that callers need not change
+    return TrackerOptions.from_kwargs(**changes)
 
 
 def _tracker_settings(

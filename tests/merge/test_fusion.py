@@ -10,7 +10,6 @@ from mrexplore.errors import ConfigError
 from mrexplore.grid import invert_transform
 from mrexplore.merge import SemanticOptions
 from mrexplore.merge.fusion import (
-    IN_LOOP_MIN_ACCEPT_CELLS,
     FusionStage,
     in_loop_semantic_options,
     in_loop_tracker_options,
@@ -91,8 +90,10 @@ def test_a_typed_option_changes_one_setting_and_keeps_the_loops_others() -> None
     opts = stage.tracker._merge.options
     assert opts["min_margin"] == 0.2 and opts["place_test"] is True
     assert stage.tracker.options.drop_below == 0.9
-    assert stage.tracker.options.min_accept_cells == IN_LOOP_MIN_ACCEPT_CELLS
-    assert in_loop_tracker_options("orb").min_accept_cells == 0
+    # in the loop the place test is the look-alike guard: no floor sized on our worlds
+    assert stage.tracker.options.min_accept_cells == 0
+    assert opts["min_common_m2"] == opts["room_match_m2"] == 0.0
+    assert opts["min_wall_area_m2"] == opts["min_object_m2"] == 0.0
 
 
 @pytest.mark.parametrize(

@@ -28,7 +28,8 @@
 #      merge_lidar_mapper.{json,md}: the lidar family's pairs made with the former default maps,
 #      whose walls grazing beams erase (map_l_occ=1.4, with the former room_match_m2 15;
 #      docs/mapper.md); merge_lidar_mapper_heldout.{json,md}: the same on seeds 133-142 (the
-#      held-out block that judged the guard for today's maps)
+#      held-out block that judged the guard for today's maps); merge_place_test.{json,md}: a single
+#      call with the loop's look-alike guard (the place test) instead of its floors
 #   2. loop_study.{json,md}: merging in the exploration loop against an oracle merger;
 #      loop_exact.{json,md}: the same with exact odometry (a merge error is then a wrong place);
 #      loop_nav.{json,md}: the navigation task (exact odometry) against the oracle;
@@ -141,6 +142,9 @@ merge_steps() {
   bench_merge --methods semantic --n 30 --families lidar --seeds 133-142 \
     --lidar-options map_l_occ=1.4 --semantic-variant room_match_m2=15 \
     --out "$out/merge_lidar_mapper_heldout" --force
+  bench_merge --methods semantic --n 30 --families symmetric,real,noisy,lidar --seeds 0-9,12 \
+    --semantic-variant place_test=true,min_common_m2=0,room_match_m2=0,min_wall_area_m2=0,min_object_m2=0 \
+    --out "$out/merge_place_test" --force
 }
 other_steps() {
   mrexplore bench loop --seeds 20 --jobs 2 --out "$out/loop_study" --force
@@ -338,6 +342,18 @@ other_steps() {
   mrexplore bench loop --family office_row --part test10 --worlds 40 --seeds 5 \
     --variants semantic sighting none --reuse "$out/loop_office_row_test10.json" --jobs 2 \
     --out "$out/loop_office_row_test10_none" --force
+  # the eleventh test part (world seeds 1100000..; opened for the loop without the floors sized
+  # on our worlds): the defaults, and the merger with those floors, on the same episodes
+  mrexplore bench loop --family paper_like --part test11 --worlds 40 --seeds 5 \
+    --variants semantic sighting oracle_room --jobs 2 --out "$out/loop_paper_like_test11" --force
+  mrexplore bench loop --family paper_like --part test11 --worlds 40 --seeds 5 \
+    --variants semantic sighting --merge-options min_wall_area_m2=4,min_object_m2=20,min_accept_cells=250 \
+    --against "$out/loop_paper_like_test11.json" --jobs 2 --out "$out/loop_paper_like_test11_before" --force
+  mrexplore bench loop --family office_row --part test11 --worlds 40 --seeds 5 \
+    --variants semantic sighting oracle_room --jobs 2 --out "$out/loop_office_row_test11" --force
+  mrexplore bench loop --family office_row --part test11 --worlds 40 --seeds 5 \
+    --variants semantic sighting --merge-options min_wall_area_m2=4,min_object_m2=20,min_accept_cells=250 \
+    --against "$out/loop_office_row_test11.json" --jobs 2 --out "$out/loop_office_row_test11_before" --force
   # the four fixed worlds with the place test, beside the room oracle
   mrexplore bench loop --seeds 20 --variants semantic oracle_room --jobs 2 \
     --out "$out/loop_fixed_worlds" --force

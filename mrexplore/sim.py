@@ -383,11 +383,20 @@ class Simulation:
         (:meth:`mrexplore.sensors.Lidar.cast_observe`, incremental coverage); then one map
         update per robot at its *estimated* pose.
         """
-        world = self.world
-        origins = world.cell_of(self.true_poses[:, :2])
+        scan, newly, covered = self.cast(rng)
+        self.last_scan = scan
+        self._team_covered += covered
+        for i in range(self.n_robots):
+            x, y = self.integrate(i, scan)
+            self._trails[i].append(*self.maps[i].cell_of(x, y))
+        return newly
+
+    def cast(self, rng: np.random.Generator) -> tuple[Scan, NDArray[np.int64], int]:
+        """Every robot's lidar cast on the truth, ``observed`` and the team's cells marked:
+        (scan, newly observed cells per robot (R,), reachable cells the team saw first)."""
         scan, newly, covered = self.lidar.cast_observe(
             self._grid,
-            origins,
+            self.world.cell_of(self.true_poses[:, :2]),
             self.true_poses[:, 2],
             self.resolution_m,
             rng,
@@ -395,15 +404,14 @@ class Simulation:
             self.reachable,
             self._team_observed,
         )
-        self.last_scan = scan
-        self._team_covered += covered
-        angles = scan.angles
-        for i in range(self.n_robots):
-            x, y, th = (float(v) for v in self.est_poses[i])
-            m = self.maps[i]
-            m.integrate_trusted(x, y, th, angles, scan.ranges_m[i], scan.hit[i])
-            self._trails[i].append(*m.cell_of(x, y))
-        return newly
+        return scan, newly, covered
+
+    def integrate(self, i: int, scan: Scan) -> tuple[float, float]:
+        """Robot ``i``'s own-map update with its beams of ``scan`` at its *estimated* pose;
+        returns that pose's (x, y), metres."""
+        x, y, th = (float(v) for v in self.est_poses[i])
+        self.maps[i].integrate_trusted(x, y, th, scan.angles, scan.ranges_m[i], scan.hit[i])
+        return x, y
 
     # ------------------------------------------------------------------ queries
     def place(self, i: int, pose_world: NDArray[np.float64]) -> None:

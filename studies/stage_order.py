@@ -13,7 +13,7 @@ in alternating rounds, thread CPU time per world-step:
   single env stepped alone would see).
 
 The casts repeat the same poses (the maps absorb the same scans again); only the timing is
-read. It calls the simulator's sensing parts directly, as ``Simulation._sense`` does.
+read. It calls the simulator's two sensing parts (``Simulation.cast``, ``Simulation.integrate``).
 
     python studies/stage_order.py --worlds 32 --rounds 30
 """
@@ -47,45 +47,28 @@ def stepped_sims(n_worlds: int, steps: int = 40) -> list[Simulation]:
     return sims
 
 
-def cast(sim: Simulation, rng: np.random.Generator) -> Scan:
-    """Both robots' lidar cast on the truth, observed cells marked (``Simulation._sense``'s
-    first half)."""
-    origins = sim.world.cell_of(sim.true_poses[:, :2])
-    scan, _, _ = sim.lidar.cast_observe(
-        sim._grid,
-        origins,
-        sim.true_poses[:, 2],
-        sim.resolution_m,
-        rng,
-        sim.observed,
-        sim.reachable,
-        sim._team_observed,
-    )
-    return scan
-
-
-def integrate(sim: Simulation, scan: Scan) -> None:
-    """Both robots' own-map updates at their estimated poses (``_sense``'s second half)."""
-    for i in range(sim.n_robots):
-        x, y, th = (float(v) for v in sim.est_poses[i])
-        sim.maps[i].integrate_trusted(x, y, th, scan.angles, scan.ranges_m[i], scan.hit[i])
-
-
 def orders(sims: list[Simulation], rng: np.random.Generator) -> dict[str, Callable[[], None]]:
     """The three orders, each sensing ``len(sims)`` world-steps."""
 
+    def sense(sim: Simulation) -> None:
+        integrate(sim, sim.cast(rng)[0])
+
+    def integrate(sim: Simulation, scan: Scan) -> None:
+        for i in range(sim.n_robots):
+            sim.integrate(i, scan)
+
     def world_major() -> None:
         for s in sims:
-            integrate(s, cast(s, rng))
+            sense(s)
 
     def stage_major() -> None:
-        scans = [cast(s, rng) for s in sims]
+        scans = [s.cast(rng)[0] for s in sims]
         for s, scan in zip(sims, scans, strict=True):
             integrate(s, scan)
 
     def one_world() -> None:
         for _ in sims:
-            integrate(sims[0], cast(sims[0], rng))
+            sense(sims[0])
 
     return {
         "world-major": world_major,

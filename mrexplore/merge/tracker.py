@@ -321,8 +321,8 @@ class TrackerOptions(Options):
             current maps falls below this (default 0.85; 0 never drops).
         min_accept_cells: an attempt's pose counts towards acceptance only when it rests on at
             least this many cells (``MergeResult.overlap_cells``; the semantic merger's wall
-            cells of both maps under the pose); below, it is a refusal (default 0; the env asks
-            250 of the semantic merger: a few metres of look-alike wall are not a place).
+            cells of both maps under the pose); below, it is a refusal (default 0, in the env
+            too: there the merger's place test refuses a few metres of look-alike wall).
         confirm_growth: an agreeing attempt confirms the pending transform only when the shared
             wall cells under it (``MergeResult.overlap_cells``) grew by this share since the
             attempt before (default 0: any agreeing attempt on grown maps confirms).

@@ -50,6 +50,7 @@ makes the rules deterministic; the pixels (change detection, fused maps) are in
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor, Future, ThreadPoolExecutor, wait
@@ -141,6 +142,11 @@ SIGHTING_BINDS: bool = True
 #: ``confirmations`` otherwise waits for from a later attempt; a pose the maps slid elsewhere in
 #: the sighting's region waits as any pose does (False: every pose waits).
 SIGHTING_CONFIRMS: bool = True
+#: A pose the maps propose for a sighted pair (an attempt's, or a re-check's that would move or
+#: replace the kept one) must also keep the sighting's heading within ``PRIOR_TURN_DEG``, the
+#: region a guided attempt searches; a kept pose is judged by position only (False: new poses
+#: too).
+SIGHTING_TURN_BINDS: bool = True
 #: A sighting-guided attempt looks within this many cells of the guess (2 m at 0.05 m).
 PRIOR_RADIUS_CELLS: float = 40.0
 #: A sighting-guided attempt looks within this many degrees of the guess's heading.
@@ -705,6 +711,21 @@ class MapMergeTracker:
         gap = self._sighting_gap(i, j, T) if SIGHTING_BINDS else None
         return gap is not None and gap > PRIOR_RADIUS_CELLS
 
+    def _off_sighting(self, i: int, j: int, T: Transform) -> bool:
+        """Does a pose the maps propose for pair (i, j) (not the kept one) lie outside its
+        latest sighting's region: robot j put elsewhere (:meth:`_seen_elsewhere`) or, with
+        ``SIGHTING_TURN_BINDS``, turned from the sighting's heading by more than
+        ``PRIOR_TURN_DEG``? A new pose is held to the region a guided attempt searches; a
+        look-alike half a turn away can put the seen robot where it was seen."""
+        if self._seen_elsewhere(i, j, T):
+            return True
+        seen = self._sighted.get((i, j)) if SIGHTING_BINDS and SIGHTING_TURN_BINDS else None
+        if seen is None:
+            return False
+        turn = math.atan2(T[1, 0], T[0, 0]) - math.atan2(seen.T_ij[1, 0], seen.T_ij[0, 0])
+        turn = abs((turn + math.pi) % (2 * math.pi) - math.pi)
+        return math.degrees(turn) > PRIOR_TURN_DEG
+
     def _sighting_gap(self, i: int, j: int, T: Transform) -> float | None:
         """How far (cells) pose ``T_ij`` puts robot j from where the pair's latest sighting
         saw it (None without a sighting): judged at the seen position, where the sighting's
@@ -993,7 +1014,7 @@ class MapMergeTracker:
         if self.transform(i, j) is not None:
             return  # connected meanwhile (through a chain of other pairs)
         pending = self._pending.get((i, j))
-        if out.T is not None and self._seen_elsewhere(i, j, out.T):
+        if out.T is not None and self._off_sighting(i, j, out.T):
             out = replace(out, T=None)  # the robots were seen elsewhere: a refusal
         standing = self._remember_rivals(i, j, out)
         consistent = out.result is not None and (out.T is not None or _consistent(out.result))
@@ -1101,13 +1122,18 @@ class MapMergeTracker:
         if kept is None or T_old is None or not np.array_equal(kept, T_old):
             return  # dropped or replaced since the re-check started
         assert out.old_now is not None and out.held_now is not None
-        if out.outranked and not (out.best is not None and self._seen_elsewhere(i, j, out.best)):
+        if out.outranked and not (out.best is not None and self._off_sighting(i, j, out.best)):
             # The grown maps prefer another place by the merger's margins: un-merge, or move to
             # that place at once when the merger accepted it on these maps (not a place where
             # the robots were not seen: a sighting outranks the maps).
             first = self._contradicted.pop((i, j), step)
             moved = out.T is not None and not self._same(T_old, out.T, bbox_j, _same_place_cells())
-            if moved and out.result is not None and out.T is not None:
+            if (
+                moved
+                and out.result is not None
+                and out.T is not None
+                and not self._off_sighting(i, j, out.T)
+            ):
                 self.drops.append(DropRecord(i, j, first, step, "moved"))
                 self._replace_edge(i, j, out.T, out.result.score)
                 return
@@ -1142,9 +1168,7 @@ class MapMergeTracker:
         self._contradicted.pop((i, j), None)
         if out.result is None or out.T is None:
             return
-        if out.result.score >= out.old_now + REPLACE_MARGIN and not self._seen_elsewhere(
-            i, j, out.T
-        ):
+        if out.result.score >= out.old_now + REPLACE_MARGIN and not self._off_sighting(i, j, out.T):
             self._replace_edge(i, j, out.T, out.result.score)
 
     def _unmerge(self, i: int, j: int) -> None:

@@ -13,7 +13,7 @@ import mrexplore.merge.semantic as semantic_module
 import mrexplore.merge.tracker as tracker_module
 from mrexplore.errors import ConfigError, GridError
 from mrexplore.grid import OCCUPIED as OCC
-from mrexplore.grid import UNKNOWN, chain, invert_transform
+from mrexplore.grid import UNKNOWN, chain, invert_transform, map_points
 from mrexplore.merge import MapMergeTracker, MergeResult, TrackerOptions
 from mrexplore.merge.common import (
     Agreement,
@@ -1057,28 +1057,50 @@ def test_a_sighted_pair_attempt_does_not_take_a_pose_away_from_the_sighting(
     assert T is not None and merge_error(T, T_true, cb)[0] < 0.5
 
 
-@pytest.mark.parametrize("on", [True, False])
+@pytest.mark.parametrize(
+    ("place", "binds", "turn_binds", "kept"),
+    [
+        ("shifted", True, True, True),  # the maps' place puts robot 1 3 m from the sighting
+        ("shifted", False, True, False),  # sightings do not bind a merged pair: moved
+        ("turned", True, True, True),  # the same position, half a turn from the sighting
+        ("turned", True, False, False),  # the heading not judged: moved
+    ],
+)
 def test_a_recheck_does_not_move_a_sighted_pair_away_from_the_sighting(
-    robots: tuple[np.ndarray, np.ndarray, np.ndarray], on: bool, monkeypatch: pytest.MonkeyPatch
+    robots: tuple[np.ndarray, np.ndarray, np.ndarray],
+    place: str,
+    binds: bool,
+    turn_binds: bool,
+    kept: bool,
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """A sighting outranks the maps: a re-check whose maps single out another place (which
     would move the pair, see the test above on ``OUTRANKED_DROP``) keeps the pose the robots
-    were seen at. The place kept here is not the truth: the maps and the sighting disagree, and
-    the sighting wins."""
+    were seen at, when the other place puts the seen robot elsewhere or turns it from the
+    sighting's heading by more than ``PRIOR_TURN_DEG``. The place kept here is not the truth:
+    the maps and the sighting disagree, and the sighting wins."""
+    from mrexplore.merge.semantic import _turn_about
+
     ca, cb, T_true = robots
     truth = _in_crops(ca, cb, T_true)
-    shifted = translation(60.0, 0.0) @ T_true
-    there = _in_crops(ca, cb, shifted)
+    seen = _sighted_at(T_true, cb)
+    (x,), (y,) = map_points(np.array([seen.at_j]), T_true)
+    sighted = {
+        "shifted": translation(60.0, 0.0) @ T_true,
+        "turned": chain(_turn_about(180.0, float(x), float(y)), T_true),
+    }[place]
+    there = _in_crops(ca, cb, sighted)
     merger = _ScriptedWithBest([(there, there), (truth, truth)])
     tr = MapMergeTracker(
         2, merger=merger.merge, merge_every=1, recheck_every=3, confirmations=1, drop_below=0.0
     )
-    monkeypatch.setattr(tracker_module, "SIGHTING_BINDS", on)
+    monkeypatch.setattr(tracker_module, "SIGHTING_BINDS", binds)
+    monkeypatch.setattr(tracker_module, "SIGHTING_TURN_BINDS", turn_binds)
     tr.update([ca, cb], step=1)
-    tr.update([ca, cb], step=2, sightings={(0, 1): _sighted_at(shifted, cb)})
+    tr.update([ca, cb], step=2, sightings={(0, 1): Sighting(sighted, seen.at_j)})
     assert tr.merged(0)
     tr.update([ca, cb], step=3)  # the re-check
     T = tr.transform(0, 1)
     assert T is not None
-    assert (merge_error(T, shifted, cb)[0] < 0.5) is on
-    assert (merge_error(T, T_true, cb)[0] < 0.5) is not on
+    assert (merge_error(T, sighted, cb)[0] < 0.5) is kept
+    assert (merge_error(T, T_true, cb)[0] < 0.5) is not kept

@@ -133,8 +133,8 @@ DRIFT_KEEP_ABOVE: float = 0.9
 OUTRANKED_DROP: bool = True
 #: A sighting binds its pair: a kept pose outside the latest sighting's region is dropped (the
 #: next attempt looks in the region; merged through teammates, the chain's edges no sighting of
-#: their own vouches for), and re-checks look only inside it (False: sightings guide the
-#: attempts of unmerged pairs only).
+#: their own vouches for), and a re-check moves or replaces the kept pose only inside it
+#: (False: sightings guide the attempts of unmerged pairs only).
 SIGHTING_BINDS: bool = True
 #: A pose the merger accepts in an attempt guided by a sighting is merged at once when it puts
 #: the seen robot where the sighting saw it (within ``confirm_tol_cells``): the sighting measured
@@ -391,8 +391,14 @@ class TrackerOptions(Options):
             merger's :class:`~mrexplore.merge.PosePrior`).
         SIGHTING_BINDS: a sighting of a merged pair drops a kept pose outside its region (of a
             pair merged through teammates, every edge of the chain its own sighting does not
-            vouch for), and a sighted pair's re-checks look only in the latest sighting's region
-            (default True; False: sightings guide unmerged pairs' attempts only).
+            vouch for), and a sighted pair's re-checks move or replace its pose only inside
+            the latest sighting's region (default True; False: sightings guide unmerged pairs'
+            attempts only). A kept pose is judged by the seen robot's position only: drift
+            bends the maps and turns a kept rigid pose from a late sighting's heading.
+        SIGHTING_TURN_BINDS: a pose the maps propose for a sighted pair (an attempt's, or a
+            re-check's move or replacement) must also keep the sighting's heading within
+            ``PRIOR_TURN_DEG``, the window a guided attempt searches: a look-alike half a turn
+            away can put the seen robot where it was seen (default True).
         SIGHTING_CONFIRMS: a pose accepted by an attempt a sighting guided is merged at once,
             whatever ``confirmations`` asks, when it puts the seen robot within
             ``confirm_tol_cells`` of where the sighting saw it: the sighting measured it

@@ -354,6 +354,18 @@ other_steps() {
   mrexplore bench loop --family office_row --part test11 --worlds 40 --seeds 5 \
     --variants semantic sighting --merge-options min_wall_area_m2=4,min_object_m2=20,min_accept_cells=250 \
     --against "$out/loop_office_row_test11.json" --jobs 2 --out "$out/loop_office_row_test11_before" --force
+  # the twelfth test part (world seeds 1200000..; opened for a new pose keeping the sighting's
+  # heading): the defaults, both references, and the rule off on the same episodes
+  mrexplore bench loop --family paper_like --part test12 --worlds 40 --seeds 5 \
+    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_paper_like_test12" --force
+  mrexplore bench loop --family paper_like --part test12 --worlds 40 --seeds 5 \
+    --variants sighting --merge-options SIGHTING_TURN_BINDS=false \
+    --against "$out/loop_paper_like_test12.json" --jobs 2 --out "$out/loop_paper_like_test12_before" --force
+  mrexplore bench loop --family office_row --part test12 --worlds 40 --seeds 5 \
+    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_office_row_test12" --force
+  mrexplore bench loop --family office_row --part test12 --worlds 40 --seeds 5 \
+    --variants sighting --merge-options SIGHTING_TURN_BINDS=false \
+    --against "$out/loop_office_row_test12.json" --jobs 2 --out "$out/loop_office_row_test12_before" --force
   # the four fixed worlds with the place test, beside the room oracle
   mrexplore bench loop --seeds 20 --variants semantic oracle_room --jobs 2 \
     --out "$out/loop_fixed_worlds" --force

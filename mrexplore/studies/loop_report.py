@@ -581,7 +581,8 @@ def format_tables(doc: Mapping[str, Any], markdown: bool = False) -> str:
     )
     if doc.get("extra_env_options"):
         opts = ",".join(f"{k}={v}" for k, v in doc["extra_env_options"].items())
-        head += f"; env options {opts} (every variant)"
+        head += f"; env options {opts} (every variant"
+        head += ", but 'single' is one robot)" if "n_robots" in doc["extra_env_options"] else ")"
     if doc.get("merge_options"):
         opts = ",".join(f"{k}={v}" for k, v in doc["merge_options"].items())
         head += f"; merger options {opts} (variants {', '.join(MERGER_VARIANTS)})"

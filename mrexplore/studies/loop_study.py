@@ -114,7 +114,6 @@ SIGHTING_RANGE_M = 4.0
 #: Env options the study sets itself (its flags and its protocol): not for ``--env-options``.
 STUDY_SET_KEYS: tuple[str, ...] = (
     "world",
-    "n_robots",
     "merger",
     "max_time_s",
     "task",
@@ -214,14 +213,18 @@ def episode_options(
     """Env options of one episode of ``variant`` (the oracle's merger object not included);
     ``merge_options`` go to the variants that merge with the named semantic merger (its options
     and the tracker's, as the env's ``merge_options``); ``env_options`` (:data:`STUDY_SET_KEYS`
-    excluded) go to every variant."""
+    excluded) go to every variant, ``n_robots`` (the team's size, default 2) to every variant
+    but ``single``."""
     opts: dict[str, Any] = {
         **study_env_options(noise, task, nav_goal),
         **(env_options or {}),
         "world": world,
         "max_time_s": float(max_time_s),
     }
-    opts["n_robots"] = 1 if variant == "single" else 2
+    if variant == "single":
+        opts["n_robots"] = 1
+    else:
+        opts.setdefault("n_robots", 2)  # a team of two unless --env-options n_robots says
     opts["merger"] = None if variant in ("none", "single") else "semantic"
     if variant in ("sighting", "oracle_meet"):
         opts["sighting_range_m"] = SIGHTING_RANGE_M
@@ -405,6 +408,11 @@ def validate(
             EnvConfig.from_kwargs(**{**study_env_options(True, task, nav_goal), **env_options})
         except ConfigError as exc:
             raise ConfigError(f"loop study: --env-options: {exc}") from exc
+        if "n_robots" in env_options and env_options["n_robots"] < 2:
+            raise ConfigError(
+                f"loop study: --env-options n_robots is the team's size (the 'single' variant "
+                f"is one robot anyway): need >= 2, got {env_options['n_robots']!r}"
+            )
     if task == "navigate" and max_time_s <= NAV_WARMUP_S:
         raise ConfigError(
             f"loop study: --max-time-s ({max_time_s}) must exceed the navigation warm-up "
@@ -692,7 +700,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         default="",
         metavar="K=V,K=V",
         help="env options for every variant beyond the study's own, e.g. map_l_occ=2.6 "
-        "(the mapper's)",
+        "(the mapper's) or n_robots=3 (teams of three; 'single' stays one robot)",
     )
     p.add_argument(
         "--against",

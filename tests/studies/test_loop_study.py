@@ -38,6 +38,7 @@ from mrexplore.studies.loop_study import (
         ["--env-options", "map_l_oc=2.6"],
         ["--env-options", "map_l_occ=9"],
         ["--env-options", "range_noise_m=0"],
+        ["--env-options", "n_robots=1"],
     ],
 )
 def test_bad_options_fail_before_any_work(
@@ -68,6 +69,26 @@ def test_env_options_reach_every_variant(tmp_path: Path) -> None:
     doc = json.loads(Path(f"{out}.json").read_text())
     assert doc["extra_env_options"] == {"map_l_occ": 2.6} and doc["env_options"]["map_l_occ"] == 2.6
     assert "env options map_l_occ=2.6" in Path(f"{out}.md").read_text()
+
+
+def test_a_team_of_three_is_measured_like_a_team_of_two(tmp_path: Path) -> None:
+    """``--env-options n_robots=3``: every variant but ``single`` runs three robots (the
+    oracle merges every pair, sightings bind every pair), recorded and printed."""
+    from mrexplore.studies.loop_study import episode_options
+
+    for v in ("semantic", "sighting", "oracle_room", "none"):
+        assert episode_options("depot", v, 60.0, env_options={"n_robots": 3})["n_robots"] == 3
+    assert episode_options("depot", "single", 60.0, env_options={"n_robots": 3})["n_robots"] == 1
+    assert episode_options("depot", "semantic", 60.0)["n_robots"] == 2
+    out = tmp_path / "study"
+    argv = ["--worlds", "small_office", "--seeds", "1", "--variants", "sighting", "oracle"]
+    argv += ["--max-time-s", "40", "--env-options", "n_robots=3", "--out", str(out)]
+    assert main(argv) == 0
+    doc = json.loads(Path(f"{out}.json").read_text())
+    assert doc["env_options"]["n_robots"] == 3 and len(doc["episodes"]) == 2
+    oracle = next(e for e in doc["episodes"] if e["variant"] == "oracle")
+    assert oracle["merged"] and not oracle["wrong_merge"]
+    assert "n_robots=3 (every variant, but 'single' is one robot)" in Path(f"{out}.md").read_text()
 
 
 def test_merge_options_reach_the_semantic_variants_only(tmp_path: Path) -> None:

@@ -72,8 +72,8 @@ def test_env_options_reach_every_variant(tmp_path: Path) -> None:
 
 
 def test_a_team_of_three_is_measured_like_a_team_of_two(tmp_path: Path) -> None:
-    """``--env-options n_robots=3``: every variant but ``single`` runs three robots (the
-    oracle merges every pair, sightings bind every pair), recorded and printed."""
+    """``--env-options n_robots=3``: every variant but ``single`` runs three robots, recorded
+    and printed; the oracle's team merges without a wrong merge."""
     from mrexplore.studies.loop_study import episode_options
 
     for v in ("semantic", "sighting", "oracle_room", "none"):

@@ -366,6 +366,12 @@ other_steps() {
   mrexplore bench loop --family office_row --part test12 --worlds 40 --seeds 5 \
     --variants sighting --merge-options SIGHTING_TURN_BINDS=false \
     --against "$out/loop_office_row_test12.json" --jobs 2 --out "$out/loop_office_row_test12_before" --force
+  # ... and on the radial family's second test part (buildings the same under a turn)
+  mrexplore bench loop --family radial --part test2 --worlds 20 --seeds 5 \
+    --variants semantic sighting oracle_room --jobs 2 --out "$out/loop_radial_test2" --force
+  mrexplore bench loop --family radial --part test2 --worlds 20 --seeds 5 \
+    --variants sighting --merge-options SIGHTING_TURN_BINDS=false \
+    --against "$out/loop_radial_test2.json" --jobs 2 --out "$out/loop_radial_test2_before" --force
   # the four fixed worlds with the place test, beside the room oracle
   mrexplore bench loop --seeds 20 --variants semantic oracle_room --jobs 2 \
     --out "$out/loop_fixed_worlds" --force

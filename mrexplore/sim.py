@@ -329,10 +329,14 @@ class Simulation:
         drift alone can move a correct merge of j's map into i's away from the start-frame truth:
         both robots' position drift plus their heading drift times the mean distance of the cells
         from j's start. 0 with exact odometry (evaluation only)."""
+        return self.drift_allowance_at(i, j, self.drift_radius(j, cells_j))
+
+    def drift_radius(self, j: int, cells_j: NDArray[np.float64]) -> float:
+        """The mean distance (cells) of j's map cells ``cells_j`` (N, 2) ``(col, row)`` from
+        j's start (0 without cells): the lever arm of heading drift (evaluation only)."""
         origin = np.asarray(self.maps[j].origin_cell, dtype=np.float64)
         cells = np.asarray(cells_j, dtype=np.float64).reshape(-1, 2)
-        radius = float(np.linalg.norm(cells - origin, axis=1).mean()) if len(cells) else 0.0
-        return self.drift_allowance_at(i, j, radius)
+        return float(np.linalg.norm(cells - origin, axis=1).mean()) if len(cells) else 0.0
 
     def drift_allowance_at(self, i: int, j: int, radius: float) -> float:
         """:meth:`drift_allowance` for cells at mean distance ``radius`` (cells) from j's start

@@ -198,17 +198,27 @@ class TruthMonitor:
             if disps.size == 0:
                 return None
             disp, rot = float(disps.mean()), rotation_error_deg(T, T_true)
-            drift = sim.drift_allowance_at(i, j, float(radii.mean()))
+            drift = self._drift(i, j, float(radii.mean()))
         else:
             # truth.merge_error's measure, with the sample kept for the drift allowance
             pts = known_cells(grid, box, ERROR_SAMPLE_POINTS)
             if len(pts) == 0:
                 return None
             disp, rot = transform_error(T, T_true, pts)
-            drift = sim.drift_allowance(i, j, pts)
+            drift = self._drift(i, j, sim.drift_radius(j, pts))
         err = {"translation_cells": disp, "rotation_deg": rot, "drift_cells": drift}
         self._errors[(i, j)] = (int(sim.steps), np.array(T, copy=True), err)
         return err
+
+    def _drift(self, i: int, j: int, radius: float) -> float:
+        """The drift allowance (cells) of robot i's transform of j's map, for cells at mean
+        distance ``radius`` (cells) from j's start: the pair's own, or, when the tracker holds
+        it through teammates, the sum over the merged pairs of that chain, since each of them
+        may be off by its own two robots' drift (a middle robot's map is bent too)."""
+        tracker = getattr(self.fusion, "tracker", None)
+        if tracker is None or tracker.transform(i, j) is None:
+            return self.sim.drift_allowance_at(i, j, radius)
+        return sum(self.sim.drift_allowance_at(a, b, radius) for a, b in tracker.chain_edges(i, j))
 
     # ------------------------------------------------------------------ maps
     def held_free(self, i: int, transforms: Mapping[str, NDArray[np.float64]]) -> int:

@@ -696,6 +696,16 @@ class MapMergeTracker:
         does (False without a sighting)?"""
         return (i, j) in self._sighted and not self._seen_elsewhere(i, j, self._edges[(i, j)])
 
+    def chain_edges(self, i: int, j: int) -> list[tuple[int, int]]:
+        """The kept edges (low index first) whose transforms :meth:`transform` chains from
+        robot i to robot j, in order (one edge when the pair is merged directly). Raises
+        :class:`~mrexplore.errors.ConfigError` when the robots are not connected."""
+        if not (0 <= i < self.n and 0 <= j < self.n) or i == j:
+            raise ConfigError(f"chain_edges: need two robots of 0 .. {self.n - 1}, got {i}, {j}")
+        if self.transform(i, j) is None:
+            raise ConfigError(f"robots {i} and {j} are not merged, directly or through teammates")
+        return self._chain_edges(i, j)
+
     def _chain_edges(self, i: int, j: int) -> list[tuple[int, int]]:
         """The kept edges (as stored, low index first) on the path that :meth:`transform`
         chains from robot i to robot j (connected)."""

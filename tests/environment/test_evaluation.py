@@ -158,3 +158,31 @@ def test_held_credits_a_wrongly_merged_robot_with_its_own_map_only() -> None:
     assert monitor.held_free(1, {}) == scorer.held_free(
         scorer.warp(sim.maps[1].to_int8(), sim.world_from_map(1))
     )
+
+
+def test_a_transform_held_through_teammates_is_allowed_each_merged_pairs_drift(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Robot 0 holds robot 2's map through robot 1 (pairs 0-1 and 1-2 merged): each merge may
+    be off by its own two robots' drift, so the transform is allowed the sum over the chain
+    (robot 1's bent map counts in both); merged directly, the pair's own allowance."""
+    import mrexplore
+    from mrexplore.errors import ConfigError
+
+    env = mrexplore.parallel_env(world="small_office", n_robots=3, merger="semantic")
+    env.reset(seed=5)
+    sim, monitor = env.episode.sim, env.episode.truth
+    tracker = monitor.fusion.tracker
+    with pytest.raises(ConfigError, match="not merged"):
+        tracker.chain_edges(0, 2)
+    # a stand-in allowance that names its pair: (a, b) -> 10 a + b + 1 cells
+    monkeypatch.setattr(sim, "drift_allowance_at", lambda a, b, radius: 10.0 * a + b + 1.0)
+    for edges, allowed in (([(0, 1), (1, 2)], (0 + 1 + 1) + (10 + 2 + 1)), ([(0, 2)], 3.0)):
+        tracker._edges = {e: sim.true_transform(*e) for e in edges}
+        tracker._paths = None
+        monitor._errors.clear()
+        assert tracker.chain_edges(0, 2) == edges
+        T = tracker.transform(0, 2)
+        err = monitor._pair_error(0, 2, T)
+        assert err is not None and err["drift_cells"] == allowed
+        assert err["translation_cells"] < 1e-6  # the chain of true transforms is the truth

@@ -372,6 +372,13 @@ other_steps() {
   mrexplore bench loop --family radial --part test2 --worlds 20 --seeds 5 \
     --variants sighting --merge-options SIGHTING_TURN_BINDS=false \
     --against "$out/loop_radial_test2.json" --jobs 2 --out "$out/loop_radial_test2_before" --force
+  # the thirteenth test part (world seeds 1300000..): teams of three robots
+  mrexplore bench loop --family paper_like --part test13 --worlds 40 --seeds 5 \
+    --variants semantic sighting oracle_room --env-options n_robots=3 --jobs 2 \
+    --out "$out/loop_paper_like_test13_three" --force
+  mrexplore bench loop --family office_row --part test13 --worlds 40 --seeds 5 \
+    --variants semantic sighting oracle_room --env-options n_robots=3 --jobs 2 \
+    --out "$out/loop_office_row_test13_three" --force
   # the four fixed worlds with the place test, beside the room oracle
   mrexplore bench loop --seeds 20 --variants semantic oracle_room --jobs 2 \
     --out "$out/loop_fixed_worlds" --force

@@ -74,8 +74,8 @@ def in_loop_semantic_options(**changes: Any) -> SemanticOptions:
     return SemanticOptions.from_kwargs(**{**IN_LOOP_SEMANTIC_OPTIONS, **changes})
 
 
-def in_loop_tracker_options(merger: Any = "semantic", **changes: Any) -> TrackerOptions:
-    """The tracker's options in the loop for ``merger`` with ``changes``: what to give the env's
+def in_loop_tracker_options(**changes: Any) -> TrackerOptions:
+    """The tracker's options in the loop with ``changes``: what to give the env's
     ``tracker_options``. They are the tracker's defaults for every merger: the semantic
     merger's former floor on the accepted pose's wall cells (``min_accept_cells`` 250, a length
     of wall chosen on our worlds) decided nothing more once the place test was on
@@ -88,7 +88,6 @@ def in_loop_tracker_options(merger: Any = "semantic", **changes: Any) -> Tracker
     """
     from mrexplore.merge.tracker import TrackerOptions
 
-    del merger  # the same for every merger now; kept so that callers need not change
     return TrackerOptions.from_kwargs(**changes)
 
 
@@ -110,7 +109,7 @@ def _tracker_settings(
     knobs = {k: options.pop(k) for k in sorted(TRACKER_KEYS & set(options))}
     semantic = semantic_named(merger)
     if tracker_options is None:
-        tuning = in_loop_tracker_options(merger, **{**schedule, **knobs})
+        tuning = in_loop_tracker_options(**{**schedule, **knobs})
     elif not isinstance(tracker_options, TrackerOptions):
         raise ConfigError(f"tracker_options must be a TrackerOptions, got {tracker_options!r}")
     elif knobs:

@@ -169,12 +169,17 @@ class PosePrior:
         ``centre`` (2,): the centre of b's walls in b's cells)."""
         p = np.stack(map_points(centre.reshape(1, 2), T), axis=1)[0]
         q = np.stack(map_points(centre.reshape(1, 2), prior_T), axis=1)[0]
-        turn = math.atan2(T[1, 0], T[0, 0]) - math.atan2(prior_T[1, 0], prior_T[0, 0])
-        turn = abs((turn + math.pi) % (2 * math.pi) - math.pi)
         return (
             math.hypot(p[0] - q[0], p[1] - q[1]) <= self.radius_cells
-            and math.degrees(turn) <= self.turn_deg
+            and turn_between_deg(T, prior_T) <= self.turn_deg
         )
+
+
+def turn_between_deg(T: Transform, U: Transform) -> float:
+    """The angle (degrees, 0-180) between the rotations of two 3x3 poses, from ``math.atan2``
+    (the C library's, the same on every CPU)."""
+    turn = math.atan2(T[1, 0], T[0, 0]) - math.atan2(U[1, 0], U[0, 0])
+    return math.degrees(abs((turn + math.pi) % (2 * math.pi) - math.pi))
 
 
 # --------------------------------------------------------------------------------------------

@@ -50,7 +50,6 @@ makes the rules deterministic; the pixels (change detection, fused maps) are in
 
 from __future__ import annotations
 
-import math
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor, Future, ThreadPoolExecutor, wait
@@ -79,6 +78,7 @@ from mrexplore.merge.semantic import (
     SemanticOptions,
     rival_structure,
     stands_as_rival,
+    turn_between_deg,
 )
 from mrexplore.options import (
     MERGE_EVERY_CHECK,
@@ -738,9 +738,7 @@ class MapMergeTracker:
         seen = self._sighted.get((i, j)) if SIGHTING_BINDS and SIGHTING_TURN_BINDS else None
         if seen is None:
             return False
-        turn = math.atan2(T[1, 0], T[0, 0]) - math.atan2(seen.T_ij[1, 0], seen.T_ij[0, 0])
-        turn = abs((turn + math.pi) % (2 * math.pi) - math.pi)
-        return math.degrees(turn) > PRIOR_TURN_DEG
+        return turn_between_deg(T, seen.T_ij) > PRIOR_TURN_DEG
 
     def _sighting_gap(self, i: int, j: int, T: Transform) -> float | None:
         """How far (cells) pose ``T_ij`` puts robot j from where the pair's latest sighting

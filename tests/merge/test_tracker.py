@@ -686,6 +686,11 @@ def test_hypotheses_hold_both_look_alike_rooms_until_the_pair_merges() -> None:
     back = tr.hypotheses(1, 0)
     for T, B in zip(cands, back, strict=True):
         np.testing.assert_allclose(B, invert_transform(T), atol=1e-9)
+    # asked again (every step): the same poses, in new arrays a caller may change
+    again = tr.hypotheses(1, 0)
+    assert [B.tolist() for B in again] == [B.tolist() for B in back]
+    again[0][0, 2] += 100.0
+    assert tr.hypotheses(1, 0)[0].tolist() == back[0].tolist()
     guess = chain(T_true, _turn_about(3.0, 85.0, 90.0), translation(5.0, -4.0))
     tr.update([canvas_a, canvas_b], step=2, sightings={(0, 1): guess})
     assert tr.merged(0) and tr.hypotheses(0, 1) == [] and tr.hypotheses(1, 0) == []

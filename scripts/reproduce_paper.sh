@@ -379,6 +379,14 @@ other_steps() {
   mrexplore bench loop --family office_row --part test13 --worlds 40 --seeds 5 \
     --variants semantic sighting oracle_room --env-options n_robots=3 --jobs 2 \
     --out "$out/loop_office_row_test13_three" --force
+  # the fourteenth test part (world seeds 1400000..): the defaults as shipped, no rule changed
+  mrexplore bench loop --family paper_like --part test14 --worlds 40 --seeds 5 \
+    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_paper_like_test14" --force
+  mrexplore bench loop --family office_row --part test14 --worlds 40 --seeds 5 \
+    --variants semantic sighting oracle_room none --jobs 2 --out "$out/loop_office_row_test14" --force
+  # ... and the radial family's third test part
+  mrexplore bench loop --family radial --part test3 --worlds 20 --seeds 5 \
+    --variants semantic sighting oracle_room --jobs 2 --out "$out/loop_radial_test3" --force
   # the four fixed worlds with the place test, beside the room oracle
   mrexplore bench loop --seeds 20 --variants semantic oracle_room --jobs 2 \
     --out "$out/loop_fixed_worlds" --force

@@ -578,7 +578,8 @@ def _reduction(single: float | None, multi: float | None) -> float | None:
 
 def wrong_merge_warning(doc: Mapping[str, Any]) -> str | None:
     """One line saying how many episodes held a wrong merge and that their teams' times include
-    them; None when none did."""
+    them, and, when the teams merged from the maps alone, how to merge only robots that met;
+    None when no episode held one."""
     parts: list[str] = []
     wrong = total = 0
     for task, entry in doc["tasks"].items():
@@ -597,10 +598,17 @@ def wrong_merge_warning(doc: Mapping[str, Any]) -> str | None:
                 )
     if not wrong:
         return None
+    hint = ""
+    if str(doc.get("merging", "")).startswith("from the maps alone"):
+        # the documented path for look-alike rooms (docs/guide/merger.md): the robots' meetings
+        hint = (
+            "; on floors with repeated rooms let the robots see each other "
+            "(--sighting-range-m 4, or sighting_range_m=4.0): only robots that have met merge"
+        )
     return (
         f"WARNING: {wrong} of {total} episodes held a wrong merge ({'; '.join(parts)}); "
         "those teams' task times include them (the observed time does not charge a wrong merge, "
-        "the held time does)"
+        f"the held time does){hint}"
     )
 
 

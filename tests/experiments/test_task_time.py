@@ -268,7 +268,12 @@ def test_a_wrong_merge_shows_in_table_csv_json_and_plot(tmp_path: Path) -> None:
     assert warning.startswith("WARNING: 1 of 4 episodes held a wrong merge")
     assert "explore 2 robots: 1 of 2, 12.5 s merged wrongly" in warning
     assert "include them" in warning
+    assert "--sighting-range-m 4" in warning  # merged from the maps alone: the way out
     assert doc["wrong_merge_warning"] == warning
+    seen = task_time._document(
+        runs, "their.yaml", "coordinated-frontier", [7, 8], {"sighting_range_m": 4.0}
+    )
+    assert "--sighting-range-m" not in str(seen["wrong_merge_warning"])
 
     csv_path = tmp_path / "t.csv"
     task_time._write_csv(csv_path, runs, [7, 8])

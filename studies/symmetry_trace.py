@@ -37,12 +37,12 @@ from mrexplore.merge.semantic import (
     FAR_CELLS,
     MIN_OVERLAP_CELLS,
     SemanticOptions,
-    _mean_shift,
     merge_semantic,
     stands_as_rival,
     turn_between_deg,
 )
 from mrexplore.studies.loop_study import POLICY, episode_options
+from mrexplore.truth import transform_error
 
 Transform = NDArray[np.float64]
 
@@ -58,7 +58,7 @@ def self_matches(grid: NDArray[np.int8], options: dict[str, Any]) -> list[Transf
         a = pose.agreement
         if a.share < o.min_overlap or a.overlap < MIN_OVERLAP_CELLS or a.score < o.min_score:
             continue
-        if _mean_shift(pose.transform, np.eye(3), walls[:: max(1, len(walls) // 2000)]) < 1.0:
+        if transform_error(pose.transform, np.eye(3), walls[:: max(1, len(walls) // 2000)])[0] < 1:
             continue  # the identity
         out.append(pose.transform)
     return out
@@ -75,7 +75,7 @@ def standing_rival(
     rivals = [(chain(S, T), S) for S in self_matches(map0, options)]
     rivals += [(chain(T, invert_transform(S)), S) for S in self_matches(map1, options)]
     for R, S in rivals:
-        if _mean_shift(R, T, verify.points_b) < FAR_CELLS:
+        if transform_error(R, T, verify.points_b)[0] < FAR_CELLS:
             continue
         if stands_as_rival(held, verify(R), verify.cells_per_sample, o):
             return round(turn_between_deg(S, np.eye(3)), 1)
@@ -96,7 +96,7 @@ def trace(record: dict[str, Any], doc: dict[str, Any], which: str, every: int) -
     agents = [f"robot_{k}" for k in range(opts["n_robots"])]
     team = make_team(POLICY, agents, "explore")
     box: dict[str, Any] = {}
-    found: dict[str, Any] = {"start": None, "stood": None, "turn": None}
+    found: dict[str, Any] = {"start": None, "stood": None, "turn": None, "dt_s": None}
 
     def on_step(step: int) -> None:
         env = box["env"].unwrapped
@@ -108,7 +108,7 @@ def trace(record: dict[str, Any], doc: dict[str, Any], which: str, every: int) -
         if not started or T is None:
             return
         if found["start"] is None:
-            found["start"] = step
+            found["start"], found["dt_s"] = step, float(env.config.dt_s)
         if (step - found["start"]) % every:
             return
         maps = [np.array(env.local_map(a)) for a in agents[:2]]
@@ -131,7 +131,6 @@ def main() -> None:
     args = p.parse_args()
     with open(args.results) as f:
         doc = json.load(f)
-    dt_s = 0.25
     eps = [
         e
         for e in doc["episodes"]
@@ -164,7 +163,7 @@ def main() -> None:
             gap = (
                 e["merged_wrongly_s"]
                 if sym is None
-                else min(e["merged_wrongly_s"], (sym - start) * dt_s)
+                else min(e["merged_wrongly_s"], (sym - start) * f["dt_s"])
             )
             held_before += gap
             line += f"; held wrongly {e['merged_wrongly_s']} s, {gap:.2f} s of it before"

@@ -599,9 +599,8 @@ def wrong_merge_warning(doc: Mapping[str, Any]) -> str | None:
     if not wrong:
         return None
     hint = ""
-    if str(doc.get("merging", "")).startswith("from the maps alone"):
-        # the documented path for look-alike rooms (docs/guide/merger.md): the robots' meetings
-        hint = (
+    if doc.get("merging") == merging_mode({}):  # the teams merged from the maps alone
+        hint = (  # the documented path for look-alike rooms (docs/guide/merger.md)
             "; on floors with repeated rooms let the robots see each other "
             "(--sighting-range-m 4, or sighting_range_m=4.0): only robots that have met merge"
         )

@@ -561,9 +561,6 @@ class MapMergeTracker:
         # (i, j) -> the last attempt's best pose T_ij (canvas cells) when it passed the
         # consistency test (a candidate a robot may go and check; never accepted from here)
         self._best: dict[tuple[int, int], Transform] = {}
-        # (i, j) -> (the stored poses, their inverses): hypotheses() is asked every step and
-        # the poses change only when an attempt ends (the stored arrays, held, are the key)
-        self._inverses: dict[tuple[int, int], tuple[list[Transform], list[Transform]]] = {}
         # (i, j) -> known cells of both maps at the last merge attempt
         self._last_attempt_known: dict[tuple[int, int], int] = {}
         # (i, j) -> the latest sighting of the pair (canvas cells)
@@ -1270,18 +1267,8 @@ class MapMergeTracker:
         a, b = min(i, j), max(i, j)
         best = self._best.get((a, b))
         stored = ([] if best is None else [best]) + self._rivals.get((a, b), [])
-        if i < j:
-            return [T.copy() for T in stored]
-        # stored as T_ab (b's cells into a's): inverted for j's into i's (new arrays each call)
-        held = self._inverses.get((a, b))
-        if (
-            held is None
-            or len(held[0]) != len(stored)
-            or any(T is not U for T, U in zip(stored, held[0], strict=True))
-        ):
-            held = (stored, [invert_transform(T) for T in stored])
-            self._inverses[(a, b)] = held
-        return [T.copy() for T in held[1]]
+        # stored as T_ab (b's cells into a's): inverted (new arrays) for j's into i's
+        return [invert_transform(T) if i > j else T.copy() for T in stored]
 
     def merged(self, i: int) -> bool:
         """True once robot i's map is connected to at least one teammate's."""

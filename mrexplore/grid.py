@@ -39,24 +39,31 @@ Int8Grid = NDArray[np.int8]
 Transform = NDArray[np.float64]
 
 
-def known_bbox(grid: Int8Grid, margin: int = 0) -> Box | None:
+def known_bbox(grid: Int8Grid, margin: int = 0, within: Box | None = None) -> Box | None:
     """The box (half-open) of the known cells of ``grid``, grown by ``margin`` and clipped to
-    the grid, or None when nothing is known.
+    the grid, or None when nothing is known. ``within``: a box known to hold every known cell
+    (a :class:`~mrexplore.types.RobotView`'s ``known_box``): only it is scanned, with the same
+    answer.
 
     Uses row/column maxima of the int8 array (``UNKNOWN`` is the smallest value), which numpy
     reduces with SIMD: much cheaper than a boolean mask of a whole canvas.
 
     >>> g = np.full((4, 5), UNKNOWN, dtype=np.int8); g[1, 2] = FREE; g[2, 3] = OCCUPIED
-    >>> known_bbox(g), known_bbox(g, margin=1)
-    ((1, 3, 2, 4), (0, 4, 1, 5))
+    >>> known_bbox(g), known_bbox(g, margin=1), known_bbox(g, within=(1, 4, 2, 5))
+    ((1, 3, 2, 4), (0, 4, 1, 5), (1, 3, 2, 4))
     """
-    rows = np.flatnonzero(grid.max(axis=1) > UNKNOWN)
+    h, w = grid.shape
+    top, left = 0, 0
+    if within is not None:
+        top, left = max(0, within[0]), max(0, within[2])
+        grid = grid[top : max(top, within[1]), left : max(left, within[3])]
+    rows = np.flatnonzero(grid.max(axis=1, initial=UNKNOWN) > UNKNOWN)
     if rows.size == 0:
         return None
     r0, r1 = int(rows[0]), int(rows[-1]) + 1
     cols = np.flatnonzero(grid[r0:r1].max(axis=0) > UNKNOWN)
-    c0, c1 = int(cols[0]), int(cols[-1]) + 1
-    h, w = grid.shape
+    c0, c1 = int(cols[0]) + left, int(cols[-1]) + 1 + left
+    r0, r1 = r0 + top, r1 + top
     return (max(0, r0 - margin), min(h, r1 + margin), max(0, c0 - margin), min(w, c1 + margin))
 
 

@@ -90,6 +90,9 @@ class RobotView:
             robot's, most likely first; the tracker's ``hypotheses``) and the teammate's own
             map (int8, read-only), as exchanged for merging. The merger's knowledge, never the
             truth: a policy may go where the candidates can be told apart.
+        known_box: a half-open box ``(row0, row1, col0, col1)`` of ``map`` that holds every
+            cell that is not unknown (it may be larger than the tightest such box; ``(0, 0, 0,
+            0)`` when nothing is known), or None when not given: readers then scan the map.
     """
 
     agent: str
@@ -107,3 +110,4 @@ class RobotView:
     hypotheses: dict[str, tuple[list[NDArray[np.float64]], NDArray[np.int8]]] = field(
         default_factory=dict
     )
+    known_box: Box | None = None

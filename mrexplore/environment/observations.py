@@ -131,6 +131,16 @@ def _area_lut(factor: int, size: int) -> NDArray[np.uint8] | None:
     return lut
 
 
+def _known_array(view: RobotView) -> NDArray[np.int64]:
+    """``view.known_box`` as the int64 ``(r0, r1, c0, c1)`` the view kernel reads, the whole map
+    when the view does not give one."""
+    box = view.known_box
+    if box is None:
+        h, w = view.map.shape
+        box = (0, h, 0, w)
+    return np.array(box, dtype=np.int64)
+
+
 class ObservationBuilder:
     """Builds the ``(8, S, S)`` uint8 observation of one robot from its :class:`RobotView`.
 
@@ -175,7 +185,8 @@ class ObservationBuilder:
         # every observation), which spares a policy with turn/forward actions from learning to
         # rotate its input; otherwise the views keep the axes of the robot's own map frame.
         phi = math.pi / 2 - theta if self.heading_up else 0.0
-        self._shares_view(view.map, (col, row), self.global_cells, phi, obs[0], obs[1])
+        known = _known_array(view)
+        self._shares_view(view.map, (col, row), self.global_cells, phi, obs[0], obs[1], known)
         scale_g = s / self.global_cells
         if phi == 0.0 and _views is not None and kernels.enabled() and len(trail_cells):
             # one compiled pass over the trail instead of ~10 numpy calls on it
@@ -186,7 +197,7 @@ class ObservationBuilder:
         if view.teammates:
             self._dots(obs[3], list(view.teammates.values()), (col, row), scale_g, phi, radius=2)
 
-        self._shares_view(view.map, (col, row), self.local_cells, phi, obs[4], obs[5])
+        self._shares_view(view.map, (col, row), self.local_cells, phi, obs[4], obs[5], known)
         scale_l = s / self.local_cells
         centre = (s // 2, s // 2)
         radius_px = max(1, round(view.robot_radius_m / view.resolution_m * scale_l))
@@ -208,18 +219,19 @@ class ObservationBuilder:
         phi: float,
         out_free: NDArray[np.uint8],
         out_occ: NDArray[np.uint8],
+        known: NDArray[np.int64],
     ) -> None:
         """Free/occupied shares of a ``side``-cell view centred on ``centre``, turned by ``phi``,
-        written into ``out_free`` / ``out_occ`` (S, S)."""
+        written into ``out_free`` / ``out_occ`` (S, S); ``known`` as :func:`_known_array`."""
         s = self.size
         if phi == 0.0:
-            self._shares_into(grid, centre, side, out_free, out_occ)
+            self._shares_into(grid, centre, side, out_free, out_occ, known)
             return
         # A window 1.5x as wide (its inscribed circle covers the turned square), resampled to
         # 1.5x the pixels, turned about its centre, and cropped back to s x s.
         big_side, big_px = 3 * side // 2, 3 * s // 2
         free, occ = self._big
-        self._shares_into(grid, centre, big_side, free, occ)
+        self._shares_into(grid, centre, big_side, free, occ, known)
         c = (big_px - 1) / 2.0
         cs, sn = math.cos(phi), math.sin(phi)
         off = (big_px - s) // 2
@@ -235,6 +247,7 @@ class ObservationBuilder:
         side: int,
         out_free: NDArray[np.uint8],
         out_occ: NDArray[np.uint8],
+        known: NDArray[np.int64],
     ) -> None:
         """:func:`_shares` of :func:`_window` into ``out_free`` / ``out_occ`` (n, n): by one
         compiled pass over the window when the resize is an integer INTER_AREA factor whose
@@ -273,6 +286,7 @@ class ObservationBuilder:
             self._acc,
             out_free,
             out_occ,
+            known,
         )
 
     def _dots(

@@ -370,6 +370,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
             time_s=float(ep.sim.time_s),
             trail=ep.sim.trail_cells(i),
             hypotheses=self._hypotheses(agent) if with_hypotheses and not merged else {},
+            known_box=self.fusion.known_box(agent),
         )
 
     def _hypotheses(

@@ -118,6 +118,7 @@ def warm_up() -> None:
         np.zeros(2, dtype=np.int32),
         np.zeros((2, 2), dtype=np.uint8),
         np.zeros((2, 2), dtype=np.uint8),
+        np.array([0, 4, 0, 4], dtype=np.int64),
     )
     views.trail_dots(np.zeros((2, 2), dtype=np.uint8), np.zeros((1, 2)), 0.0, 0.0, 1.0)
     no = np.zeros((1, 1), dtype=np.bool_)

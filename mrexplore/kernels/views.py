@@ -58,6 +58,7 @@ def view_shares(
     acc: NDArray[np.int32],
     out_free: NDArray[np.uint8],
     out_occ: NDArray[np.uint8],
+    known: NDArray[np.int64],
 ) -> None:
     """Free and occupied shares of a square window of an int8 map, in one pass.
 
@@ -69,7 +70,9 @@ def view_shares(
     block counts both classes without a branch; a
     pixel's value is ``lut[count]`` (``lut`` reproduces OpenCV's INTER_AREA of 0/255 masks, whose
     output depends only on the count: checked when the lut is built). ``acc``: int32 (S,)
-    scratch. Requires ``factor * factor < 2 ** SHARE_BITS``.
+    scratch. Requires ``factor * factor < 2 ** SHARE_BITS``. ``known``: int64 ``(r0, r1, c0, c1)``,
+    a half-open box of the grid holding every cell that is not unknown (the whole grid will do):
+    the window is read only inside it, since an unknown cell adds nothing to either share.
     """
     h, w = grid.shape
     size = out_free.shape[0]
@@ -80,28 +83,39 @@ def view_shares(
         # The window lies inside the grid (the usual case): no bounds tests, and the block
         # sums of the usual (stride, factor) pairs with literal steps (measured: several times
         # faster than the generic loop with runtime steps, which LLVM does not vectorise).
+        # Only the rows and blocks that meet the known box are read; the blocks' slices start at
+        # index 0 so that LLVM sees no negative index and still vectorises.
+        step = stride * factor
+        kr0, kr1 = known[0], known[1]
+        x0 = min(max(0, -((c0 + stride * (factor - 1) - known[2]) // step)), size)
+        x1 = min(max(x0, (known[3] - 1 - c0) // step + 1), size)
+        n = x1 - x0
+        part = acc[x0:x1]
         for y in range(size):
             for x in range(size):
                 acc[x] = 0
             for a in range(factor):
-                row = grid[r0 + stride * (factor * y + a)]
+                r = r0 + stride * (factor * y + a)
+                if r < kr0 or r >= kr1:
+                    continue
+                row = grid[r, c0 + step * x0 :]
                 # literal strides and factors, so that LLVM unrolls and vectorises each case
                 if stride == 2 and factor == 4:
-                    _add_blocks(row, acc, c0, size, 2, 4, free_lo, free_hi, occ_lo)
+                    _add_blocks(row, part, 0, n, 2, 4, free_lo, free_hi, occ_lo)
                 elif stride == 1 and factor == 2:
-                    _add_blocks(row, acc, c0, size, 1, 2, free_lo, free_hi, occ_lo)
+                    _add_blocks(row, part, 0, n, 1, 2, free_lo, free_hi, occ_lo)
                 elif stride == 2 and factor == 2:
-                    _add_blocks(row, acc, c0, size, 2, 2, free_lo, free_hi, occ_lo)
+                    _add_blocks(row, part, 0, n, 2, 2, free_lo, free_hi, occ_lo)
                 elif stride == 1 and factor == 1:
-                    _add_blocks(row, acc, c0, size, 1, 1, free_lo, free_hi, occ_lo)
+                    _add_blocks(row, part, 0, n, 1, 1, free_lo, free_hi, occ_lo)
                 else:
-                    c = c0
-                    for x in range(size):
+                    c = c0 + step * x0
+                    for x in range(n):
                         t = 0
                         for _ in range(factor):
-                            t += code[row[c] + 128]
+                            t += code[grid[r, c] + 128]
                             c += stride
-                        acc[x] += t
+                        part[x] += t
             for x in range(size):
                 out_free[y, x] = lut[acc[x] & mask]
                 out_occ[y, x] = lut[acc[x] >> SHARE_BITS]

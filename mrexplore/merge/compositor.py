@@ -18,7 +18,7 @@ changed teammate.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -112,6 +112,8 @@ class MapCompositor:
         # (None: all of it), for readers that follow the fused map incrementally
         self._fcount = [0] * self.n
         self._fchanged: list[Box | None] = [None] * self.n
+        # per robot: a box holding every known cell of the last composition
+        self._fknown: list[Box] = [(0, 0, 0, 0)] * self.n
         # per robot: the MapChange.version last observed (None: observed without one)
         self._seen_version: list[int | None] = [None] * self.n
 
@@ -294,12 +296,30 @@ class MapCompositor:
         )
         self._fcount[i] += 1
         self._fchanged[i] = None if regions is None else (changed or (0, 0, 0, 0))
+        self._fknown[i] = self._known_box(i, own.shape, patches.values())
         # A read-only view of the buffer, a new view object whenever the content changed (as
         # the own maps' ``to_int8``): a fresh copy cost a memset of the canvas per changed step.
         out = buf.view()
         out.flags.writeable = False
         self._fused[i], self._fused_key[i] = out, key
         return out
+
+    def _known_box(self, i: int, shape: tuple[int, int], patches: Iterable[_Patch]) -> Box:
+        """A box holding every known cell of robot i's composition: its own known box and the
+        windows of the ``patches`` fused in, clipped to ``shape``; ``(0, 0, 0, 0)`` when empty."""
+        box = self._bbox[i]
+        for p in patches:
+            h, w = p.data.shape
+            win = _clip((p.r0, p.r0 + h, p.c0, p.c0 + w), shape)
+            if win is not None:
+                box = win if box is None else _union(box, win)
+        return (0, 0, 0, 0) if box is None else box
+
+    def fused_known_box(self, i: int) -> Box:
+        """A half-open box of robot i's last fused map (:meth:`fused`) holding every cell that is
+        not unknown: its own known box and the windows of the teammates' patches (no scan;
+        possibly larger than the tightest box); ``(0, 0, 0, 0)`` before any composition."""
+        return self._fknown[i]
 
     def fused_change(self, i: int) -> tuple[int, Box | None]:
         """``(composition count, box)`` of robot i's fused map: the count grows by one with

@@ -155,6 +155,15 @@ def _owned_by_stage(options: _O, stage: Mapping[str, Any], where: str) -> _O:
     return dataclasses.replace(options, **stage)  # type: ignore[type-var]
 
 
+def _known_of(changes: Mapping[str, MapChange] | None, agent: str) -> Box | None:
+    """The known box ``changes`` tells of ``agent``'s map (``(0, 0, 0, 0)`` when all is
+    unknown), None when it tells nothing."""
+    change = None if changes is None else changes.get(agent)
+    if change is None:
+        return None
+    return (0, 0, 0, 0) if change.known_box is None else change.known_box
+
+
 class FusionStage:
     """Runs a :class:`~mrexplore.merge.MapMergeTracker` over named agents.
 
@@ -201,6 +210,8 @@ class FusionStage:
         self.index = {a: i for i, a in enumerate(self.agents)}
         self.enabled = merger is not None and len(self.agents) > 1
         self._maps: list[NDArray[np.int8]] = []
+        # per agent: a box holding the own map's known cells, from its owner (None: not told)
+        self._known: list[Box | None] = []
         self._memo: dict[tuple[str, str], Any] = {}  # answers of this update (see _memoised)
         self._first_merge_step: dict[str, int | None] = dict.fromkeys(self.agents)
         # fused_version: a counter that only grows (never reset, so a version never repeats),
@@ -241,6 +252,7 @@ class FusionStage:
     def reset(self) -> None:
         """Forget every transform (a new episode)."""
         self._maps = []
+        self._known = []
         self._memo = {}
         self._first_merge_step = dict.fromkeys(self.agents)
         self._seen = {}
@@ -269,6 +281,7 @@ class FusionStage:
         if missing:
             raise KeyError(f"no local map for agent(s) {missing}")
         self._maps = [check_int8_map(local_maps[a], f"local map of {a}") for a in self.agents]
+        self._known = [_known_of(changes, a) for a in self.agents]
         self._memo = {}
         self._counter += 1
         self._update_version = self._counter
@@ -329,6 +342,17 @@ class FusionStage:
         if tracker is not None and self.merged(agent):
             return self._memoised("fused", agent, lambda: np.asarray(tracker.fused(i)))
         return self._maps[i]
+
+    def known_box(self, agent: str) -> Box | None:
+        """A half-open box of :meth:`fused` of ``agent`` holding every cell that is not unknown
+        (possibly larger than the tightest; ``(0, 0, 0, 0)`` when nothing is known), or None when
+        the maps' owner did not tell their known boxes (``update``'s ``changes``)."""
+        i = self.index[agent]
+        tracker = self.tracker
+        if tracker is not None and self.merged(agent):
+            self.fused(agent)  # the box of this update's composition
+            return tracker.fused_known_box(i)
+        return self._known[i] if i < len(self._known) else None
 
     def fused_version(self, agent: str) -> int:
         """A number that changes whenever :meth:`fused` of ``agent`` may have changed.

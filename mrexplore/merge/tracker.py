@@ -1302,6 +1302,11 @@ class MapMergeTracker:
             mates[j] = T
         return self._px.fused(i, mates, self._linked)
 
+    def fused_known_box(self, i: int) -> Box:
+        """A half-open box of robot i's last :meth:`fused` map holding every cell that is not
+        unknown (possibly larger than the tightest; no scan), ``(0, 0, 0, 0)`` before any."""
+        return self._px.fused_known_box(i)
+
     def fused_change(self, i: int) -> tuple[int, Box | None]:
         """``(composition count, box)`` of robot i's fused map: the count grows by one with
         every :meth:`fused` that recomposed it, and ``box`` (half-open, i's cells; empty when

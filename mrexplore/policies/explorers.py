@@ -470,7 +470,7 @@ class FrontierExplorer(Policy):
         """
         m = view.map
         res = float(view.resolution_m)
-        box = known_bbox(m, margin=1 + self.plan_factor)
+        box = known_bbox(m, margin=1 + self.plan_factor, within=view.known_box)
         if box is None:
             return None
         r0, r1, c0, c1 = box

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import mrexplore
+from mrexplore.grid import known_bbox
 from mrexplore.policies import make_team_policy
 
 pytestmark = pytest.mark.expensive  # end-to-end episodes: deselect with -m "not expensive"
@@ -28,6 +29,12 @@ def test_merge_happens_and_is_never_wrong(aligned: bool, seed: int) -> None:
     merged_steps = 0
     while penv.agents and merged_steps < 300:
         views = {a: penv.robot_view(a) for a in penv.agents}
+        for v in views.values():
+            # the box the views and planners read instead of the canvas holds every known cell
+            tight = known_bbox(v.map)
+            assert v.known_box is not None and tight is not None
+            (r0, r1, c0, c1), (t0, t1, u0, u1) = v.known_box, tight
+            assert r0 <= t0 and r1 >= t1 and c0 <= u0 and c1 >= u1
         _, _, _, _, infos = penv.step(team.act(views))
         for info in infos.values():
             if info["merged"]:

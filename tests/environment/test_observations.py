@@ -73,16 +73,35 @@ def test_compiled_shares_equal_the_opencv_path(
         np.array([UNKNOWN, FREE, 10, 25, 26, 50, 64, 65, OCCUPIED], dtype=np.int8), (700, 650)
     )
     m[rng.random(m.shape) < 0.5] = UNKNOWN
+    # the same map known only inside a box (read only there when the box is given)
+    inner = np.full_like(m, UNKNOWN)
+    inner[201:437, 117:390] = m[201:437, 117:390]
+    whole = np.array([0, 700, 0, 650], dtype=np.int64)
+    cases = [
+        (m, whole),
+        (inner, whole),
+        (inner, np.array([201, 437, 117, 390], dtype=np.int64)),
+        (inner, np.array([199, 440, 116, 391], dtype=np.int64)),
+    ]
     b = ObservationBuilder(resolution_m, global_m, local_m, size)
     for side in (b.global_cells, b.local_cells, 3 * b.global_cells // 2, 3 * b.local_cells // 2):
         n = size if side in (b.global_cells, b.local_cells) else 3 * size // 2
-        for centre in [(325.0, 350.0), (10.4, 690.6), (640.5, 2.5), (-300.0, 200.0), (3.5, 4.5)]:
-            free = np.zeros((n, n), np.uint8)
-            occ = np.zeros((n, n), np.uint8)
-            b._shares_into(m, centre, side, free, occ)
-            ref = _shares(_window(m, centre, side), n)
-            np.testing.assert_array_equal(free, ref[0])
-            np.testing.assert_array_equal(occ, ref[1])
+        for centre in [
+            (325.0, 350.0),
+            (10.4, 690.6),
+            (640.5, 2.5),
+            (-300.0, 200.0),
+            (3.5, 4.5),
+            (118.5, 436.5),
+            (395.0, 190.0),
+        ]:
+            for grid, known in cases:
+                free = np.zeros((n, n), np.uint8)
+                occ = np.zeros((n, n), np.uint8)
+                b._shares_into(grid, centre, side, free, occ, known)
+                ref = _shares(_window(grid, centre, side), n)
+                np.testing.assert_array_equal(free, ref[0])
+                np.testing.assert_array_equal(occ, ref[1])
 
 
 def test_few_dots_mark_what_the_numpy_path_marks() -> None:

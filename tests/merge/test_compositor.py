@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mrexplore.grid import OCCUPIED, UNKNOWN
+from mrexplore.grid import OCCUPIED, UNKNOWN, known_bbox
 from mrexplore.merge.common import translation
 from mrexplore.merge.compositor import MapCompositor
 
@@ -51,3 +51,29 @@ def test_fused_map_is_the_cellwise_max_through_the_transform_and_the_links() -> 
     comp.forget_pair(0, 1)
     moved = comp.fused(0, {1: translation(30, 0)}, lambda i, j: True)
     assert (moved[10:20, 35:45] == OCCUPIED).all() and (moved[10:20, 25:35] != OCCUPIED).all()
+
+
+def _holds(box: tuple[int, int, int, int], m: np.ndarray) -> bool:
+    """Does ``box`` (half-open) hold every known cell of ``m``?"""
+    tight = known_bbox(m)
+    if tight is None:
+        return True
+    return box[0] <= tight[0] and box[1] >= tight[1] and box[2] <= tight[2] and box[3] >= tight[3]
+
+
+def test_fused_known_box_holds_every_known_cell_as_the_maps_grow() -> None:
+    comp = MapCompositor(2)
+    assert comp.fused_known_box(0) == (0, 0, 0, 0)  # before any composition
+    a, b = _map(), np.full((40, 50), UNKNOWN, dtype=np.int8)
+    b[2:6, 3:8] = OCCUPIED
+    comp.observe(0, a)
+    comp.observe(1, b)
+    T = translation(30, 25)  # b's cells land up and right of a's known box
+    fused = comp.fused(0, {1: T}, lambda i, j: True)
+    box = comp.fused_known_box(0)
+    assert _holds(box, fused) and not _holds(comp.bbox(0), fused)  # type: ignore[arg-type]
+    b[6:9, 3:12] = 0  # b grows: the incremental composition's box follows
+    comp.observe(1, b)
+    fused = comp.fused(0, {1: T}, lambda i, j: True)
+    assert _holds(comp.fused_known_box(0), fused)
+    assert (fused[31:34, 33:42] == 0).all()

@@ -79,15 +79,20 @@ def frontier_clusters(
     h, w = grid.shape
     r_lo, r_hi, c_lo, c_hi = h, -1, w, -1
     for r in range(h):
-        for c in range(w):
-            if grid[r, c] != _UNKNOWN:
-                if r < r_lo:
-                    r_lo = r
-                r_hi = r
-                if c < c_lo:
-                    c_lo = c
-                if c > c_hi:
-                    c_hi = c
+        # each row's first and last known cell, looked for from either end
+        first = 0
+        while first < w and grid[r, first] == _UNKNOWN:
+            first += 1
+        if first == w:
+            continue
+        last = w - 1
+        while grid[r, last] == _UNKNOWN:
+            last -= 1
+        if r < r_lo:
+            r_lo = r
+        r_hi = r
+        c_lo = min(c_lo, first)
+        c_hi = max(c_hi, last)
     window = np.zeros(2, dtype=np.int64)
     if r_hi < 0:
         return (
@@ -102,6 +107,9 @@ def frontier_clusters(
     window[0], window[1] = c0, r0
     hh, ww = r1 - r0, c1 - c0
     parent = np.full(hh * ww, -1, dtype=np.int32)
+    # the frontier cells' flat indices in raster order: the later passes visit only them
+    found = np.empty(hh * ww, dtype=np.int64)
+    n_found = 0
     for y in range(hh):
         r = r0 + y
         for x in range(ww):
@@ -117,6 +125,8 @@ def frontier_clusters(
                 continue
             i = y * ww + x
             parent[i] = i
+            found[n_found] = i
+            n_found += 1
             # the four neighbours already visited: west, north-west, north, north-east
             for dy, dx in ((0, -1), (-1, -1), (-1, 0), (-1, 1)):
                 yy, xx = y + dy, x + dx
@@ -132,23 +142,22 @@ def frontier_clusters(
                     else:
                         parent[a] = b
     # clusters numbered by their first cell in raster order; sizes and coordinate sums
-    label = np.full(hh * ww, -1, dtype=np.int64)
+    frontier = found[:n_found]
+    label = np.full(hh * ww, -1, dtype=np.int32)
     n = 0
-    for i in range(hh * ww):
-        if parent[i] >= 0:
-            root = _find(parent, i)
-            if label[root] < 0:
-                label[root] = n
-                n += 1
+    for i in frontier:
+        root = _find(parent, i)
+        if label[root] < 0:
+            label[root] = n
+            n += 1
     size = np.zeros(n, dtype=np.int64)
     sx = np.zeros(n, dtype=np.int64)
     sy = np.zeros(n, dtype=np.int64)
-    for i in range(hh * ww):
-        if parent[i] >= 0:
-            k = label[_find(parent, i)]
-            size[k] += 1
-            sx[k] += i % ww
-            sy[k] += i // ww
+    for i in frontier:
+        k = label[_find(parent, i)]
+        size[k] += 1
+        sx[k] += i % ww
+        sy[k] += i // ww
     keep = np.full(n, -1, dtype=np.int64)
     n_keep = 0
     total = 0
@@ -171,9 +180,7 @@ def frontier_clusters(
     fill = starts[:-1].copy()
     targets = np.full(n_keep, -1, dtype=np.int64)
     best = np.full(n_keep, np.inf)
-    for i in range(hh * ww):
-        if parent[i] < 0:
-            continue
+    for i in frontier:
         q = keep[label[_find(parent, i)]]
         if q < 0:
             continue
@@ -191,6 +198,60 @@ def frontier_clusters(
 
 
 @numba.njit(cache=True, nogil=True)
+def _blocked(crop: NDArray[np.int8], disc: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """uint8 (H, W) of ``crop``: 1 where the occupied cells dilated by ``disc`` (odd square,
+    centred, convex and symmetric) reach. The disc is one run of columns per row offset, so the
+    dilation is the occupied cells dilated along the rows by each run's half width, shifted by
+    its row offset: whole-row passes that LLVM vectorises."""
+    ch, cw = crop.shape
+    k = disc.shape[0] // 2
+    half = np.empty(2 * k + 1, dtype=np.int64)
+    for d in range(2 * k + 1):
+        half[d] = (np.count_nonzero(disc[d]) - 1) // 2  # -1: an empty row
+    widest = 0
+    for d in range(2 * k + 1):
+        widest = max(widest, half[d])
+    # along[wd]: the occupied cells dilated along the rows by wd cells, wd = 0 .. widest
+    along = np.zeros((widest + 1, ch, cw), dtype=np.uint8)
+    occ = along[0]
+    for r in range(ch):
+        for c in range(cw):
+            occ[r, c] = crop[r, c] >= _OCC_LO
+    for wd in range(1, widest + 1):
+        prev = along[wd - 1]
+        cur = along[wd]
+        n = cw - wd
+        for r in range(ch):
+            pr = prev[r]
+            cr = cur[r]
+            orow = occ[r]
+            for c in range(cw):
+                cr[c] = pr[c]
+            if n <= 0:
+                continue
+            # slices that start at index 0: LLVM sees no negative index and vectorises
+            shifted = cr[wd:]
+            left = orow[:n]
+            for c in range(n):
+                shifted[c] |= left[c]
+            right = orow[wd:]
+            for c in range(n):
+                cr[c] |= right[c]
+    blocked = np.zeros((ch, cw), dtype=np.uint8)
+    for d in range(2 * k + 1):
+        if half[d] < 0:
+            continue
+        s = d - k  # row a of the result takes row a - s of the dilation
+        dil = along[half[d]]
+        for a in range(max(0, s), min(ch, ch + s)):
+            src = dil[a - s]
+            dst = blocked[a]
+            for c in range(cw):
+                dst[c] |= src[c]
+    return blocked
+
+
+@numba.njit(cache=True, nogil=True)
 def coarse_free(
     crop: NDArray[np.int8],
     disc: NDArray[np.uint8],
@@ -203,44 +264,51 @@ def coarse_free(
     occupied cells dilated by ``disc`` (odd square, centred; cells beyond ``crop`` blocked) and
     at least half of them free (known free, or unknown with ``unknown_is_free``)."""
     ch, cw = crop.shape
-    k = disc.shape[0] // 2
-    # the disc as one run of columns per row offset (it is convex and symmetric)
-    half = np.empty(2 * k + 1, dtype=np.int64)
-    for d in range(2 * k + 1):
-        half[d] = (np.count_nonzero(disc[d]) - 1) // 2  # -1: an empty row
-    blocked = np.zeros((ch, cw), dtype=np.uint8)
-    for r in range(ch):
-        prev = False
-        for c in range(cw):
-            occ = crop[r, c] >= _OCC_LO
-            if occ:
-                for d in range(2 * k + 1):
-                    a = r + d - k
-                    if a < 0 or a >= ch or half[d] < 0:
-                        continue
-                    # after an occupied cell on the left only the run's new right end is new
-                    b0 = c + half[d] if prev else max(c - half[d], 0)
-                    for b in range(b0, min(c + half[d] + 1, cw)):
-                        blocked[a, b] = 1
-            prev = occ
-    # per planning cell: fine cells clear of the walls, and of those the free ones
-    n_ok = np.zeros((h, w), dtype=np.int32)
-    n_free = np.zeros((h, w), dtype=np.int32)
-    col = np.arange(cw) // factor
+    blocked = _blocked(crop, disc)
     unk = np.int8(-128 if not unknown_is_free else _UNKNOWN)
+    need = factor * factor
+    free = np.zeros((h, w), dtype=np.bool_)
+    if factor == 1:
+        for j in range(h):
+            for i in range(w):
+                v = crop[j, i]
+                free[j, i] = (blocked[j, i] == 0) & (((v >= 0) & (v <= _FREE_HI)) | (v == unk))
+        return free
+    if factor == 2:
+        # the planners' factor: each planning cell's four fine cells read in place (a planning
+        # cell reaching beyond the crop has blocked cells: not traversable)
+        for j in range(min(h, ch // 2)):
+            top, bottom = crop[2 * j], crop[2 * j + 1]
+            btop, bbottom = blocked[2 * j], blocked[2 * j + 1]
+            for i in range(min(w, cw // 2)):
+                n_ok = 0
+                n_free = 0
+                for v, bl in (
+                    (top[2 * i], btop[2 * i]),
+                    (top[2 * i + 1], btop[2 * i + 1]),
+                    (bottom[2 * i], bbottom[2 * i]),
+                    (bottom[2 * i + 1], bbottom[2 * i + 1]),
+                ):
+                    ok = 1 - bl
+                    n_ok += ok
+                    n_free += ok & (((v >= 0) & (v <= _FREE_HI)) | (v == unk))
+                free[j, i] = (n_ok == 4) & (2 * n_free >= 4)
+        return free
+    # per planning cell: fine cells clear of the walls, and of those the free ones
+    n_ok_all = np.zeros((h, w), dtype=np.int32)
+    n_free_all = np.zeros((h, w), dtype=np.int32)
+    col = np.arange(cw) // factor
     for a in range(ch):
         j = a // factor
         for b in range(cw):
             v = crop[a, b]
             ok = 1 - blocked[a, b]
             fr = ((v >= 0) & (v <= _FREE_HI)) | (v == unk)
-            n_ok[j, col[b]] += ok
-            n_free[j, col[b]] += ok & fr
-    need = factor * factor
-    free = np.empty((h, w), dtype=np.bool_)
+            n_ok_all[j, col[b]] += ok
+            n_free_all[j, col[b]] += ok & fr
     for j in range(h):
         for i in range(w):
-            free[j, i] = (n_ok[j, i] == need) & (2 * n_free[j, i] >= need)
+            free[j, i] = (n_ok_all[j, i] == need) & (2 * n_free_all[j, i] >= need)
     return free
 
 

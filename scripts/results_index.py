@@ -327,15 +327,45 @@ def describe_eval(doc: Mapping[str, Any]) -> tuple[str, str]:
 
 
 def describe_env_bench(doc: Mapping[str, Any]) -> tuple[str, str]:
+    rows = {k: v for k, v in doc.items() if k != "machine"}
     what = "env speed, CPU time of the stepping thread (a timing: machine- and load-dependent): "
-    what += "; ".join(doc)
-    parts = [
-        f"{name}: {float(row['robot_steps_per_s']):,.0f} robot-steps/s, "
-        f"p99 {float(row['p99_ms']):.2f} ms"
-        for name, row in doc.items()
-        if "robot_steps_per_s" in row and "p99_ms" in row
-    ]
+    what += "; ".join(rows)
+    parts = []
+    machine = doc.get("machine")
+    if isinstance(machine, dict):
+        load = machine.get("load")
+        parts.append(
+            f"machine: {machine.get('usable_cores')} cores"
+            + ("" if not load else f", load {float(load[0]):.2f} before")
+        )
+    for name, row in rows.items():
+        if "robot_steps_per_s" in row and "p99_ms" in row:
+            parts.append(
+                f"{name}: {float(row['robot_steps_per_s']):,.0f} robot-steps/s, "
+                f"p99 {float(row['p99_ms']):.2f} ms"
+            )
+        elif "process_ms" in row and "max_over_p50" in row:
+            parts.append(
+                f"{name}: {float(row['process_ms']):.2f} ms of process CPU per step, the "
+                f"slowest step {float(row['max_over_p50']):.2f}x the median"
+            )
+        elif "single" in row:
+            for key, label in (("batched_threads", "threads"), ("batched_processes", "processes")):
+                if key in row:
+                    parts.append(
+                        f"{name}, {row['num_envs']} worlds in {label}: "
+                        f"{float(row[key]['wall_ratio']):.2f}x the single envs in wall time"
+                    )
     return what, "; ".join(parts)
+
+
+def _is_env_bench(doc: Mapping[str, Any]) -> bool:
+    """Is ``doc`` a ``mrexplore bench env --json`` file (rows keyed by setting, a machine)?"""
+    rows = [v for k, v in doc.items() if k != "machine"]
+    return bool(rows) and all(
+        isinstance(v, dict) and ("robot_steps_per_s" in v or "process_ms" in v or "single" in v)
+        for v in rows
+    )
 
 
 def describe(doc: Any) -> tuple[str, str]:
@@ -349,7 +379,7 @@ def describe(doc: Any) -> tuple[str, str]:
             return describe_task_time(doc)
         if "policy_folder" in doc:
             return describe_eval(doc)
-        if doc and all(isinstance(v, dict) and "robot_steps_per_s" in v for v in doc.values()):
+        if _is_env_bench(doc):
             return describe_env_bench(doc)
         return "keys: " + ", ".join(map(str, doc)), "-"
     return type(doc).__name__, "-"  # pragma: no cover - every study is a JSON object

@@ -46,3 +46,24 @@ def test_a_family_part_s_worlds_are_one_range() -> None:
         "family:paper_like/test4/0-39 (40 worlds), depot, family:f/tune/3"
     )
     assert script._worlds(["family:f/t/0", "family:f/t/2"]) == "family:f/t/0, family:f/t/2"
+
+
+def test_an_env_bench_file_says_its_machine_rollout_and_batched_ratio() -> None:
+    script = load_script("results_index")
+    doc = {
+        "symmetric_office, 2 robots": {"robot_steps_per_s": 2117.4, "p99_ms": 1.59},
+        "rollout, coordinated-frontier": {"process_ms": 3.2, "max_over_p50": 4.3},
+        "side by side, random": {
+            "num_envs": 32,
+            "single": {"wall_ratio": 1.0},
+            "batched_threads": {"wall_ratio": 1.04},
+            "batched_processes": {"wall_ratio": 1.52},
+        },
+        "machine": {"cores": 2, "usable_cores": 2, "load": [0.6, 1.0, 1.0], "load_after": None},
+    }
+    what, headline = script.describe(doc)
+    assert what.endswith("; side by side, random") and "rollout, coordinated-frontier" in what
+    assert headline.startswith("machine: 2 cores, load 0.60 before")
+    assert "2,117 robot-steps/s, p99 1.59 ms" in headline
+    assert "3.20 ms of process CPU per step, the slowest step 4.30x the median" in headline
+    assert "32 worlds in processes: 1.52x the single envs in wall time" in headline

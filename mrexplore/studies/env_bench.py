@@ -339,15 +339,22 @@ def rollout_row(label: str, r: dict[str, Any]) -> str:
     )
 
 
-def _load_line(when: str) -> str:
-    """The machine's cores and load average (the context of every wall-time figure)."""
+def _machine() -> dict[str, Any]:
+    """The machine's cores and load averages now (1, 5, 15 min; None where the OS has none)."""
     from mrexplore.environment.batched import usable_cores
 
     try:
-        load = " ".join(f"{v:.2f}" for v in os.getloadavg())
+        load: list[float] | None = [round(v, 2) for v in os.getloadavg()]
     except OSError:  # not available on this OS
-        load = "unknown"
-    return f"machine: {os.cpu_count()} cores ({usable_cores()} usable); load average {when}: {load}"
+        load = None
+    return {"cores": os.cpu_count(), "usable_cores": usable_cores(), "load": load}
+
+
+def _load_line(when: str, machine: dict[str, Any] | None = None) -> str:
+    """The machine's cores and load average (the context of every wall-time figure)."""
+    m = _machine() if machine is None else machine
+    load = "unknown" if m["load"] is None else " ".join(f"{v:.2f}" for v in m["load"])
+    return f"machine: {m['cores']} cores ({m['usable_cores']} usable); load average {when}: {load}"
 
 
 class _Driver:
@@ -761,7 +768,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"mrexplore bench env: {args.steps} random-action steps per setting, seed {args.seed}, "
         f"merger {merger}; figures are CPU time of the stepping thread"
     )
-    print(_load_line("before"))
+    before = _machine()
+    print(_load_line("before", before))
     results: dict[str, Any] = {}
     if not args.batched_only:
         print(HEADER)
@@ -822,6 +830,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 print(line, flush=True)
         print(_load_line("after"))
     if args.json:
+        results["machine"] = {**before, "load_after": _machine()["load"]}
         write_text(args.json, json.dumps(results, indent=2))
     return 0
 

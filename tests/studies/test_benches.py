@@ -100,6 +100,21 @@ def test_env_rollout_row_splits_the_step_between_policy_and_env(capsys) -> None:
     assert "symmetric_office, 1 robot " not in out  # --batched-only
 
 
+def test_env_json_holds_every_row_and_the_machine(tmp_path: Path) -> None:
+    import json
+
+    out = tmp_path / "env.json"
+    args = ["bench", "env", "--rollout", "coordinated-frontier", "--batched-only", "--steps", "2"]
+    assert main([*args, "--json", str(out)]) == 0
+    doc = json.loads(out.read_text())
+    assert set(doc) == {
+        "rollout, coordinated-frontier, symmetric_office, 2 robots, merger semantic",
+        "machine",
+    }
+    assert doc["machine"]["cores"] >= 1 and doc["machine"]["usable_cores"] >= 1
+    assert main([*args, "--json", str(out)]) != 0  # an existing result is kept without --force
+
+
 def test_env_batched_rows_run_on_a_tiny_setting(tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]
     """``--batched``: one row per number of worlds (not timed: a tiny run)."""
     out_json = tmp_path / "b.json"

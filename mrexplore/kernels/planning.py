@@ -322,20 +322,26 @@ def distance_cells(
     final when its bucket is reached, since a step (at least ``straight``, less than
     ``2 * straight``) lands one or two buckets later."""
     h, w = free.shape
-    n_cells = h * w
-    flat = free.ravel()
-    unreached = 2 * diag * n_cells
-    dist = np.full(n_cells, unreached, dtype=np.int64)
+    # a blocked ring around the grid: the neighbours of a cell need no bounds tests
+    W = w + 2
+    ring = np.zeros((h + 2) * W, dtype=np.bool_)
+    for j in range(h):
+        row = free[j]
+        base = (j + 1) * W + 1
+        for i in range(w):
+            ring[base + i] = row[i]
+    unreached = 2 * diag * h * w
+    dist = np.full(ring.size, unreached, dtype=np.int64)
     # three ring buckets of cell indices (lazy deletion: stale entries are skipped)
-    cap = 8 * n_cells + starts.size + 1
+    cap = 8 * h * w + starts.size + 1
     buckets = np.empty((3, cap), dtype=np.int64)
     fill = np.zeros(3, dtype=np.int64)
     for s in starts:
-        dist[s] = 0
-        buckets[0, fill[0]] = s
+        r = s // w
+        p = (r + 1) * W + (s - r * w) + 1
+        dist[p] = 0
+        buckets[0, fill[0]] = p
         fill[0] += 1
-    drs = (-1, 1, 0, 0, -1, -1, 1, 1)
-    dcs = (0, 0, -1, 1, -1, 1, -1, 1)
     level = 0
     pending = starts.size
     while pending > 0:
@@ -348,23 +354,24 @@ def distance_cells(
             d = dist[u]
             if d // straight != level:
                 continue  # stale: reached later with a shorter distance
-            r = u // w
-            col = u - r * w
-            for k in range(8):
-                rr = r + drs[k]
-                cc = col + dcs[k]
-                if rr < 0 or rr >= h or cc < 0 or cc >= w:
-                    continue
-                v = rr * w + cc
-                if not flat[v]:
-                    continue
-                if k >= 4:
-                    if not flat[rr * w + col] or not flat[r * w + cc]:
-                        continue
-                    nd = d + diag
-                else:
-                    nd = d + straight
-                if nd < dist[v]:
+            nd = d + straight
+            for v in (u - W, u + W, u - 1, u + 1):
+                if ring[v] and nd < dist[v]:
+                    dist[v] = nd
+                    nb = (nd // straight) % 3
+                    buckets[nb, fill[nb]] = v
+                    fill[nb] += 1
+                    pending += 1
+            # a diagonal step needs both cells it passes beside free (no corner cutting)
+            nd = d + diag
+            up, down, left, right = ring[u - W], ring[u + W], ring[u - 1], ring[u + 1]
+            for v, ok in (
+                (u - W - 1, up and left),
+                (u - W + 1, up and right),
+                (u + W - 1, down and left),
+                (u + W + 1, down and right),
+            ):
+                if ok and ring[v] and nd < dist[v]:
                     dist[v] = nd
                     nb = (nd // straight) % 3
                     buckets[nb, fill[nb]] = v
@@ -374,8 +381,9 @@ def distance_cells(
         level += 1
     out = np.empty((h, w))
     for j in range(h):
+        base = (j + 1) * W + 1
         for i in range(w):
-            v = dist[j * w + i]
+            v = dist[base + i]
             out[j, i] = np.inf if v >= unreached or not free[j, i] else float(v) / straight
     return out
 

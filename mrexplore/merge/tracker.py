@@ -50,6 +50,7 @@ makes the rules deterministic; the pixels (change detection, fused maps) are in
 
 from __future__ import annotations
 
+import time
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor, Future, ThreadPoolExecutor, wait
@@ -241,6 +242,27 @@ class _Outcome:
     outranked: bool = False
     # attempt: the merger looked only in a sighting's region (a PosePrior from the guess)
     guided: bool = False
+    # CPU seconds of the thread that computed it (``time.thread_time``): a cost, never read
+    # by a decision (it differs between machines and runs)
+    cpu_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class MergeWork:
+    """What a tracker's merge attempts and re-checks cost in an episode
+    (:attr:`MapMergeTracker.work`): those applied so far since the last :meth:`reset`.
+
+    Attributes:
+        attempts: merge attempts applied (a pair's maps handed to the merger).
+        rechecks: re-checks of merged pairs applied.
+        cpu_s: CPU seconds they took, in the thread that ran them (``time.thread_time``; the
+            worker thread's with ``merge_latency_steps`` > 0). Machine- and load-dependent: a
+            cost to compare within one run, not part of the run (nothing reads it to decide).
+    """
+
+    attempts: int = 0
+    rechecks: int = 0
+    cpu_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -576,6 +598,7 @@ class MapMergeTracker:
         self._contradicted: dict[tuple[int, int], int] = {}
         #: Every transform dropped this episode, oldest first.
         self.drops: list[DropRecord] = []
+        self._work = MergeWork()
 
     # ------------------------------------------------------------------ step
     def update(
@@ -755,6 +778,23 @@ class MapMergeTracker:
         return self._links is None or bool(self._links[i, j] and self._links[j, i])
 
     def _compute(
+        self,
+        kind: str,
+        i: int,
+        j: int,
+        a: Int8Grid,
+        b: Int8Grid,
+        offsets: tuple[tuple[int, int], tuple[int, int]],
+        T_old: Transform | None,
+        rivals: Sequence[Transform] = (),
+        guess: Transform | None = None,
+    ) -> _Outcome:
+        """:meth:`_outcome` with the CPU time it took in this thread (``cpu_s``)."""
+        t0 = time.thread_time()
+        out = self._outcome(kind, i, j, a, b, offsets, T_old, rivals, guess)
+        return replace(out, cpu_s=time.thread_time() - t0)
+
+    def _outcome(
         self,
         kind: str,
         i: int,
@@ -975,6 +1015,11 @@ class MapMergeTracker:
     def _apply(self, job: _Job) -> None:
         out = job.outcome.result() if isinstance(job.outcome, Future) else job.outcome
         i, j = job.i, job.j
+        w = self._work
+        attempt = job.kind == "attempt"
+        self._work = MergeWork(
+            w.attempts + attempt, w.rechecks + (not attempt), w.cpu_s + out.cpu_s
+        )
         if out.result is not None:
             self._results[(i, j)] = out.result
         if job.kind == "attempt":
@@ -1218,6 +1263,12 @@ class MapMergeTracker:
         return state
 
     # ------------------------------------------------------------------ queries
+    @property
+    def work(self) -> MergeWork:
+        """The merge attempts and re-checks applied since the last :meth:`reset`, and their
+        CPU time (:class:`MergeWork`)."""
+        return self._work
+
     def _all_paths(self) -> dict[tuple[int, int], Transform | None]:
         """T_ij for every connected (i, j), by breadth-first search over accepted edges."""
         if self._paths is not None:

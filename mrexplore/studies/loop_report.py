@@ -282,6 +282,7 @@ def _per_variant(episodes: Sequence[Mapping[str, Any]], variants: Sequence[str])
             "drop_causes": dict(sorted(causes.items())),
             "contradiction_to_drop_max_s": max(recovery) if recovery else None,
             "task_time_mean_s": float(statistics.fmean(times)) if times else None,
+            **_merge_work(eps),
         }
         for ref in REFERENCES:
             if ref in variants and v not in ("none", "single", ref):
@@ -306,6 +307,25 @@ def _per_variant(episodes: Sequence[Mapping[str, Any]], variants: Sequence[str])
                 "merged_only_" + base: sum(not a["merged"] and bool(c["merged"]) for a, c in pairs),
             }
     return out
+
+
+def _merge_work(eps: Sequence[Mapping[str, Any]]) -> dict[str, float | None]:
+    """Mean merge attempts and re-checks per episode (None for records made before the loop
+    study counted them)."""
+    keys = ("merge_attempts", "merge_rechecks")
+    if not eps or not all(k in e for e in eps for k in keys):
+        return {f"{k}_mean": None for k in keys}
+    return {f"{k}_mean": float(statistics.fmean(float(e[k]) for e in eps)) for k in keys}
+
+
+def _work_text(variants: Mapping[str, Mapping[str, Any]]) -> str | None:
+    """One line: each merging variant's mean merge attempts and re-checks per episode."""
+    parts = [
+        f"{v} {s['merge_attempts_mean']:.1f} attempts, {s['merge_rechecks_mean']:.1f} re-checks"
+        for v, s in variants.items()
+        if v not in ("none", "single") and s.get("merge_attempts_mean") is not None
+    ]
+    return "merge work, mean per episode: " + "; ".join(parts) if parts else None
 
 
 def _where(doc: Mapping[str, Any]) -> str:
@@ -366,6 +386,9 @@ def _aggregate_lines(doc: Mapping[str, Any], markdown: bool) -> list[str]:
     title = f"All worlds ({_where(doc)}):"
     lines = [f"### {title}" if markdown else title]
     lines += _table(cols, body, markdown)
+    work = _work_text(agg["variants"])
+    if work is not None:
+        lines += ["", work]
     lines += _layout_lines(doc, markdown)
     refs = [x for v, s in agg["variants"].items() for x in _reference_texts(v, s)]
     if refs:

@@ -319,6 +319,10 @@ def _run_loop_episode(
         # (DropRecord.cause: contradicted, outranked, moved, sighting)
         "drops_s": drops,
         "drop_causes": [] if tracker is None else [d.cause for d in tracker.drops],
+        # what the merging cost: the attempts and re-checks applied (counts, the same on any
+        # machine; their CPU is the rollout bench's to measure)
+        "merge_attempts": 0 if tracker is None else tracker.work.attempts,
+        "merge_rechecks": 0 if tracker is None else tracker.work.rechecks,
     }
 
 

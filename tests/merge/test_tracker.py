@@ -349,6 +349,40 @@ def test_the_attempt_observer_sees_every_applied_attempt() -> None:
     assert pickle.loads(pickle.dumps(tr)).attempt_observer is None
 
 
+@pytest.mark.parametrize(
+    ("latency", "attempts", "rechecks"),
+    # latency 0: attempts at steps 0, 1, 2 (merged by the third), re-checks at 4, 8, 12;
+    # latency 2: attempts start at 0, 2, 4 (a pair is not tried while its attempt is under
+    # way) and take effect at 2, 4, 6; the re-check of step 8 takes effect at 10, that of 12
+    # would at 14, after the last step
+    [(0, 3, 3), (2, 3, 1)],
+)
+def test_work_counts_the_applied_attempts_and_rechecks_and_their_cpu(
+    latency: int, attempts: int, rechecks: int
+) -> None:
+    """``work`` counts what the tracker applied this episode, with the CPU the merger took;
+    ``reset`` zeroes it."""
+    from mrexplore.merge import MergeWork
+
+    seq = _Seq([None, None, translation(3.0, 0.0)])
+    tr = MapMergeTracker(
+        2,
+        merger=seq,
+        merge_every=1,
+        recheck_every=4,
+        confirmations=1,
+        merge_latency_steps=latency,
+    )
+    assert tr.work == MergeWork()
+    for k in range(13):
+        tr.update(_growing_maps(k), step=k)
+    tr.wait_idle()
+    assert (tr.work.attempts, tr.work.rechecks) == (attempts, rechecks)
+    assert tr.work.cpu_s >= 0.0 and attempts + rechecks <= seq.calls
+    tr.reset()
+    assert tr.work == MergeWork()
+
+
 def test_no_attempt_when_told_not_to() -> None:
     seq = _Seq([translation(3.0, 0.0)])
     tr = MapMergeTracker(2, merger=seq, merge_every=1, confirmations=1)

@@ -167,3 +167,20 @@ def test_a_run_with_the_meeting_oracle_is_measured_against_it() -> None:
     doc = {"variants": ["sighting"], "worlds": ["w"], "episodes": eps[:2]}
     text = "\n".join(_against_text(against(doc, {"episodes": eps[2:]}, "that.json")))
     assert "sighting against that run's meeting oracle: merged in 1 of the 2 episodes" in text
+
+
+def test_the_merge_work_is_averaged_per_episode_and_printed() -> None:
+    """The merge attempts and re-checks the episodes recorded: their means per episode per
+    merging variant, in one line under the table; records made before they were counted give
+    None and no line."""
+    from mrexplore.studies.loop_report import _work_text, aggregate
+
+    eps = [_ep("semantic", 1, 110.0, 30.0), _ep("semantic", 2, 130.0, None)]
+    eps += [_ep("none", 1, 150.0, None), _ep("none", 2, 160.0, None)]
+    for e, (n, r) in zip(eps, [(10, 1), (20, 0), (0, 0), (0, 0)], strict=True):
+        e.update(merge_attempts=n, merge_rechecks=r)
+    s = aggregate(eps, ["semantic", "none"])["variants"]
+    assert (s["semantic"]["merge_attempts_mean"], s["semantic"]["merge_rechecks_mean"]) == (15, 0.5)
+    assert _work_text(s) == "merge work, mean per episode: semantic 15.0 attempts, 0.5 re-checks"
+    old = aggregate([_ep("semantic", 1, 110.0, 30.0)], ["semantic"])["variants"]
+    assert old["semantic"]["merge_attempts_mean"] is None and _work_text(old) is None

@@ -365,6 +365,12 @@ def train(
     callbacks = CallbackList(
         [_Progress(), CheckpointCallback(ckpt_every, str(out / "checkpoints"), name_prefix=algo)]
     )
+    if tb is None:
+        # Without TensorBoard, SB3 would make an empty SB3-<time> folder in the system's temp
+        # directory on every run: its logger writes nowhere instead (eval.json has the figures).
+        from stable_baselines3.common.logger import configure
+
+        model.set_logger(configure(str(out), format_strings=[]))
     t0 = time.perf_counter()
     model.learn(total_timesteps=int(timesteps), callback=callbacks)
     train_s = time.perf_counter() - t0

@@ -50,7 +50,15 @@ def _tiny_yaml(tmp_path: Path, algo: str) -> Path:
 
 @pytest.mark.parametrize("algo", ["ppo", "a2c", "dqn"])
 @pytest.mark.expensive
-def test_tiny_training_run_writes_reloads_and_evaluates(tmp_path: Path, algo: str, capsys) -> None:  # type: ignore[no-untyped-def]
+def test_tiny_training_run_writes_reloads_and_evaluates(
+    tmp_path: Path, algo: str, capsys, monkeypatch
+) -> None:  # type: ignore[no-untyped-def]
+    import tempfile
+
+    system_tmp = tmp_path / "system_tmp"  # where SB3 would leave an SB3-<time> folder
+    system_tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(system_tmp))
+    monkeypatch.delenv("SB3_LOGDIR", raising=False)
     out = tmp_path / "policy"
     config = train(
         algo=algo,
@@ -65,6 +73,7 @@ def test_tiny_training_run_writes_reloads_and_evaluates(tmp_path: Path, algo: st
     )
     for name in ("model.zip", "config.yaml", "eval.json"):
         assert (out / name).is_file(), name
+    assert not list(system_tmp.glob("SB3-*"))  # no log folder left in the system temp dir
     # config.yaml round-trips to exactly the settings the run used (seed included)
     assert yaml.safe_load((out / "config.yaml").read_text()) == config
     assert config["seed"] == 3 and config["algo"] == algo and config["env"] == TINY_ENV

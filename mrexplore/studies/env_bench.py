@@ -45,8 +45,11 @@ robots, merging on) driven by that team for ``--steps`` steps, the team's decisi
 included) timed with the steps: process CPU per step (the merge worker and OpenCV's threads
 too), the stepping thread's, the policy's and the env step's, the policy's share of the process
 CPU, and p50 / p99 / max of one step's stepping-thread CPU with the slowest step over the
-median. ``studies/speed_vs_checkout.py --rollout coordinated-frontier`` runs it on two trees side
-by side.
+median; then the merge worker's CPU per step (``merge``), the attempts and re-checks it applied
+(``attempts``: 31+2) and the wall time per step (which also holds the waits for a merge attempt
+still running when its result is due). One row per ``--merge-latency-steps`` value.
+``studies/speed_vs_checkout.py --rollout coordinated-frontier`` runs it on two trees side by
+side.
 
 Settings: ``symmetric_office`` (0.05 m/cell, 360 beams, 4 m, merging on) for ``--robots``
 (default 1, 2, 4, 8), and two robots on the Explore-Bench-sized world (250 x 250 cells,
@@ -272,8 +275,12 @@ def measure_rollout(
     ``policy_ms`` and ``env_ms`` (stepping thread), ``policy_share`` (policy / process CPU),
     ``p50_ms`` / ``p99_ms`` / ``max_ms`` of one step's stepping-thread CPU (decisions + step),
     ``max_over_p50``, the slowest step over the median, and that step's ``max_policy_ms`` and
-    ``max_env_ms``.
+    ``max_env_ms``; ``wall_ms`` per step (what a user waits: also the stepping thread's waits
+    for a merge attempt still running when its result is due); the merge work of the timed
+    steps (:attr:`~mrexplore.merge.MapMergeTracker.work`): ``merge_attempts`` and
+    ``merge_rechecks`` applied, ``merge_ms`` their CPU per step (0 without a merger).
     """
+    from mrexplore.merge import MergeWork
     from mrexplore.policies import make_team_policy
 
     warm_merging()
@@ -281,16 +288,29 @@ def measure_rollout(
     policy = make_team_policy(team, penv.possible_agents)
     penv.reset(seed=seed)
     policy.reset(np.random.default_rng(seed))
+    tracker = penv.unwrapped.fusion.tracker
     decide = np.zeros(steps)
     step = np.zeros(steps)
-    proc = 0.0
+    proc = wall = 0.0
     episodes = 1
+    done = MergeWork()  # the work of episodes reset during the timed steps
+
+    def work() -> MergeWork:
+        w = MergeWork() if tracker is None else tracker.work
+        return MergeWork(
+            done.attempts + w.attempts, done.rechecks + w.rechecks, done.cpu_s + w.cpu_s
+        )
+
     try:
         for k in range(-warmup, steps):
+            if k == 0:
+                start = work()
             if not penv.agents:
+                done = work()
                 penv.reset()
                 policy.reset(np.random.default_rng([seed, episodes]))
                 episodes += 1
+            w0 = time.perf_counter()
             p0 = time.process_time()
             t0 = time.thread_time()
             actions = policy.act({a: penv.robot_view(a) for a in penv.agents})
@@ -300,6 +320,8 @@ def measure_rollout(
             if k >= 0:
                 decide[k], step[k] = t1 - t0, t2 - t1
                 proc += time.process_time() - p0
+                wall += time.perf_counter() - w0
+        end = work()
     finally:
         penv.close()
     lat = decide + step
@@ -321,21 +343,31 @@ def measure_rollout(
         # the slowest step's parts: decisions and env step
         "max_policy_ms": 1000.0 * float(decide[int(np.argmax(lat))]),
         "max_env_ms": 1000.0 * float(step[int(np.argmax(lat))]),
+        "wall_ms": 1000.0 * wall / steps,
+        "merge_attempts": end.attempts - start.attempts,
+        "merge_rechecks": end.rechecks - start.rechecks,
+        "merge_ms": 1000.0 * (end.cpu_s - start.cpu_s) / steps,
     }
 
 
 ROLLOUT_HEADER = (
     f"{'realistic rollout (ms of CPU per step)':<66} {'process':>8} {'thread':>7} "
     f"{'policy':>7} {'env':>6} {'policy/proc':>11} {'p50':>6} {'p99':>6} {'max':>6} {'max/p50':>7}"
+    f" {'merge':>6} {'attempts':>8} {'wall':>6}"
 )
 
 
 def rollout_row(label: str, r: dict[str, Any]) -> str:
-    """One printed line of a result of :func:`measure_rollout`."""
+    """One printed line of a result of :func:`measure_rollout` (``-`` for the merge work and
+    wall time of a result made before they were measured)."""
+    merge = "-" if "merge_ms" not in r else f"{r['merge_ms']:.3f}"
+    attempts = "-" if "merge_attempts" not in r else f"{r['merge_attempts']}+{r['merge_rechecks']}"
+    wall = "-" if "wall_ms" not in r else f"{r['wall_ms']:.3f}"
     return (
         f"{label:<66} {r['process_ms']:>8.3f} {r['thread_ms']:>7.3f} {r['policy_ms']:>7.3f} "
         f"{r['env_ms']:>6.3f} {100 * r['policy_share']:>10.1f}% {r['p50_ms']:>6.2f} "
         f"{r['p99_ms']:>6.2f} {r['max_ms']:>6.2f} {r['max_over_p50']:>6.2f}x"
+        f" {merge:>6} {attempts:>8} {wall:>6}"
     )
 
 
@@ -801,10 +833,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     if rollouts:
         print(ROLLOUT_HEADER)
     for team in rollouts:
-        name = f"{team}, symmetric_office, 2 robots, merger {merger}"
-        r = measure_rollout(args.steps, args.seed, team, **{**DEFAULT_WORLD, "merger": merger})
-        results[f"rollout, {name}"] = r
-        print(rollout_row(name, r), flush=True)
+        for latency in latencies:
+            name = f"{team}, symmetric_office, 2 robots, merger {merger}"
+            r_opts: dict[str, Any] = {**DEFAULT_WORLD, "merger": merger}
+            if latency is not None:
+                name = f"{name}, latency {latency}"
+                r_opts["merge_latency_steps"] = latency
+            r = measure_rollout(args.steps, args.seed, team, **r_opts)
+            results[f"rollout, {name}"] = r
+            print(rollout_row(name, r), flush=True)
     if args.breakdown:
         r = measure(args.steps, args.seed, breakdown=True, **{**DEFAULT_WORLD, "merger": merger})
         ms = r["ms_per_step"]

@@ -92,11 +92,13 @@ def test_env_rollout_row_splits_the_step_between_policy_and_env(capsys) -> None:
     assert r["steps"] == 4 and r["policy_ms"] > 0 and r["env_ms"] > 0
     assert r["thread_ms"] == pytest.approx(r["policy_ms"] + r["env_ms"])
     assert r["max_over_p50"] >= 1.0
+    assert r["wall_ms"] > 0 and r["merge_attempts"] >= 0 and r["merge_ms"] >= 0.0
     args = ["bench", "env", "--rollout", "coordinated-frontier", "--batched-only", "--steps", "2"]
-    assert main(args) == 0
+    assert main([*args, "--merge-latency-steps", "0,8"]) == 0
     out = capsys.readouterr().out
-    assert "policy/proc" in out and "max/p50" in out
-    assert "coordinated-frontier, symmetric_office, 2 robots, merger semantic" in out
+    assert "policy/proc" in out and "max/p50" in out and "attempts" in out
+    assert "coordinated-frontier, symmetric_office, 2 robots, merger semantic, latency 8" in out
+    assert "coordinated-frontier, symmetric_office, 2 robots, merger semantic, latency 0" in out
     assert "symmetric_office, 1 robot " not in out  # --batched-only
 
 
@@ -264,3 +266,18 @@ def test_a_refusal_records_how_far_its_judged_pose_lay_from_the_truth() -> None:
     assert all(e is not None and e < mb.CORRECT_CELLS for e in judged), judged
     merged = mb.evaluate(cases, "semantic", None)["cases"]
     assert all(c["best_error_cells"] is None for c in merged if c["kind"] != "refused")
+
+
+def test_env_rollout_counts_the_merge_work_of_the_timed_steps_only() -> None:
+    """The rollout's merge attempts are those applied during its timed steps, across episode
+    resets: a longer run applies at least as many, and they cost CPU."""
+    from mrexplore.studies.env_bench import measure_rollout
+
+    opts = {"world": "small_office", "merge_latency_steps": 0, "max_time_s": 4.0}
+    short = measure_rollout(10, 0, "coordinated-frontier", warmup=0, **opts)
+    long = measure_rollout(90, 0, "coordinated-frontier", warmup=0, **opts)
+    assert long["episodes"] > 1  # 40-step episodes: the count goes on across resets
+    assert long["merge_attempts"] > short["merge_attempts"] >= 1
+    assert long["merge_ms"] > 0.0
+    none = measure_rollout(10, 0, "coordinated-frontier", warmup=0, merger=None, **opts)
+    assert (none["merge_attempts"], none["merge_rechecks"], none["merge_ms"]) == (0, 0, 0.0)

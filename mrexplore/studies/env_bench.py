@@ -47,7 +47,8 @@ too), the stepping thread's, the policy's and the env step's, the policy's share
 CPU, and p50 / p99 / max of one step's stepping-thread CPU with the slowest step over the
 median; then the merge worker's CPU per step (``merge``), the attempts and re-checks it applied
 (``attempts``: 31+2) and the wall time per step (which also holds the waits for a merge attempt
-still running when its result is due). One row per ``--merge-latency-steps`` value.
+still running when its result is due). One row per ``--merge-latency-steps`` value;
+``--env-options merge_every=20`` sets other env options of these rows.
 ``studies/speed_vs_checkout.py --rollout coordinated-frontier`` runs it on two trees side by
 side.
 
@@ -715,6 +716,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         "symmetric_office, 2 robots, --steps steps; prints process and stepping-thread CPU per "
         "step, the policy's share and the slowest step over the median",
     )
+    p.add_argument(
+        "--env-options",
+        default=None,
+        metavar="K=V,K=V",
+        help="env options of the --rollout rows beyond the bench's world, e.g. merge_every=20 "
+        "(named in each row)",
+    )
     p.add_argument("--breakdown", action="store_true", help="also time the stages (2 robots)")
     p.add_argument("--json", default=None, help="also write the figures to this JSON file")
     p.add_argument("--force", action="store_true", help="replace an existing --json file")
@@ -796,6 +804,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.json:
         check_outputs([args.json], force=args.force, what="mrexplore bench env")
     merger = None if args.merger.lower() == "none" else args.merger
+    rollout_options: dict[str, Any] = {}
+    if args.env_options is not None:
+        from mrexplore.studies.merge_bench import parse_options
+
+        if args.rollout is None:
+            raise ConfigError("bench env: --env-options applies to the --rollout rows: give one")
+        rollout_options = parse_options(args.env_options, flag="--env-options")
+        # a bad name or value fails here, before any row is measured
+        mrexplore.parallel_env(**{**DEFAULT_WORLD, "merger": merger, **rollout_options}).close()
     print(
         f"mrexplore bench env: {args.steps} random-action steps per setting, seed {args.seed}, "
         f"merger {merger}; figures are CPU time of the stepping thread"
@@ -835,7 +852,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     for team in rollouts:
         for latency in latencies:
             name = f"{team}, symmetric_office, 2 robots, merger {merger}"
-            r_opts: dict[str, Any] = {**DEFAULT_WORLD, "merger": merger}
+            r_opts: dict[str, Any] = {**DEFAULT_WORLD, "merger": merger, **rollout_options}
+            if rollout_options:
+                name += ", " + ", ".join(f"{k}={v}" for k, v in rollout_options.items())
             if latency is not None:
                 name = f"{name}, latency {latency}"
                 r_opts["merge_latency_steps"] = latency

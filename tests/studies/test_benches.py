@@ -99,6 +99,12 @@ def test_env_rollout_row_splits_the_step_between_policy_and_env(capsys) -> None:
     assert "policy/proc" in out and "max/p50" in out and "attempts" in out
     assert "coordinated-frontier, symmetric_office, 2 robots, merger semantic, latency 8" in out
     assert "coordinated-frontier, symmetric_office, 2 robots, merger semantic, latency 0" in out
+    assert main([*args, "--env-options", "merge_every=20"]) == 0
+    assert "merger semantic, merge_every=20" in capsys.readouterr().out
+    assert main([*args, "--env-options", "merge_every=0"]) == 2  # refused before any row
+    assert "merge_every must be an integer >= 1" in capsys.readouterr().err
+    assert main(["bench", "env", "--env-options", "merge_every=20"]) == 2
+    assert "--env-options applies to the --rollout rows" in capsys.readouterr().err
     assert "symmetric_office, 1 robot " not in out  # --batched-only
 
 

@@ -312,19 +312,28 @@ def level_batches(
     """The cells of ``clearance`` (H, W) grouped by the first of the falling ``levels`` (L,)
     they reach (``clearance >= level`` in float32, as numpy compares a float32 map with a
     Python float): ``(order, starts, first)``, the raster indices of level ``l``'s new cells
-    ``order[starts[l]:starts[l + 1]]`` and each cell's first level (L: none)."""
+    ``order[starts[l]:starts[l + 1]]`` and each cell's first level (L: none). ``levels`` must
+    fall strictly (the first level a cell reaches is then found by bisection)."""
     h, w = clearance.shape
     n_levels = levels.shape[0]
     first = np.full(h * w, n_levels, dtype=np.int32)
     counts = np.zeros(n_levels + 1, dtype=np.int64)
+    lowest = levels[n_levels - 1] if n_levels else np.float32(np.inf)
     for r in range(h):
         for c in range(w):
             v = clearance[r, c]
-            for li in range(n_levels):
-                if v >= levels[li]:
-                    first[r * w + c] = li
-                    counts[li + 1] += 1
-                    break
+            if not v >= lowest:
+                continue  # under every level (about half the cells: walls, unknown, edges)
+            # the first level v reaches: a bisection of the falling ladder
+            lo, hi = 0, n_levels - 1
+            while lo < hi:
+                mid = (lo + hi) // 2
+                if v >= levels[mid]:
+                    hi = mid
+                else:
+                    lo = mid + 1
+            first[r * w + c] = lo
+            counts[lo + 1] += 1
     starts = np.cumsum(counts)
     order = np.empty(starts[n_levels], dtype=np.int64)
     fill = starts[:n_levels].copy()

@@ -55,6 +55,26 @@ def test_places_equal_on_random_maps(monkeypatch: pytest.MonkeyPatch) -> None:
         _same(*_both(m, monkeypatch))
 
 
+def test_level_batches_find_the_first_level_each_cell_reaches() -> None:
+    """Each cell's first level (the ladder searched by bisection) is the first level of the
+    falling ladder it reaches, in float32, also for values equal to a level, between levels and
+    under or over them all; and the cells are listed level by level in raster order."""
+    from mrexplore.kernels import merging
+
+    rng = np.random.default_rng(3)
+    levels = (12.5 * 0.85 ** np.arange(16)).astype(np.float32)
+    values = np.concatenate(
+        [levels, np.nextafter(levels, np.float32(0)), rng.uniform(0, 14, 400), [0.0, 99.0]]
+    ).astype(np.float32)
+    clearance = rng.permutation(values)[: 21 * 20].reshape(21, 20)
+    order, starts, first = merging.level_batches(clearance, levels)
+    reached = clearance.ravel()[:, None] >= levels[None, :]
+    expect = np.where(reached.any(axis=1), reached.argmax(axis=1), len(levels))
+    assert np.array_equal(first, expect)
+    for li in range(len(levels)):
+        assert np.array_equal(order[starts[li] : starts[li + 1]], np.flatnonzero(expect == li))
+
+
 @pytest.mark.expensive
 def test_merges_with_the_place_test_are_the_same(monkeypatch: pytest.MonkeyPatch) -> None:
     """Only the places switched (the rest of the merger compiled on both sides: its numpy ICP

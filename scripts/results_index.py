@@ -345,8 +345,13 @@ def describe_env_bench(doc: Mapping[str, Any]) -> tuple[str, str]:
                 f"p99 {float(row['p99_ms']):.2f} ms"
             )
         elif "process_ms" in row and "max_over_p50" in row:
+            merge = (
+                ""
+                if "merge_ms" not in row
+                else f" ({float(row['merge_ms']):.2f} in {row['merge_attempts']} merge attempts)"
+            )
             parts.append(
-                f"{name}: {float(row['process_ms']):.2f} ms of process CPU per step, the "
+                f"{name}: {float(row['process_ms']):.2f} ms of process CPU per step{merge}, the "
                 f"slowest step {float(row['max_over_p50']):.2f}x the median"
             )
         elif "single" in row:

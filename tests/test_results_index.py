@@ -67,3 +67,6 @@ def test_an_env_bench_file_says_its_machine_rollout_and_batched_ratio() -> None:
     assert "2,117 robot-steps/s, p99 1.59 ms" in headline
     assert "3.20 ms of process CPU per step, the slowest step 4.30x the median" in headline
     assert "32 worlds in processes: 1.52x the single envs in wall time" in headline
+    doc["rollout, coordinated-frontier"].update(merge_ms=1.9, merge_attempts=75)
+    _, headline = script.describe(doc)
+    assert "3.20 ms of process CPU per step (1.90 in 75 merge attempts), the slowest" in headline

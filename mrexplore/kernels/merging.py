@@ -375,13 +375,14 @@ def level_add(
         x = order[t]
         parent[x] = x
         r = x // w
-        block[x] = (r // 2) * half_w + (x - r * w) // 2
+        block[x] = (r >> 1) * half_w + ((x - r * w) >> 1)  # x >= 0: a shift is a halving
         roots[n_roots] = x
         n_roots += 1
     for t in range(starts[li], starts[li + 1]):
         x = order[t]
         r = x // w
         c = x - r * w
+        rx = _root(parent, x)  # x's root, kept up to date through its unions below
         for dr in range(-1, 2):
             rr = r + dr
             if rr < 0 or rr >= h:
@@ -393,14 +394,15 @@ def level_add(
                 y = rr * w + cc
                 if first[y] > li:
                     continue
-                a = _root(parent, x)
                 b = _root(parent, y)
-                if a == b:
+                if b == rx:
                     continue
+                a = rx
                 if b < a:
                     a, b = b, a
                 parent[b] = a
                 block[a] = min(block[a], block[b])
+                rx = a
     k = 0
     for t in range(n_roots):
         x = roots[t]

@@ -720,8 +720,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         "--env-options",
         default=None,
         metavar="K=V,K=V",
-        help="env options of the --rollout rows beyond the bench's world, e.g. merge_every=20 "
-        "(named in each row)",
+        help="env options of the --rollout rows, e.g. merge_every=20 or world=small_office "
+        "(each row names them; default: symmetric_office, 2 robots)",
     )
     p.add_argument("--breakdown", action="store_true", help="also time the stages (2 robots)")
     p.add_argument("--json", default=None, help="also write the figures to this JSON file")
@@ -851,10 +851,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(ROLLOUT_HEADER)
     for team in rollouts:
         for latency in latencies:
-            name = f"{team}, symmetric_office, 2 robots, merger {merger}"
             r_opts: dict[str, Any] = {**DEFAULT_WORLD, "merger": merger, **rollout_options}
-            if rollout_options:
-                name += ", " + ", ".join(f"{k}={v}" for k, v in rollout_options.items())
+            n = int(r_opts.get("n_robots", 2))
+            name = f"{team}, {r_opts['world']}, {n} robot{'s' * (n > 1)}, merger {merger}"
+            others = {k: v for k, v in rollout_options.items() if k not in ("world", "n_robots")}
+            if others:
+                name += ", " + ", ".join(f"{k}={v}" for k, v in others.items())
             if latency is not None:
                 name = f"{name}, latency {latency}"
                 r_opts["merge_latency_steps"] = latency

@@ -101,6 +101,10 @@ def test_env_rollout_row_splits_the_step_between_policy_and_env(capsys) -> None:
     assert "coordinated-frontier, symmetric_office, 2 robots, merger semantic, latency 0" in out
     assert main([*args, "--env-options", "merge_every=20"]) == 0
     assert "merger semantic, merge_every=20" in capsys.readouterr().out
+    assert main([*args, "--env-options", "world=small_office,n_robots=3"]) == 0
+    assert (
+        "coordinated-frontier, small_office, 3 robots, merger semantic" in capsys.readouterr().out
+    )
     assert main([*args, "--env-options", "merge_every=0"]) == 2  # refused before any row
     assert "merge_every must be an integer >= 1" in capsys.readouterr().err
     assert main(["bench", "env", "--env-options", "merge_every=20"]) == 2

@@ -264,6 +264,18 @@ class MergeWork:
     rechecks: int = 0
     cpu_s: float = 0.0
 
+    def __add__(self, other: MergeWork) -> MergeWork:
+        return MergeWork(
+            self.attempts + other.attempts, self.rechecks + other.rechecks, self.cpu_s + other.cpu_s
+        )
+
+
+def _timed(compute: Callable[..., _Outcome], *args: Any) -> _Outcome:
+    """``compute(*args)`` with the CPU time it took in this thread (``cpu_s``)."""
+    t0 = time.thread_time()
+    out = compute(*args)
+    return replace(out, cpu_s=time.thread_time() - t0)
+
 
 @dataclass(frozen=True)
 class AttemptRecord:
@@ -789,23 +801,6 @@ class MapMergeTracker:
         rivals: Sequence[Transform] = (),
         guess: Transform | None = None,
     ) -> _Outcome:
-        """:meth:`_outcome` with the CPU time it took in this thread (``cpu_s``)."""
-        t0 = time.thread_time()
-        out = self._outcome(kind, i, j, a, b, offsets, T_old, rivals, guess)
-        return replace(out, cpu_s=time.thread_time() - t0)
-
-    def _outcome(
-        self,
-        kind: str,
-        i: int,
-        j: int,
-        a: Int8Grid,
-        b: Int8Grid,
-        offsets: tuple[tuple[int, int], tuple[int, int]],
-        T_old: Transform | None,
-        rivals: Sequence[Transform] = (),
-        guess: Transform | None = None,
-    ) -> _Outcome:
         """Run the merger on cropped maps ``a`` (robot i) and ``b`` (robot j) whose cell (0, 0)
         is at ``offsets`` (col, row) in the canvases; an attempt with a sighting's ``guess``
         (``T_ij``, canvas cells) runs the semantic merger with it as a
@@ -988,14 +983,14 @@ class MapMergeTracker:
         seen = self._sighted.get((i, j)) if kind == "attempt" else None
         guess = None if seen is None else seen.T_ij
         if self.options.merge_latency_steps == 0:
-            out = self._compute(kind, i, j, a, b, (oa, ob), T_old, rivals, guess)
+            out = _timed(self._compute, kind, i, j, a, b, (oa, ob), T_old, rivals, guess)
             self._apply(_Job(kind, i, j, step, self._px.bbox(j), T_old, out))
             return
         if self._pool is None:
             self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mrexplore-merge")
         # copies: the caller may update its maps in place while the worker reads them
         fut = self._pool.submit(
-            self._compute, kind, i, j, a.copy(), b.copy(), (oa, ob), T_old, rivals, guess
+            _timed, self._compute, kind, i, j, a.copy(), b.copy(), (oa, ob), T_old, rivals, guess
         )
         due = step + self.options.merge_latency_steps
         self._jobs.append(_Job(kind, i, j, due, self._px.bbox(j), T_old, fut))
@@ -1015,11 +1010,8 @@ class MapMergeTracker:
     def _apply(self, job: _Job) -> None:
         out = job.outcome.result() if isinstance(job.outcome, Future) else job.outcome
         i, j = job.i, job.j
-        w = self._work
         attempt = job.kind == "attempt"
-        self._work = MergeWork(
-            w.attempts + attempt, w.rechecks + (not attempt), w.cpu_s + out.cpu_s
-        )
+        self._work += MergeWork(int(attempt), int(not attempt), out.cpu_s)
         if out.result is not None:
             self._results[(i, j)] = out.result
         if job.kind == "attempt":

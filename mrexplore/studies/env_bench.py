@@ -297,10 +297,7 @@ def measure_rollout(
     done = MergeWork()  # the work of episodes reset during the timed steps
 
     def work() -> MergeWork:
-        w = MergeWork() if tracker is None else tracker.work
-        return MergeWork(
-            done.attempts + w.attempts, done.rechecks + w.rechecks, done.cpu_s + w.cpu_s
-        )
+        return done + (MergeWork() if tracker is None else tracker.work)
 
     try:
         for k in range(-warmup, steps):

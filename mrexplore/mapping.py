@@ -24,6 +24,7 @@ array dedupes the cells) and the vectorised numpy path below (fallback and test 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -58,7 +59,7 @@ NUMPY_TRAVERSE_DTYPE: type[np.floating] = np.float32
 L_FREE_DEFAULT: float = -1.2
 L_OCC_DEFAULT: float = 3.6
 
-#: Headings whose beam directions each map keeps (see :meth:`OccupancyMap._directions`).
+#: Headings whose beam directions each map keeps (see :meth:`OccupancyMap.beam_directions`).
 _DIR_CACHE: int = 16
 
 #: The per-scan stamps are uint16: scan ids wrap (and the stamps are cleared) before 2 id + 1
@@ -67,6 +68,59 @@ _STAMP_WRAP: int = 32767
 
 # The compiled update (None without numba); used while mrexplore.kernels.enabled().
 _sensing = kernels.load("sensing")
+
+
+@dataclass(frozen=True)
+class MapRows:
+    """The arrays an :class:`OccupancyMap` of ``H x W`` cells keeps its state in (all flat,
+    C-contiguous): ``logodds`` float32 (H W), ``int8`` int8 (H W), ``stamp`` uint16 (H W) (the
+    compiled update's per-scan stamps), ``bbox`` and ``changed`` int64 (4,) (inclusive boxes
+    ``row0, row1, col0, col1``, ``row1 < 0`` for none)."""
+
+    logodds: NDArray[np.float32]
+    int8: NDArray[np.int8]
+    stamp: NDArray[np.uint16]
+    bbox: NDArray[np.int64]
+    changed: NDArray[np.int64]
+
+    @staticmethod
+    def allocate(h: int, w: int) -> MapRows:
+        """Fresh arrays of an unobserved ``h x w`` map."""
+        return MapStack.allocate(1, h, w).row(0)
+
+
+@dataclass(frozen=True)
+class MapStack:
+    """The arrays of R maps of one canvas, stacked: row ``i`` of each is map ``i``'s
+    :class:`MapRows`. The simulator keeps a team's own maps this way so that one compiled call
+    (:func:`mrexplore.kernels.sensing.sense_world`) updates them all.
+
+    Attributes:
+        logodds: float32 (R, H W); int8: int8 (R, H W); stamp: uint16 (R, H W);
+        bbox, changed: int64 (R, 4).
+    """
+
+    logodds: NDArray[np.float32]
+    int8: NDArray[np.int8]
+    stamp: NDArray[np.uint16]
+    bbox: NDArray[np.int64]
+    changed: NDArray[np.int64]
+
+    @staticmethod
+    def allocate(n: int, h: int, w: int) -> MapStack:
+        """Fresh arrays of ``n`` unobserved ``h x w`` maps."""
+        none = np.array([0, -1, 0, -1], dtype=np.int64)
+        return MapStack(
+            logodds=np.zeros((n, h * w), dtype=np.float32),
+            int8=np.full((n, h * w), UNKNOWN, dtype=np.int8),
+            stamp=np.zeros((n, h * w), dtype=np.uint16),
+            bbox=np.tile(none, (n, 1)),
+            changed=np.tile(none, (n, 1)),
+        )
+
+    def row(self, i: int) -> MapRows:
+        """Map ``i``'s arrays (views)."""
+        return MapRows(self.logodds[i], self.int8[i], self.stamp[i], self.bbox[i], self.changed[i])
 
 
 class OccupancyMap:
@@ -84,6 +138,8 @@ class OccupancyMap:
             shallow angle passes through wall cells before it ends, and with a hit worth one
             pass (+1.4, the former default) such walls were erased (``docs/mapper.md``).
         l_min, l_max: clamp of the log-odds (keeps the map able to change its mind).
+        rows: the arrays to keep the map in (:class:`MapRows`; a :class:`MapStack` hands each of
+            its maps one row of its stacked arrays); by default the map allocates its own.
 
     >>> m = OccupancyMap((21, 21), 0.05, (10, 10))
     >>> m.update((0.0, 0.0, 0.0), np.array([0.0]), np.array([0.2]), np.array([True]))
@@ -100,6 +156,7 @@ class OccupancyMap:
         l_occ: float = L_OCC_DEFAULT,
         l_min: float = -5.0,
         l_max: float = 5.0,
+        rows: MapRows | None = None,
     ) -> None:
         h, w = int(shape[0]), int(shape[1])
         if h < 1 or w < 1:
@@ -119,19 +176,21 @@ class OccupancyMap:
         self.origin_cell = (c0, r0)
         self.l_free, self.l_occ = float(l_free), float(l_occ)
         self.l_min, self.l_max = float(l_min), float(l_max)
+        if rows is None:
+            rows = MapRows.allocate(h, w)
         #: float32 (H, W) log-odds; 0 = never observed.
-        self.logodds = np.zeros((h, w), dtype=np.float32)
-        self._int8 = np.full((h, w), UNKNOWN, dtype=np.int8)
+        self.logodds = rows.logodds.reshape(h, w)
+        self._int8 = rows.int8.reshape(h, w)
         # Scratch marks of one scan (0 none, 1 free, 2 occupied); always zero between scans.
         self._marks = np.zeros((h, w), dtype=np.uint8)
         self._delta = np.array([0.0, self.l_free, self.l_occ], dtype=np.float32)
         self._bbox: list[int] | None = None  # [row0, row1, col0, col1] inclusive
         # Compiled path: a per-cell stamp of the last scan that touched it (2 id free,
-        # 2 id + 1 occupied), allocated on the first compiled update; the bbox as an array the
-        # kernel updates in place (row1 < 0: none yet).
-        self._stamp: NDArray[np.uint16] | None = None
+        # 2 id + 1 occupied); the bbox as an array the kernel updates in place (row1 < 0: none
+        # yet).
+        self._stamp = rows.stamp
         self._scan_id = 0
-        self._bbox_arr = np.array([0, -1, 0, -1], dtype=np.int64)
+        self._bbox_arr = rows.bbox
         self._kdeltas = np.array(
             [self.l_free, self.l_occ, self.l_min, self.l_max], dtype=np.float32
         )
@@ -139,9 +198,9 @@ class OccupancyMap:
         self.version = 0
         # inclusive box of the int8 cells the last update changed (row1 < 0: none), and that of
         # the update that made ``version``
-        self._changed_arr = np.array([0, -1, 0, -1], dtype=np.int64)
+        self._changed_arr = rows.changed
         self._changed_box: Box | None = None
-        # Beam directions of the last few headings (see _directions): heading bits -> (cos,
+        # Beam directions of the last few headings (see beam_directions): heading bits -> (cos,
         # sin), for the beam angles whose bytes are _dir_angles.
         self._dir_cache: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
         self._dir_angles = b""
@@ -186,8 +245,10 @@ class OccupancyMap:
         of :meth:`to_int8` needs to follow the map without comparing canvases."""
         return MapChange(self.version, self.known_bbox(), self._changed_box)
 
-    def _note_change(self) -> None:
-        """Bump :attr:`version` when the last update changed an int8 cell (``_changed_arr``)."""
+    def note_change(self) -> None:
+        """Bump :attr:`version` when the last update changed an int8 cell (its ``changed`` box):
+        called after every update, also one made by a compiled call on the map's
+        :class:`MapRows` (the simulator's :func:`~mrexplore.kernels.sensing.sense_world`)."""
         q = self._changed_arr
         if q[1] >= 0:
             self.version += 1
@@ -235,19 +296,12 @@ class OccupancyMap:
         ``ang`` (B,) float64 radians, ``rng_m`` (B,) metres (float32 or float64), ``hits`` (B,)."""
         h, w = self.shape
         res = self.resolution_m
-        # Corner coordinates (col + 0.5, row + 0.5): cell = floor. (snap inlined: this runs
-        # every step and numpy's scalar calls cost microseconds each.)
-        ox = round((self.origin_cell[0] + x / res + 0.5) / SNAP_CELLS) * SNAP_CELLS
-        oy = round((self.origin_cell[1] + y / res + 0.5) / SNAP_CELLS) * SNAP_CELLS
-        if not (1.0 <= ox < w - 1 and 1.0 <= oy < h - 1):
-            raise GridError(
-                f"pose ({x:.3f}, {y:.3f}) m is outside the {h}x{w} canvas: make the canvas larger"
-            )
+        ox, oy = self.sensor_corner(x, y)
         t_end = np.asarray(rng_m, dtype=np.float64) / res
         if kernels.enabled():
-            dx, dy = self._directions(th, ang)
+            dx, dy = self.beam_directions(th, ang)
             self._integrate_numba(ox, oy, dx, dy, t_end, hits)
-            self._note_change()
+            self.note_change()
             return
         a = th + ang
         d = np.stack([np.cos(a), np.sin(a)], axis=1)
@@ -309,7 +363,7 @@ class OccupancyMap:
             self._changed_arr[:] = (mr.min(), mr.max(), mc.min(), mc.max())
         else:
             self._changed_arr[:] = (0, -1, 0, -1)
-        self._note_change()
+        self.note_change()
         # Rows by a float multiply (exact for these sizes; int64 division is slower).
         rr = np.floor((idx + 0.5) * (1.0 / w)).astype(np.int64)
         cc = idx - rr * w
@@ -326,7 +380,45 @@ class OccupancyMap:
                     max(b[3], box[3]),
                 ]
 
-    def _directions(
+    def move_to(self, rows: MapRows) -> None:
+        """Keep the map in ``rows`` from now on, its state copied there (a simulator re-links
+        its maps to one :class:`MapStack` after unpickling, which copies views apart)."""
+        h, w = self.shape
+        rows.logodds[:] = self.logodds.reshape(-1)
+        rows.int8[:] = self._int8.reshape(-1)
+        rows.stamp[:] = self._stamp
+        rows.bbox[:] = self._bbox_arr
+        rows.changed[:] = self._changed_arr
+        self.logodds = rows.logodds.reshape(h, w)
+        self._int8 = rows.int8.reshape(h, w)
+        self._stamp = rows.stamp
+        self._bbox_arr = rows.bbox
+        self._changed_arr = rows.changed
+
+    def sensor_corner(self, x: float, y: float) -> tuple[float, float]:
+        """The sensor at own-frame ``(x, y)`` metres in this canvas's corner coordinates
+        ``(col + 0.5, row + 0.5)``, snapped (:data:`mrexplore.traversal.SNAP_CELLS`); a
+        :class:`GridError` if it is not inside the canvas's one-cell ring."""
+        h, w = self.shape
+        res = self.resolution_m
+        # snap inlined: this runs every step and numpy's scalar calls cost microseconds each
+        ox = round((self.origin_cell[0] + x / res + 0.5) / SNAP_CELLS) * SNAP_CELLS
+        oy = round((self.origin_cell[1] + y / res + 0.5) / SNAP_CELLS) * SNAP_CELLS
+        if not (1.0 <= ox < w - 1 and 1.0 <= oy < h - 1):
+            raise GridError(
+                f"pose ({x:.3f}, {y:.3f}) m is outside the {h}x{w} canvas: make the canvas larger"
+            )
+        return ox, oy
+
+    def next_scan_id(self) -> int:
+        """The compiled update's id for the next scan (the stamps are cleared when ids wrap)."""
+        self._scan_id += 1
+        if self._scan_id > _STAMP_WRAP:
+            self._stamp[:] = 0
+            self._scan_id = 1
+        return self._scan_id
+
+    def beam_directions(
         self, th: float, ang: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Unit beam directions ``(cos(th + ang), sin(th + ang))``, each float64 (B,), for the
@@ -363,17 +455,12 @@ class OccupancyMap:
         """The compiled update (see :func:`mrexplore.kernels.sensing.map_update`)."""
         assert _sensing is not None
         h, w = self.shape
-        if self._stamp is None:
-            self._stamp = np.zeros(h * w, dtype=np.uint16)
-        self._scan_id += 1
-        if self._scan_id > _STAMP_WRAP:
-            self._stamp[:] = 0
-            self._scan_id = 1
+        scan_id = self.next_scan_id()
         _sensing.map_update(
             self.logodds.reshape(-1),
             self._int8.reshape(-1),
             self._stamp,
-            self._scan_id,
+            scan_id,
             h,
             w,
             ox,
@@ -382,13 +469,17 @@ class OccupancyMap:
             dy,
             t_end,
             np.asarray(hits, dtype=np.bool_),
-            float(SHORT_BEAM_CELLS),
-            self._kdeltas,
-            _KTHRESHOLDS,
-            _KPCT,
+            *self.kernel_constants(),
             self._bbox_arr,
             self._changed_arr,
         )
+
+    def kernel_constants(
+        self,
+    ) -> tuple[float, NDArray[np.float32], NDArray[np.float32], NDArray[np.int64]]:
+        """The compiled update's constants, ``short_cells, deltas, thresholds, pct_clip``
+        (:func:`mrexplore.kernels.sensing.map_update`)."""
+        return float(SHORT_BEAM_CELLS), self._kdeltas, _KTHRESHOLDS, _KPCT
 
     def save(self, path_yaml: str | Path) -> Path:
         """Write the int8 map as a map_server YAML + image (needs :mod:`mrexplore.world.map_io`).

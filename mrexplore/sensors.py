@@ -18,6 +18,7 @@ import sys
 import types
 import warnings
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -166,7 +167,7 @@ class Lidar:
         grid = walls if isinstance(walls, PaddedGrid) else prepare_walls(walls)
         if not (math.isfinite(resolution_m) and resolution_m > 0.0):
             raise GridError(f"resolution_m must be a positive number, got {resolution_m}")
-        corner, hd = self._check_origins(grid, origins_cells, headings)
+        corner, hd = self.check_origins(grid, origins_cells, headings)
         n_rob = corner.shape[0]
         if kernels.enabled():
             return self._cast_numba(grid, corner, hd, resolution_m, rng, want_visible)
@@ -237,7 +238,7 @@ class Lidar:
             visible_flat=visible,
         )
 
-    def _check_origins(
+    def check_origins(
         self, grid: PaddedGrid, origins_cells: NDArray[np.floating], headings: NDArray[np.floating]
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Validated ``(corner (R, 2) snapped corner coordinates, headings (R,))``."""
@@ -251,6 +252,28 @@ class Lidar:
         if not (corner.min() >= 0.0 and (corner < np.array([w, h])).all()):
             raise GridError(f"sensor origins {org.tolist()} must lie inside the {h}x{w} grid")
         return corner, hd
+
+    def kernel_args(
+        self,
+        corner: NDArray[np.float64],
+        hd: NDArray[np.float64],
+        resolution_m: float,
+        rng: np.random.Generator | None,
+    ) -> tuple[Any, ...]:
+        """The compiled cast's arguments after the grid's, ``corners`` to ``noise``
+        (:func:`mrexplore.kernels.sensing.cast_observe`), for R robots at ``corner`` and
+        ``hd`` (:meth:`check_origins`); the range noise is drawn from ``rng`` here."""
+        return (
+            corner,
+            np.cos(hd),
+            np.sin(hd),
+            self._cos,
+            self._sin,
+            self.config.max_range_m / resolution_m,
+            resolution_m,
+            self.config.max_range_m,
+            self._noise(rng, corner.shape[0]),
+        )
 
     def _noise(self, rng: np.random.Generator | None, n_rob: int) -> NDArray[np.float64]:
         """(R, B) range noise in metres from ``rng`` (one draw), or an empty array for none."""
@@ -285,15 +308,7 @@ class Lidar:
             grid.table,
             h + 2,
             w + 2,
-            corner,
-            np.cos(hd),
-            np.sin(hd),
-            self._cos,
-            self._sin,
-            self.config.max_range_m / resolution_m,
-            resolution_m,
-            self.config.max_range_m,
-            self._noise(rng, n_rob),
+            *self.kernel_args(corner, hd, resolution_m, rng),
             ranges,
             hit,
             want_visible,
@@ -334,7 +349,7 @@ class Lidar:
         """
         if not (math.isfinite(resolution_m) and resolution_m > 0.0):
             raise GridError(f"resolution_m must be a positive number, got {resolution_m}")
-        corner, hd = self._check_origins(grid, origins_cells, headings)
+        corner, hd = self.check_origins(grid, origins_cells, headings)
         n_rob, n_b = corner.shape[0], self.angles.shape[0]
         h, w = grid.shape
         if (
@@ -359,15 +374,7 @@ class Lidar:
             grid.table,
             h + 2,
             w + 2,
-            corner,
-            np.cos(hd),
-            np.sin(hd),
-            self._cos,
-            self._sin,
-            self.config.max_range_m / resolution_m,
-            resolution_m,
-            self.config.max_range_m,
-            self._noise(rng, n_rob),
+            *self.kernel_args(corner, hd, resolution_m, rng),
             ranges,
             hit,
             True,

@@ -24,13 +24,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from mrexplore import kernels
 from mrexplore.errors import ConfigError
 from mrexplore.grid import Transform
-from mrexplore.mapping import L_FREE_DEFAULT, L_OCC_DEFAULT, OccupancyMap
+from mrexplore.mapping import L_FREE_DEFAULT, L_OCC_DEFAULT, MapStack, OccupancyMap
 from mrexplore.options import is_number
 from mrexplore.robot import (
     Motion,
@@ -44,6 +46,9 @@ from mrexplore.sensors import Lidar, LidarConfig, Scan
 from mrexplore.truth import T_world_from_map, reachable_cspace, reachable_free
 from mrexplore.truth import true_transform as _true_transform
 from mrexplore.world.world import World
+
+# The compiled sensing step (None without numba); used while mrexplore.kernels.enabled().
+_sensing = kernels.load("sensing")
 
 #: Extra cells around the world diagonal on each side of a robot's canvas.
 CANVAS_MARGIN_CELLS: int = 16
@@ -223,6 +228,19 @@ class Simulation:
         self._trails: list[_Trail] = []
         self._world_from_map: list[Transform | None] = [None] * self.n_robots
 
+    def __getstate__(self) -> dict[str, Any]:
+        # the maps carry their arrays; the stack they view is rebuilt on unpickling
+        state = self.__dict__.copy()
+        state.pop("_stack", None)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        if self.maps:  # pickling copied each map's views apart from the stack: one stack again
+            self._stack = MapStack.allocate(self.n_robots, *self.canvas_shape)
+            for i, m in enumerate(self.maps):
+                m.move_to(self._stack.row(i))
+
     # ------------------------------------------------------------------ lifecycle
     def reset(self, rng: np.random.Generator, starts: NDArray[np.floating] | None = None) -> None:
         """Place the robots (``starts`` (R, 3) world metres, or sampled from ``rng``, robot 0
@@ -250,6 +268,8 @@ class Simulation:
         self.est_poses = np.zeros_like(poses)
         # drift a placement erased from the estimate but not from the map (drift_allowance_at)
         self._placed_drift = np.zeros((self.n_robots, 2))
+        # one stack for the team's maps: the compiled sensing step updates them in one call
+        self._stack = MapStack.allocate(self.n_robots, *self.canvas_shape)
         self.maps = [
             OccupancyMap(
                 self.canvas_shape,
@@ -257,8 +277,9 @@ class Simulation:
                 self.canvas_origin,
                 l_free=self.config.map_l_free,
                 l_occ=self.config.map_l_occ,
+                rows=self._stack.row(i),
             )
-            for _ in range(self.n_robots)
+            for i in range(self.n_robots)
         ]
         seeds = self.motion.cell_index(poses[:, :2])
         self.reachable_cspace = reachable_cspace(world, self.config.robot.radius_m, seeds)
@@ -387,13 +408,69 @@ class Simulation:
         (:meth:`mrexplore.sensors.Lidar.cast_observe`, incremental coverage); then one map
         update per robot at its *estimated* pose.
         """
-        scan, newly, covered = self.cast(rng)
+        if kernels.enabled():
+            scan, newly, covered = self._sense_compiled(rng)
+            for i, (x, y, _) in enumerate(self.est_poses.tolist()):
+                self._trails[i].append(*self.maps[i].cell_of(x, y))
+        else:
+            scan, newly, covered = self.cast(rng)
+            for i in range(self.n_robots):
+                x, y = self.integrate(i, scan)
+                self._trails[i].append(*self.maps[i].cell_of(x, y))
         self.last_scan = scan
         self._team_covered += covered
-        for i in range(self.n_robots):
-            x, y = self.integrate(i, scan)
-            self._trails[i].append(*self.maps[i].cell_of(x, y))
         return newly
+
+    def _sense_compiled(self, rng: np.random.Generator) -> tuple[Scan, NDArray[np.int64], int]:
+        """:meth:`cast` and every robot's :meth:`integrate` in one compiled call
+        (:func:`mrexplore.kernels.sensing.sense_world`), with the same results bit for bit:
+        the per-robot Python of the separate calls was a sixth of a world-step."""
+        assert _sensing is not None
+        lidar, grid, n = self.lidar, self._grid, self.n_robots
+        corner, hd = lidar.check_origins(
+            grid, self.world.cell_of(self.true_poses[:, :2]), self.true_poses[:, 2]
+        )
+        cast_args = lidar.kernel_args(corner, hd, self.resolution_m, rng)
+        n_b = lidar.angles.shape[0]
+        sensors = np.empty((n, 2))
+        dx = np.empty((n, n_b))
+        dy = np.empty((n, n_b))
+        scan_ids = np.empty(n, dtype=np.int64)
+        for i, (m, (x, y, th)) in enumerate(zip(self.maps, self.est_poses.tolist(), strict=True)):
+            sensors[i] = m.sensor_corner(x, y)
+            dx[i], dy[i] = m.beam_directions(th, lidar.angles)
+            scan_ids[i] = m.next_scan_id()
+        ranges = np.empty((n, n_b), dtype=np.float32)
+        hit = np.empty((n, n_b), dtype=np.bool_)
+        newly = np.zeros(n, dtype=np.int64)
+        h, w = grid.shape
+        stack = self._stack
+        covered = _sensing.sense_world(
+            grid.table,
+            h + 2,
+            w + 2,
+            *cast_args,
+            ranges,
+            hit,
+            self.observed.reshape(n, h * w),
+            np.ascontiguousarray(self.reachable).reshape(-1),
+            self._team_observed.reshape(-1),
+            newly,
+            stack.logodds,
+            stack.int8,
+            stack.stamp,
+            scan_ids,
+            *self.canvas_shape,
+            sensors,
+            dx,
+            dy,
+            *self.maps[0].kernel_constants(),
+            stack.bbox,
+            stack.changed,
+        )
+        for m in self.maps:
+            m.note_change()
+        return Scan(ranges_m=ranges, hit=hit, angles=lidar.angles), newly, int(covered)
 
     def cast(self, rng: np.random.Generator) -> tuple[Scan, NDArray[np.int64], int]:
         """Every robot's lidar cast on the truth, ``observed`` and the team's cells marked:

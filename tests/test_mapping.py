@@ -215,13 +215,13 @@ def test_cached_beam_directions_are_numpys() -> None:
     ang = np.linspace(-math.pi, math.pi, 37)
     headings = [0.0, -0.0, math.pi / 8, -math.pi, math.pi, 1e-300] + [k * 0.1 for k in range(20)]
     for th in headings + headings[::-1]:
-        dx, dy = m._directions(th, ang)
+        dx, dy = m.beam_directions(th, ang)
         assert dx.tobytes() == np.cos(th + ang).tobytes()
         assert dy.tobytes() == np.sin(th + ang).tobytes()
     assert len(m._dir_cache) == 16
-    first = m._directions(0.3, ang)
-    assert m._directions(0.3, ang) is first  # a hit
+    first = m.beam_directions(0.3, ang)
+    assert m.beam_directions(0.3, ang) is first  # a hit
     other = ang + 1e-3
-    dx, _ = m._directions(0.3, other)  # new angles: recomputed
+    dx, _ = m.beam_directions(0.3, other)  # new angles: recomputed
     assert dx.tobytes() == np.cos(0.3 + other).tobytes()
     assert len(m._dir_cache) == 1

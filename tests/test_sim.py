@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -207,3 +208,49 @@ def test_a_placement_keeps_the_drift_its_map_was_built_with() -> None:
     pos, hdg = sim._pose_drift()
     assert pos[0] == pytest.approx(0.0, abs=1e-9) and hdg[0] == pytest.approx(0.0, abs=1e-9)
     assert sim.drift_allowance(0, 1, cells) == pytest.approx(before)
+
+
+def test_one_call_sensing_equals_the_separate_calls(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The compiled world sensing step (cast, then every own-map update, in one call) gives the
+    maps, coverage, change notes and scans of the separate cast and per-robot updates."""
+    cfg = small_config(odom_noise_trans=0.05, odom_noise_rot=0.05, aligned_headings=False)
+    a = rollout(3, 21, 150, cfg)
+
+    def separate(self: Simulation, rng: np.random.Generator) -> Any:
+        scan, newly, covered = self.cast(rng)
+        for i in range(self.n_robots):
+            self.integrate(i, scan)
+        return scan, newly, covered
+
+    monkeypatch.setattr(Simulation, "_sense_compiled", separate)
+    b = rollout(3, 21, 150, cfg)
+    assert np.array_equal(a.observed, b.observed) and a.coverage() == b.coverage()
+    assert a.last_scan is not None and b.last_scan is not None
+    assert np.array_equal(a.last_scan.ranges_m, b.last_scan.ranges_m)
+    for i, (ma, mb) in enumerate(zip(a.maps, b.maps, strict=True)):
+        assert np.array_equal(ma.logodds, mb.logodds)
+        assert np.array_equal(ma.to_int8(), mb.to_int8())
+        assert ma.change() == mb.change() and ma.version > 0
+        assert np.array_equal(a.trail_cells(i), b.trail_cells(i))
+
+
+def test_a_pickled_simulation_steps_on_as_the_original() -> None:
+    """Unpickling re-links the maps to one stack, so the compiled step updates what they show."""
+    import copy
+    import pickle
+
+    a = rollout(2, 5, 60, small_config())
+    b = pickle.loads(pickle.dumps(a))
+    ra, rb = np.random.default_rng(9), np.random.default_rng(9)
+    for act in ([0, 0], [1, 0], [0, 2], [0, 0]) * 10:
+        a.step(np.array(act), ra)
+        b.step(np.array(act), rb)
+    c = copy.deepcopy(b)
+    c.step(np.array([0, 0]), np.random.default_rng(3))
+    b.step(np.array([0, 0]), np.random.default_rng(3))
+    for mb, mc in zip(b.maps, c.maps, strict=True):
+        assert mb.version > 0 and np.array_equal(mb.to_int8(), mc.to_int8())
+        assert mb.change() == mc.change()
+    a.step(np.array([0, 0]), np.random.default_rng(3))
+    for ma, mb in zip(a.maps, b.maps, strict=True):
+        assert np.array_equal(ma.logodds, mb.logodds) and ma.change() == mb.change()

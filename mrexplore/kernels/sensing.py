@@ -1,4 +1,5 @@
-"""Compiled kernels of the simulator: lidar cast + coverage marking, own-map update, motion.
+"""Compiled kernels of the simulator: lidar cast + coverage marking, own-map update, motion,
+and one world's whole sensing step (:func:`sense_world`).
 
 Why compiled: the numpy versions in :mod:`mrexplore.sensors` and :mod:`mrexplore.mapping` are
 vectorised, but a scan is only ~720 beams of ~40 cells, so numpy's per-call overhead (tens of
@@ -496,6 +497,109 @@ def map_update(
             q0, q1, p0, p1 = min(q0, row), max(q1, row), min(p0, col), max(p1, col)
     bbox[0], bbox[1], bbox[2], bbox[3] = r0, r1, c0, c1
     changed[0], changed[1], changed[2], changed[3] = q0, q1, p0, p1
+
+
+@numba.njit(cache=True, nogil=True)
+def sense_world(
+    table: NDArray[np.bool_],
+    hp: int,
+    wp: int,
+    corners: NDArray[np.float64],
+    ch: NDArray[np.float64],
+    sh: NDArray[np.float64],
+    cos_b: NDArray[np.float64],
+    sin_b: NDArray[np.float64],
+    max_cells: float,
+    res: float,
+    max_range_m: float,
+    noise: NDArray[np.float64],
+    ranges_out: NDArray[np.float32],
+    hit_out: NDArray[np.bool_],
+    observed: NDArray[np.bool_],
+    reach: NDArray[np.bool_],
+    team: NDArray[np.bool_],
+    newly_out: NDArray[np.int64],
+    logodds: NDArray[np.float32],
+    int8_map: NDArray[np.int8],
+    stamp: NDArray[np.uint16],
+    scan_ids: NDArray[np.int64],
+    h: int,
+    w: int,
+    sensors: NDArray[np.float64],
+    dx: NDArray[np.float64],
+    dy: NDArray[np.float64],
+    short_cells: float,
+    deltas: NDArray[np.float32],
+    thresholds: NDArray[np.float32],
+    pct_clip: NDArray[np.int64],
+    bbox: NDArray[np.int64],
+    changed: NDArray[np.int64],
+) -> int:
+    """One world's sensing step in one call: :func:`cast_observe` of R robots on the truth
+    (marking), then :func:`map_update` of each robot's own map with its beams.
+
+    Args:
+        table ... newly_out: as :func:`cast_observe` with ``mark`` on.
+        logodds, int8_map, stamp: the R own maps' arrays, (R, h * w) (a
+            :class:`mrexplore.mapping.MapStack`); scan_ids: int64 (R,) each map's scan id.
+        h, w: the maps' canvas; sensors: float64 (R, 2) each robot's sensor in its canvas's
+            corner coordinates, snapped; dx, dy: float64 (R, B) its beam directions.
+        short_cells, deltas, thresholds, pct_clip: as :func:`map_update` (the same for all maps).
+        bbox, changed: int64 (R, 4): as :func:`map_update`, one row per map.
+
+    Returns:
+        The number of ``reach`` cells the team observed for the first time.
+
+    The same calls as the simulator makes one by one, so the same results bit for bit; the
+    ranges become cells as there (``float64(range) / res``).
+    """
+    covered = cast_observe(
+        table,
+        hp,
+        wp,
+        corners,
+        ch,
+        sh,
+        cos_b,
+        sin_b,
+        max_cells,
+        res,
+        max_range_m,
+        noise,
+        ranges_out,
+        hit_out,
+        True,
+        observed,
+        reach,
+        team,
+        newly_out,
+    )
+    n_rob, n_b = ranges_out.shape
+    t_end = np.empty(n_b)
+    for r in range(n_rob):
+        for b in range(n_b):
+            t_end[b] = np.float64(ranges_out[r, b]) / res
+        map_update(
+            logodds[r],
+            int8_map[r],
+            stamp[r],
+            scan_ids[r],
+            h,
+            w,
+            sensors[r, 0],
+            sensors[r, 1],
+            dx[r],
+            dy[r],
+            t_end,
+            hit_out[r],
+            short_cells,
+            deltas,
+            thresholds,
+            pct_clip,
+            bbox[r],
+            changed[r],
+        )
+    return covered
 
 
 @numba.njit(cache=True, nogil=True, inline="always")

@@ -158,6 +158,11 @@ RIVAL_MEMORY: int = 8
 #: An unmerged pair is tried again only once its two maps know this share more cells (the same maps
 #: give the same answer).
 RETRY_GROWTH: float = 0.02
+#: Each attempt round tries every robot with one partner, the offset between them rotating round
+#: by round, so a team's attempts grow with its robots, not its pairs: every pair gets its turn
+#: within n / 2 rounds, and teams of two or three try every pair every round either way (False:
+#: every unmerged pair every round).
+ROTATING_PARTNERS: bool = False
 
 #: The tracker's former options that are now the constants above (name -> constant name).
 DEMOTED_TRACKER_OPTIONS: dict[str, str] = {
@@ -445,6 +450,11 @@ class TrackerOptions(Options):
             longer finds are checked too): evidence over time, not the search's memory.
         RETRY_GROWTH: an unmerged pair is tried again only once the two maps together know this
             share more cells than at the last attempt (default 0.02; 0 = any change).
+        ROTATING_PARTNERS: each attempt round tries every robot with one partner, the offset
+            between them rotating round by round (1, 2, .., n // 2, 1, ...): a team's attempts
+            grow with its robots, not its pairs, and every pair gets its turn within n // 2
+            rounds; teams of two or three try every pair every round either way (default
+            False: every unmerged pair every round).
     """
 
     owner: ClassVar[str] = "MapMergeTracker"
@@ -1036,28 +1046,37 @@ class MapMergeTracker:
         else:
             self._decide_recheck(i, j, out, job.T_old, job.bbox_j, job.due)
 
+    def _round_pairs(self, step: int) -> list[tuple[int, int]]:
+        """The pairs ``(i, j)``, ``i < j``, the attempt round at ``step`` considers, in order:
+        all of them, or with ``ROTATING_PARTNERS`` each robot and the one ``offset`` after it,
+        the offset cycling through 1 .. n // 2 round by round."""
+        n = self.n
+        if not ROTATING_PARTNERS or n < 4:  # 2 or 3 robots: the rotation gives every pair
+            return [(i, j) for i in range(n) for j in range(i + 1, n)]
+        offset = 1 + (step // self.options.merge_every) % (n // 2)
+        return sorted({(min(i, (i + offset) % n), max(i, (i + offset) % n)) for i in range(n)})
+
     def _attempt_merges(self, step: int) -> None:
         busy = {(jb.i, jb.j) for jb in self._jobs} | {(q[1], q[2]) for q in self._queue}
-        for i in range(self.n):
-            for j in range(i + 1, self.n):
-                if not self._linked(i, j) or self.transform(i, j) is not None:
-                    continue
-                if (i, j) in busy:
-                    continue  # its last attempt is still under way
-                if self.options.rendezvous_only and (i, j) not in self._sighted:
-                    continue  # the robots have not met
-                known = self._px.known_cells(i) + self._px.known_cells(j)
-                last = self._last_attempt_known.get((i, j))
-                if last is not None and known < last * (1.0 + RETRY_GROWTH):
-                    # Too little new knowledge since the last attempt: the answer would be the
-                    # same (profiled: with random actions, repeated attempts on barely grown
-                    # maps were 2/3 of the env's step time).
-                    continue
-                self._last_attempt_known[(i, j)] = known
-                if self.options.merge_latency_steps:
-                    self._queue.append(("attempt", i, j))
-                else:
-                    self._start("attempt", i, j, step)
+        for i, j in self._round_pairs(step):
+            if not self._linked(i, j) or self.transform(i, j) is not None:
+                continue
+            if (i, j) in busy:
+                continue  # its last attempt is still under way
+            if self.options.rendezvous_only and (i, j) not in self._sighted:
+                continue  # the robots have not met
+            known = self._px.known_cells(i) + self._px.known_cells(j)
+            last = self._last_attempt_known.get((i, j))
+            if last is not None and known < last * (1.0 + RETRY_GROWTH):
+                # Too little new knowledge since the last attempt: the answer would be the
+                # same (profiled: with random actions, repeated attempts on barely grown maps
+                # were 2/3 of the env's step time).
+                continue
+            self._last_attempt_known[(i, j)] = known
+            if self.options.merge_latency_steps:
+                self._queue.append(("attempt", i, j))
+            else:
+                self._start("attempt", i, j, step)
 
     def _decide_attempt(self, i: int, j: int, out: _Outcome, bbox_j: Box | None) -> None:
         """Accept, start or extend a run of agreeing attempts, or break it (one attempt's

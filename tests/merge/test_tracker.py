@@ -383,6 +383,50 @@ def test_work_counts_the_applied_attempts_and_rechecks_and_their_cpu(
     assert tr.work == MergeWork()
 
 
+class _PairLog:
+    """A merger that refuses every pair and records which pairs it was asked about."""
+
+    def __init__(self) -> None:
+        self.pairs: list[tuple[int, int]] = []
+
+    def merge(self, a: np.ndarray, b: np.ndarray) -> MergeResult:
+        raise AssertionError("the tracker calls merge_pair when a merger has it")
+
+    def merge_pair(
+        self, i: int, j: int, a: np.ndarray, b: np.ndarray, oa: object, ob: object
+    ) -> MergeResult:
+        self.pairs.append((i, j))
+        return MergeResult(matched=False, transform=None, score=0.5, reason="scripted refusal")
+
+
+@pytest.mark.parametrize("rotating", [False, True])
+@pytest.mark.parametrize("n", [2, 3, 4, 5, 8])
+def test_rotating_partners_try_each_robot_once_a_round_and_every_pair_in_turn(
+    monkeypatch: pytest.MonkeyPatch, n: int, rotating: bool
+) -> None:
+    """With ``ROTATING_PARTNERS`` a round tries each robot with one partner (n pairs, n / 2
+    when the offset is half the team), every pair within n // 2 rounds; teams of two and three
+    try every pair every round, as without it."""
+    monkeypatch.setattr(tracker_module, "ROTATING_PARTNERS", rotating)
+    log = _PairLog()
+    tr = MapMergeTracker(n, merger=log, merge_every=1, confirmations=1)
+    all_pairs = {(i, j) for i in range(n) for j in range(i + 1, n)}
+    rounds = []
+    for k in range(n // 2 * 2):
+        before = len(log.pairs)
+        tr.update(_growing_maps(k)[:1] * n, step=k)
+        rounds.append(log.pairs[before:])
+    if not rotating or n <= 3:
+        assert all(set(r) == all_pairs and len(r) == len(all_pairs) for r in rounds)
+        return
+    for k, r in enumerate(rounds):
+        offset = 1 + k % (n // 2)
+        assert len(r) == len(set(r)) == (n // 2 if 2 * offset == n else n)
+        assert all((j - i) % n in (offset, n - offset) for i, j in r)
+    assert set().union(*rounds[: n // 2]) == all_pairs  # every pair had its turn
+    assert rounds[: n // 2] == rounds[n // 2 :]  # and the rotation starts over
+
+
 def test_no_attempt_when_told_not_to() -> None:
     seq = _Seq([translation(3.0, 0.0)])
     tr = MapMergeTracker(2, merger=seq, merge_every=1, confirmations=1)

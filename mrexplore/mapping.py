@@ -62,6 +62,10 @@ L_OCC_DEFAULT: float = 3.6
 #: Headings whose beam directions each map keeps (see :meth:`OccupancyMap.beam_directions`).
 _DIR_CACHE: int = 16
 
+#: Cells an update lists as changed (:meth:`OccupancyMap.changed_cells`); beyond, only its box
+#: tells (a scan changes ~100 cells once a robot has looked around, thousands in the first).
+CHANGED_CELLS_LISTED: int = 4096
+
 #: The per-scan stamps are uint16: scan ids wrap (and the stamps are cleared) before 2 id + 1
 #: overflows.
 _STAMP_WRAP: int = 32767
@@ -75,13 +79,15 @@ class MapRows:
     """The arrays an :class:`OccupancyMap` of ``H x W`` cells keeps its state in (all flat,
     C-contiguous): ``logodds`` float32 (H W), ``int8`` int8 (H W), ``stamp`` uint16 (H W) (the
     compiled update's per-scan stamps), ``bbox`` and ``changed`` int64 (4,) (inclusive boxes
-    ``row0, row1, col0, col1``, ``row1 < 0`` for none)."""
+    ``row0, row1, col0, col1``, ``row1 < 0`` for none), ``cells`` int64 (K + 1,) (the last
+    update's changed cells: count, then flat indices; -1 for more than K)."""
 
     logodds: NDArray[np.float32]
     int8: NDArray[np.int8]
     stamp: NDArray[np.uint16]
     bbox: NDArray[np.int64]
     changed: NDArray[np.int64]
+    cells: NDArray[np.int64]
 
     @staticmethod
     def allocate(h: int, w: int) -> MapRows:
@@ -97,7 +103,7 @@ class MapStack:
 
     Attributes:
         logodds: float32 (R, H W); int8: int8 (R, H W); stamp: uint16 (R, H W);
-        bbox, changed: int64 (R, 4).
+        bbox, changed: int64 (R, 4); cells: int64 (R, K + 1).
     """
 
     logodds: NDArray[np.float32]
@@ -105,6 +111,7 @@ class MapStack:
     stamp: NDArray[np.uint16]
     bbox: NDArray[np.int64]
     changed: NDArray[np.int64]
+    cells: NDArray[np.int64]
 
     @staticmethod
     def allocate(n: int, h: int, w: int) -> MapStack:
@@ -116,11 +123,19 @@ class MapStack:
             stamp=np.zeros((n, h * w), dtype=np.uint16),
             bbox=np.tile(none, (n, 1)),
             changed=np.tile(none, (n, 1)),
+            cells=np.zeros((n, CHANGED_CELLS_LISTED + 1), dtype=np.int64),
         )
 
     def row(self, i: int) -> MapRows:
         """Map ``i``'s arrays (views)."""
-        return MapRows(self.logodds[i], self.int8[i], self.stamp[i], self.bbox[i], self.changed[i])
+        return MapRows(
+            self.logodds[i],
+            self.int8[i],
+            self.stamp[i],
+            self.bbox[i],
+            self.changed[i],
+            self.cells[i],
+        )
 
 
 class OccupancyMap:
@@ -200,6 +215,9 @@ class OccupancyMap:
         # the update that made ``version``
         self._changed_arr = rows.changed
         self._changed_box: Box | None = None
+        # the cells of the last update (count first) and those of the update that made version
+        self._cells_arr = rows.cells
+        self._changed_cells: NDArray[np.int64] | None = None
         # Beam directions of the last few headings (see beam_directions): heading bits -> (cos,
         # sin), for the beam angles whose bytes are _dir_angles.
         self._dir_cache: dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
@@ -245,6 +263,13 @@ class OccupancyMap:
         of :meth:`to_int8` needs to follow the map without comparing canvases."""
         return MapChange(self.version, self.known_bbox(), self._changed_box)
 
+    def changed_cells(self) -> NDArray[np.int64] | None:
+        """The flat indices (read-only int64) of the cells whose int8 value the update that made
+        :attr:`version` changed: the cells inside :meth:`change`'s ``changed_box`` that did
+        change. None at version 0, or when that update changed more than
+        :data:`CHANGED_CELLS_LISTED` cells (the box then tells)."""
+        return self._changed_cells
+
     def note_change(self) -> None:
         """Bump :attr:`version` when the last update changed an int8 cell (its ``changed`` box):
         called after every update, also one made by a compiled call on the map's
@@ -253,6 +278,11 @@ class OccupancyMap:
         if q[1] >= 0:
             self.version += 1
             self._changed_box = (int(q[0]), int(q[1]) + 1, int(q[2]), int(q[3]) + 1)
+            n = int(self._cells_arr[0])
+            cells = None if n < 0 else self._cells_arr[1 : n + 1].copy()
+            if cells is not None:
+                cells.flags.writeable = False
+            self._changed_cells = cells
 
     # ------------------------------------------------------------------ update
     def update(
@@ -363,6 +393,13 @@ class OccupancyMap:
             self._changed_arr[:] = (mr.min(), mr.max(), mc.min(), mc.max())
         else:
             self._changed_arr[:] = (0, -1, 0, -1)
+        listed = self._cells_arr
+        moved = np.unique(moved)  # a cell may be listed twice (free and occupied marks)
+        if moved.size < listed.shape[0]:
+            listed[0] = moved.size
+            listed[1 : moved.size + 1] = moved
+        else:
+            listed[0] = -1
         self.note_change()
         # Rows by a float multiply (exact for these sizes; int64 division is slower).
         rr = np.floor((idx + 0.5) * (1.0 / w)).astype(np.int64)
@@ -389,11 +426,13 @@ class OccupancyMap:
         rows.stamp[:] = self._stamp
         rows.bbox[:] = self._bbox_arr
         rows.changed[:] = self._changed_arr
+        rows.cells[:] = self._cells_arr
         self.logodds = rows.logodds.reshape(h, w)
         self._int8 = rows.int8.reshape(h, w)
         self._stamp = rows.stamp
         self._bbox_arr = rows.bbox
         self._changed_arr = rows.changed
+        self._cells_arr = rows.cells
 
     def sensor_corner(self, x: float, y: float) -> tuple[float, float]:
         """The sensor at own-frame ``(x, y)`` metres in this canvas's corner coordinates
@@ -472,6 +511,7 @@ class OccupancyMap:
             *self.kernel_constants(),
             self._bbox_arr,
             self._changed_arr,
+            self._cells_arr,
         )
 
     def kernel_constants(

@@ -467,6 +467,7 @@ class Simulation:
             *self.maps[0].kernel_constants(),
             stack.bbox,
             stack.changed,
+            stack.cells,
         )
         for m in self.maps:
             m.note_change()

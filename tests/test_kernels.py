@@ -287,3 +287,29 @@ def test_map_change_matches_a_canvas_comparison(numpy_path: None, use_numba: boo
                 assert ch.version == versions[i]
             versions[i] = ch.version
             before[i] = now.copy()
+
+
+@pytest.mark.parametrize("use_numba", [True, False])
+def test_an_update_lists_the_cells_it_changed(
+    numpy_path: None, monkeypatch: pytest.MonkeyPatch, use_numba: bool
+) -> None:
+    """``changed_cells`` are exactly the cells whose int8 value the update that made the
+    version changed (both paths); past ``CHANGED_CELLS_LISTED`` only the box tells."""
+    set_path(use_numba)
+    rng = np.random.default_rng(4)
+    m = mapping.OccupancyMap((201, 201), 0.05, (100, 100))
+    assert m.changed_cells() is None
+    ang = np.linspace(-np.pi, np.pi, 90, endpoint=False)
+    x = y = 0.0
+    for k in range(12):
+        before = m.to_int8().copy()
+        ranges = rng.uniform(0.2, 2.5, ang.size)
+        m.update((x, y, 0.1 * k), ang, ranges, rng.random(ang.size) < 0.8)
+        moved = np.flatnonzero(m.to_int8().reshape(-1) != before.reshape(-1))
+        cells = m.changed_cells()
+        assert cells is not None and np.array_equal(np.sort(cells), moved)
+        x += 0.07
+    monkeypatch.setattr(mapping, "CHANGED_CELLS_LISTED", 5)
+    small = mapping.OccupancyMap((201, 201), 0.05, (100, 100))
+    small.update((0.0, 0.0, 0.0), ang, np.full(ang.size, 2.0), np.ones(ang.size, dtype=bool))
+    assert small.changed_cells() is None and small.change().changed_box is not None

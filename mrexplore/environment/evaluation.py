@@ -287,16 +287,21 @@ class TruthMonitor:
         """Re-score only the world cells that sample the part of robot i's map that changed
         since the version last scored (the same figures as warping the whole map)."""
         fc = self.fusion.fused_change(self.agents[i])
+        cells = None
         if fc is None:
-            ch = self.sim.maps[i].change()
-            source, ver, box = "own", ch.version, ch.changed_box
+            own = self.sim.maps[i]
+            ch = own.change()
+            source, ver, box, cells = "own", ch.version, ch.changed_box, own.changed_cells()
         else:
             source, (ver, box) = "fused", fc
         seen = self._inc_seen.get(i)
         if seen is None or seen[0] != source or ver > seen[1] + 1 or ver < seen[1]:
-            box = None  # a new source or a skipped version: score it whole
+            box, cells = None, None  # a new source or a skipped version: score it whole
         elif ver == seen[1]:
-            box = (0, 0, 0, 0)
-        share, n_held = inc.update(fused, box)
+            box, cells = (0, 0, 0, 0), None
+        if cells is not None:  # the own map's next version: only the cells it changed
+            share, n_held = inc.update_cells(fused, cells)
+        else:
+            share, n_held = inc.update(fused, box)
         self._inc_seen[i] = (source, ver)
         return share, (n_held if self.held else None)

@@ -105,6 +105,7 @@ def warm_up() -> None:
         np.array([0, 100, 26, 64], dtype=np.int64),
         np.array([0, -1, 0, -1], dtype=np.int64),
         np.array([0, -1, 0, -1], dtype=np.int64),
+        np.zeros(9, dtype=np.int64),
     )
     sensing.sense_world(
         table,
@@ -140,6 +141,7 @@ def warm_up() -> None:
         np.array([0, 100, 26, 64], dtype=np.int64),
         np.array([[0, -1, 0, -1]], dtype=np.int64),
         np.array([[0, -1, 0, -1]], dtype=np.int64),
+        np.zeros((1, 9), dtype=np.int64),
     )
     views.view_shares(
         np.zeros((4, 4), dtype=np.int8),

@@ -345,6 +345,7 @@ def map_update(
     pct_clip: NDArray[np.int64],
     bbox: NDArray[np.int64],
     changed: NDArray[np.int64],
+    cells: NDArray[np.int64],
 ) -> None:
     """Integrate one scan into a log-odds map (flat arrays of an (h, w) canvas).
 
@@ -371,8 +372,14 @@ def map_update(
         changed: int64 (4,) out: ``row0, row1, col0, col1`` inclusive of the cells whose int8
             value this scan changed (``row1 < 0``: none). Consumers of the int8 map (the merge
             tracker) then need not compare whole canvases to find what changed.
+        cells: int64 (K + 1,) out: ``cells[0]`` the number of cells whose int8 value this scan
+            changed and ``cells[1:]`` their flat indices, or ``cells[0] = -1`` when more than K
+            changed (then only the box tells): a reader re-scoring the map need not visit the
+            unchanged cells of the box (the truth monitor's :meth:`~mrexplore.truth.
+            IncrementalScore.update_cells`).
     """
     n_b = dx.shape[0]
+    cells[0] = 0
     l_free, l_occ, l_min, l_max = deltas[0], deltas[1], deltas[2], deltas[3]
     s_free = np.uint16(2 * scan_id)
     s_occ = np.uint16(2 * scan_id + 1)
@@ -422,6 +429,7 @@ def map_update(
             stamp[f] = s_occ
             if _apply(logodds, int8_map, f, l_occ, l_min, l_max, thresholds, pct_clip):
                 q0, q1, p0, p1 = min(q0, er), max(q1, er), min(p0, ec), max(p1, ec)
+                _list_cell(cells, f)
     # 2) free cells: the robot's own cell, then every crossing before the end of each beam.
     orow = int(oy)
     ocol = int(ox)
@@ -431,6 +439,7 @@ def map_update(
         stamp[f] = s_free
         if _apply(logodds, int8_map, f, l_free, l_min, l_max, thresholds, pct_clip):
             q0, q1, p0, p1 = min(q0, orow), max(q1, orow), min(p0, ocol), max(p1, ocol)
+            _list_cell(cells, f)
     # Two passes over the free cells. Pass 1 walks every beam and, per crossing, only stamps
     # the cells new in this scan and lists them (branch-free: whether a cell is new is
     # unpredictable near the robot, where the beams overlap). Pass 2 applies ``l_free`` once per
@@ -495,6 +504,7 @@ def map_update(
             row = f // w
             col = f - row * w
             q0, q1, p0, p1 = min(q0, row), max(q1, row), min(p0, col), max(p1, col)
+            _list_cell(cells, f)
     bbox[0], bbox[1], bbox[2], bbox[3] = r0, r1, c0, c1
     changed[0], changed[1], changed[2], changed[3] = q0, q1, p0, p1
 
@@ -534,6 +544,7 @@ def sense_world(
     pct_clip: NDArray[np.int64],
     bbox: NDArray[np.int64],
     changed: NDArray[np.int64],
+    cells: NDArray[np.int64],
 ) -> int:
     """One world's sensing step in one call: :func:`cast_observe` of R robots on the truth
     (marking), then :func:`map_update` of each robot's own map with its beams.
@@ -545,7 +556,8 @@ def sense_world(
         h, w: the maps' canvas; sensors: float64 (R, 2) each robot's sensor in its canvas's
             corner coordinates, snapped; dx, dy: float64 (R, B) its beam directions.
         short_cells, deltas, thresholds, pct_clip: as :func:`map_update` (the same for all maps).
-        bbox, changed: int64 (R, 4): as :func:`map_update`, one row per map.
+        bbox, changed: int64 (R, 4), cells: int64 (R, K + 1): as :func:`map_update`, one row
+            per map.
 
     Returns:
         The number of ``reach`` cells the team observed for the first time.
@@ -598,8 +610,22 @@ def sense_world(
             pct_clip,
             bbox[r],
             changed[r],
+            cells[r],
         )
     return covered
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _list_cell(cells: NDArray[np.int64], f: int) -> None:
+    """Append flat cell ``f`` to ``cells`` (count first; -1 once it is full)."""
+    n = cells[0]
+    if n < 0:
+        return
+    if n + 1 < cells.shape[0]:
+        cells[n + 1] = f
+        cells[0] = n + 1
+    else:
+        cells[0] = -1
 
 
 @numba.njit(cache=True, nogil=True, inline="always")

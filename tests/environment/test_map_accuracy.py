@@ -69,12 +69,13 @@ def test_contradiction_is_cached_on_the_fused_map_version(
     warp = penv.episode.truth.scorer.warp
     monkeypatch.setattr(penv.episode.truth.scorer, "warp", lambda *a: calls.append(1) or warp(*a))
     # the incremental scorer (when OpenCV's sampling could be pinned down) stands for the warp
-    update = IncrementalScore.update
-    monkeypatch.setattr(
-        IncrementalScore,
-        "update",
-        lambda *a: calls.append(1) or update(*a),  # type: ignore[misc]
-    )
+    for name in ("update", "update_cells"):
+        method = getattr(IncrementalScore, name)
+        monkeypatch.setattr(
+            IncrementalScore,
+            name,
+            lambda *a, m=method: calls.append(1) or m(*a),  # type: ignore[misc]
+        )
     for _ in range(5):
         penv.step({a: 3 for a in penv.agents})
     assert calls == []  # unchanged maps cost nothing
@@ -166,9 +167,19 @@ def test_held_coverage_credits_a_robot_holding_a_wrong_transform_with_its_own_ma
 
 
 @pytest.mark.parametrize("coverage_mode", ["observed", "held"])
-def test_incremental_scores_equal_a_full_warp_every_step(coverage_mode: str) -> None:
-    """The map accuracy kept from the changed boxes equals warping and scoring the whole
-    own-or-fused map, at every step, before and after a merge, with odometry drift."""
+def test_incremental_scores_equal_a_full_warp_every_step(
+    coverage_mode: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The map accuracy kept from the changed boxes (the own map's changed cells before a
+    merge) equals warping and scoring the whole own-or-fused map, at every step, before and
+    after a merge, with odometry drift."""
+    by_cells = []
+    update_cells = IncrementalScore.update_cells
+    monkeypatch.setattr(
+        IncrementalScore,
+        "update_cells",
+        lambda *a: by_cells.append(1) or update_cells(*a),  # type: ignore[misc]
+    )
     merger = OracleMerger()
     penv = mrexplore.parallel_env(
         **{**SMALL, "merger": merger, "coverage_mode": coverage_mode, "odom_noise_trans": 0.02}
@@ -193,4 +204,4 @@ def test_incremental_scores_equal_a_full_warp_every_step(coverage_mode: str) -> 
             assert got == share or (math.isnan(got) and math.isnan(share))
             if held is not None:
                 assert penv.episode.truth.map_accuracy(i)[1] == held
-    assert merged
+    assert merged and len(by_cells) > 20

@@ -367,12 +367,11 @@ class IncrementalScore:
         self.T = np.asarray(T_world_from_map, dtype=np.float64)
         # its entries as Python floats: the box of every step is mapped in plain Python
         self._t = tuple(float(v) for v in self.T[:2].reshape(-1))
+        self._t_arr = np.array(self._t)
         self.sample = sample
         self.cls = np.zeros(scorer.shape, dtype=np.uint8)
         self.counts = np.zeros(3, dtype=np.int64)
         self._reach = scorer.reachable if scorer.reachable is not None else scorer.near_wall
-        # world cells by the map cell they sample (update_cells), made at its first call
-        self._by_source: tuple[NDArray[np.int32], NDArray[np.int32]] | None = None
 
     def update(self, map_grid: Int8Grid, box: Box | None) -> tuple[float, int]:
         """Re-score after ``map_grid`` changed inside ``box`` (map cells, half-open
@@ -415,21 +414,15 @@ class IncrementalScore:
         sample them are re-scored, with the same figures. A scan changes ~100 cells of a box of
         ~10,000."""
         assert _scoring is not None
-        if self._by_source is None:
-            flat = self.sample.reshape(-1)
-            order = np.argsort(flat, kind="stable").astype(np.int32)
-            order = order[flat[order] >= 0]  # cells outside the map sample nothing
-            self._by_source = (order, np.ascontiguousarray(flat[order], dtype=np.int32))
-        order, keys = self._by_source
         _scoring.score_cells(
             np.ascontiguousarray(map_grid).reshape(-1),
+            map_grid.shape[1],
             self.sample,
             self.cls,
             self.scorer.walls,
             self.scorer.near_wall,
             self._reach,
-            order,
-            keys,
+            self._t_arr,
             np.asarray(cells, dtype=np.int64),
             FREE_THRESHOLD,
             OCCUPIED_THRESHOLD,

@@ -10,11 +10,13 @@ import pytest
 from mrexplore.errors import GridError
 from mrexplore.grid import apply_transform, make_transform
 from mrexplore.truth import (
+    IncrementalScore,
     MapScorer,
     T_world_from_map,
     coverage,
     map_contradiction,
     map_in_world,
+    nearest_sampling,
     reachable_cspace,
     reachable_free,
     transform_error,
@@ -193,3 +195,28 @@ def test_scores_in_one_pass_equal_the_two_methods() -> None:
         assert share == ref or (np.isnan(share) and np.isnan(ref))
         assert held == scorer.held_free(m)
         assert scorer.scores(m)[1] is None
+
+
+@pytest.mark.parametrize("theta", [0.0, 0.37, 2.9, -1.2])
+def test_rescoring_the_changed_cells_equals_rescoring_the_whole_world(theta: float) -> None:
+    """``update_cells`` finds every world cell that samples a changed map cell, under a turned
+    and shifted transform: the same classes and counts as re-scoring the whole world."""
+    rng = np.random.default_rng(3)
+    walls = rng.random((70, 80)) < 0.2
+    scorer = MapScorer(walls, reachable=rng.random((70, 80)) < 0.7)
+    T = make_transform(theta, 31.3, 17.6)
+    sample = nearest_sampling(T, (90, 110), walls.shape)
+    if sample is None:
+        pytest.skip("OpenCV's sampling could not be pinned down here")
+    values = np.array([-1, 0, 10, 50, 80, 100], dtype=np.int8)
+    m = rng.choice(values, size=(90, 110))
+    by_cells, whole = IncrementalScore(scorer, T, sample), IncrementalScore(scorer, T, sample)
+    by_cells.update(m, None)
+    whole.update(m, None)
+    for _ in range(6):
+        changed = rng.choice(m.size, size=150, replace=False)
+        m.reshape(-1)[changed] = rng.choice(values, size=changed.size)
+        got = by_cells.update_cells(m, changed)
+        assert got == pytest.approx(whole.update(m, None), nan_ok=True)
+        assert np.array_equal(by_cells.cls, whole.cls)
+        assert np.array_equal(by_cells.counts, whole.counts)

@@ -294,12 +294,13 @@ class TruthMonitor:
             source, ver, box, cells = "own", ch.version, ch.changed_box, own.changed_cells()
         else:
             source, (ver, box) = "fused", fc
+            cells = self.fusion.fused_changed_cells(self.agents[i])
         seen = self._inc_seen.get(i)
         if seen is None or seen[0] != source or ver > seen[1] + 1 or ver < seen[1]:
             box, cells = None, None  # a new source or a skipped version: score it whole
         elif ver == seen[1]:
             box, cells = (0, 0, 0, 0), None
-        if cells is not None:  # the own map's next version: only the cells it changed
+        if cells is not None:  # the next version: only the cells it changed
             share, n_held = inc.update_cells(fused, cells)
         else:
             share, n_held = inc.update(fused, box)

@@ -4,6 +4,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 from numpy.typing import NDArray
@@ -119,40 +121,46 @@ def score_region(
 @numba.njit(cache=True, nogil=True)
 def score_cells(
     src: NDArray[np.int8],
+    map_w: int,
     sample: NDArray[np.int32],
     cls: NDArray[np.uint8],
     walls: NDArray[np.bool_],
     near_wall: NDArray[np.bool_],
     reachable: NDArray[np.bool_],
-    order: NDArray[np.int32],
-    keys: NDArray[np.int32],
+    t: NDArray[np.float64],
     map_cells: NDArray[np.int64],
     free_hi: int,
     occ_lo: int,
     counts: NDArray[np.int64],
 ) -> None:
     """Re-score the world cells that sample the map cells ``map_cells`` (flat indices into
-    ``src``), as :func:`score_region` would: the same ``cls`` and ``counts`` as re-scoring any
-    region holding them, since no other world cell's source changed.
+    ``src``, a map ``map_w`` cells wide), as :func:`score_region` would: the same ``cls`` and
+    ``counts`` as re-scoring any region holding them, since no other world cell's source
+    changed.
 
-    ``keys`` (int32, sorted) are the map cells the world cells sample and ``order`` (int32) the
-    flat world cells in that order (the world cells of map cell k are
-    ``order[searchsorted(keys, k) : searchsorted(keys, k, 'right')]``).
+    ``t`` float64 (6,): ``a, b, tx, c, d, ty`` of the rigid map-to-world transform ``sample``
+    was made with (world cells, same resolution). A world cell samples the map cell nearest
+    its preimage, so it lies within ~1.5 cells of the map cell's image: the 5 x 5 world cells
+    around that image whose ``sample`` is the map cell are all of them.
     """
-    w = sample.shape[1]
+    h, w = sample.shape
+    a, b, tx, c, d, ty = t[0], t[1], t[2], t[3], t[4], t[5]
     for m in map_cells:
+        row = m // map_w
+        col = m - row * map_w
+        ci = math.floor(a * col + b * row + tx + 0.5)
+        ri = math.floor(c * col + d * row + ty + 0.5)
         new = _claim(src[m], free_hi, occ_lo)
-        for p in range(np.searchsorted(keys, m), np.searchsorted(keys, m, side="right")):
-            r = order[p] // w
-            c = order[p] - r * w
-            if new != cls[r, c]:
-                d0, d1, d2 = _count_change(
-                    cls[r, c], new, walls[r, c], near_wall[r, c], reachable[r, c]
-                )
-                counts[0] += d0
-                counts[1] += d1
-                counts[2] += d2
-                cls[r, c] = new
+        for r in range(max(0, ri - 2), min(h, ri + 3)):
+            for cc in range(max(0, ci - 2), min(w, ci + 3)):
+                if sample[r, cc] == m and new != cls[r, cc]:
+                    d0, d1, d2 = _count_change(
+                        cls[r, cc], new, walls[r, cc], near_wall[r, cc], reachable[r, cc]
+                    )
+                    counts[0] += d0
+                    counts[1] += d1
+                    counts[2] += d2
+                    cls[r, cc] = new
 
 
 @numba.njit(cache=True, nogil=True)

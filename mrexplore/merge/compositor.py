@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from mrexplore.errors import GridError
 from mrexplore.grid import UNKNOWN, Int8Grid, MapChange, Transform, chain, invert_transform
@@ -112,6 +113,8 @@ class MapCompositor:
         # (None: all of it), for readers that follow the fused map incrementally
         self._fcount = [0] * self.n
         self._fchanged: list[Box | None] = [None] * self.n
+        # ... and the flat cells the last one changed (None: not listed)
+        self._fcells: list[NDArray[np.int64] | None] = [None] * self.n
         # per robot: a box holding every known cell of the last composition
         self._fknown: list[Box] = [(0, 0, 0, 0)] * self.n
         # per robot: the MapChange.version last observed (None: observed without one)
@@ -266,6 +269,7 @@ class MapCompositor:
                 else:
                     regions.append(p.changed)
         changed: Box | None = None
+        moved: list[NDArray[np.int64]] = []
         if regions is None:  # rebuild the buffer
             buf = own.copy()
             for p in patches.values():
@@ -280,6 +284,7 @@ class MapCompositor:
                     continue
                 r0, r1, c0, c1 = cl
                 changed = cl if changed is None else _union(changed, cl)
+                before = buf[r0:r1, c0:c1].copy()
                 buf[r0:r1, c0:c1] = own[r0:r1, c0:c1]
                 for p in patches.values():
                     h, w = p.data.shape
@@ -289,6 +294,10 @@ class MapCompositor:
                     a0, a1, b0, b1 = sub
                     win = buf[p.r0 + a0 : p.r0 + a1, p.c0 + b0 : p.c0 + b1]
                     np.maximum(win, p.data[a0:a1, b0:b1], out=win)
+                # the cells this region's composition changed (an overlap recomposed by a later
+                # region gets the same values: each region's own compare lists it once)
+                rows, cols = np.nonzero(before != buf[r0:r1, c0:c1])
+                moved.append((rows + r0) * own.shape[1] + (cols + c0))
         self._fbuf[i] = buf
         self._fbuf_ver[i] = (
             self._version[i],
@@ -296,6 +305,11 @@ class MapCompositor:
         )
         self._fcount[i] += 1
         self._fchanged[i] = None if regions is None else (changed or (0, 0, 0, 0))
+        self._fcells[i] = (
+            None
+            if regions is None
+            else (np.concatenate(moved) if moved else np.zeros(0, dtype=np.int64))
+        )
         self._fknown[i] = self._known_box(i, own.shape, patches.values())
         # A read-only view of the buffer, a new view object whenever the content changed (as
         # the own maps' ``to_int8``): a fresh copy cost a memset of the canvas per changed step.
@@ -327,6 +341,12 @@ class MapCompositor:
         nothing changed, None when rebuilt whole) bounds what that composition rewrote. A reader
         that saw count k - 1 need only look at the box to follow count k."""
         return self._fcount[i], self._fchanged[i]
+
+    def fused_changed_cells(self, i: int) -> NDArray[np.int64] | None:
+        """The flat cells of robot i's fused map whose value the last composition counted by
+        :meth:`fused_change` changed (int64, inside its box; a cell may repeat), or None when
+        that composition rebuilt the map whole."""
+        return self._fcells[i]
 
     def _patch(
         self, i: int, j: int, T: Transform, linked: Callable[[int, int], bool]

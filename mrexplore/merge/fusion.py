@@ -389,6 +389,13 @@ class FusionStage:
         count, box = self.tracker.fused_change(self.index[agent])
         return int(count), box
 
+    def fused_changed_cells(self, agent: str) -> NDArray[np.int64] | None:
+        """For a merged ``agent``: the flat cells of its fused map the composition counted by
+        :meth:`fused_change` changed (None: rebuilt whole, or not merged)."""
+        if self.tracker is None or not self.tracker.merged(self.index[agent]):
+            return None
+        return self.tracker.fused_changed_cells(self.index[agent])
+
     def transforms(self, agent: str) -> dict[str, NDArray[np.float64]]:
         """Estimated transforms from each merged teammate's cells into ``agent``'s cells."""
         if self.tracker is None:

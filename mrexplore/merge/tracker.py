@@ -1375,3 +1375,8 @@ class MapMergeTracker:
         nothing changed, None when rebuilt whole) bounds what that composition rewrote. A reader
         that saw count k - 1 need only look at the box to follow count k."""
         return self._px.fused_change(i)
+
+    def fused_changed_cells(self, i: int) -> NDArray[np.int64] | None:
+        """The flat cells that composition changed (None: rebuilt whole); see
+        :meth:`MapCompositor.fused_changed_cells`."""
+        return self._px.fused_changed_cells(i)

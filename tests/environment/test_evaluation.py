@@ -110,6 +110,9 @@ class _FakeFusion:
     def fused_change(self, agent: str) -> tuple[int, None]:
         return self.version, None  # changed anywhere: score it whole
 
+    def fused_changed_cells(self, agent: str) -> None:
+        return None  # the box says what changed
+
 
 def test_held_credits_a_wrongly_merged_robot_with_its_own_map_only() -> None:
     """Robot 1's map of the right room, merged into robot 0's one room to the left, lands on

@@ -77,3 +77,32 @@ def test_fused_known_box_holds_every_known_cell_as_the_maps_grow() -> None:
     fused = comp.fused(0, {1: T}, lambda i, j: True)
     assert _holds(comp.fused_known_box(0), fused)
     assert (fused[31:34, 33:42] == 0).all()
+
+
+def test_fused_changed_cells_are_the_cells_a_composition_changed() -> None:
+    """After each incremental composition, ``fused_changed_cells`` holds exactly the cells whose
+    value changed (as a set); a rebuild lists none (None)."""
+    rng = np.random.default_rng(2)
+    comp = MapCompositor(2)
+    a, b = _map(), np.full((40, 50), UNKNOWN, dtype=np.int8)
+    b[2:6, 3:8] = OCCUPIED
+    comp.observe(0, a)
+    comp.observe(1, b)
+    T = translation(12, 9)
+    before = comp.fused(0, {1: T}, lambda i, j: True).copy()
+    assert comp.fused_changed_cells(0) is None  # the first composition is a rebuild
+    listed = 0
+    for k in range(8):
+        m = (a, b)[k % 2]
+        r, c = int(rng.integers(0, 30)), int(rng.integers(0, 40))
+        m[r : r + 4, c : c + 6] = rng.choice(np.array([0, 50, OCCUPIED], dtype=np.int8))
+        comp.observe(k % 2, m)
+        now = comp.fused(0, {1: T}, lambda i, j: True)
+        cells = comp.fused_changed_cells(0)
+        if cells is None:  # rebuilt whole (a patch outgrew its window): the box says so too
+            assert comp.fused_change(0)[1] is None
+        else:
+            listed += 1
+            assert set(cells.tolist()) == set(np.flatnonzero(now != before).tolist())
+        before = now.copy()
+    assert listed >= 4

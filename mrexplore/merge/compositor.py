@@ -296,7 +296,7 @@ class MapCompositor:
                     np.maximum(win, p.data[a0:a1, b0:b1], out=win)
                 # the cells this region's composition changed (an overlap recomposed by a later
                 # region gets the same values: each region's own compare lists it once)
-                rows, cols = np.nonzero(before != buf[r0:r1, c0:c1])
+                rows, cols = np.divmod(np.flatnonzero(before != buf[r0:r1, c0:c1]), c1 - c0)
                 moved.append((rows + r0) * own.shape[1] + (cols + c0))
         self._fbuf[i] = buf
         self._fbuf_ver[i] = (

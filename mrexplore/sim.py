@@ -423,8 +423,8 @@ class Simulation:
 
     def _sense_compiled(self, rng: np.random.Generator) -> tuple[Scan, NDArray[np.int64], int]:
         """:meth:`cast` and every robot's :meth:`integrate` in one compiled call
-        (:func:`mrexplore.kernels.sensing.sense_world`), with the same results bit for bit:
-        the per-robot Python of the separate calls was a sixth of a world-step."""
+        (:func:`mrexplore.kernels.sensing.sense_world`), with the same results bit for bit;
+        the trig and the range noise are drawn here by numpy, in the same order."""
         assert _sensing is not None
         lidar, grid, n = self.lidar, self._grid, self.n_robots
         corner, hd = lidar.check_origins(

@@ -368,6 +368,7 @@ class IncrementalScore:
         # its entries as Python floats: the box of every step is mapped in plain Python
         self._t = tuple(float(v) for v in self.T[:2].reshape(-1))
         self._t_arr = np.array(self._t)
+        self._rigid = bool(np.allclose(self.T[:2, :2] @ self.T[:2, :2].T, np.eye(2)))
         self.sample = sample
         self.cls = np.zeros(scorer.shape, dtype=np.uint8)
         self.counts = np.zeros(3, dtype=np.int64)
@@ -411,9 +412,12 @@ class IncrementalScore:
     def update_cells(self, map_grid: Int8Grid, cells: NDArray[np.int64]) -> tuple[float, int]:
         """:meth:`update` after ``map_grid`` changed in the cells ``cells`` only (flat indices,
         e.g. :meth:`mrexplore.mapping.OccupancyMap.changed_cells`): only the world cells that
-        sample them are re-scored, with the same figures. A scan changes ~100 cells of a box of
-        ~10,000."""
+        sample them are re-scored, with the same figures (a scan changes ~100 cells of a box of
+        ~10,000). Needs a rigid map-to-world transform, the map at the world's resolution (the
+        simulator's): the world cells of a map cell are then found around its image."""
         assert _scoring is not None
+        if not self._rigid:
+            raise GridError("IncrementalScore.update_cells needs a rigid map-to-world transform")
         _scoring.score_cells(
             np.ascontiguousarray(map_grid).reshape(-1),
             map_grid.shape[1],

@@ -220,3 +220,13 @@ def test_rescoring_the_changed_cells_equals_rescoring_the_whole_world(theta: flo
         assert got == pytest.approx(whole.update(m, None), nan_ok=True)
         assert np.array_equal(by_cells.cls, whole.cls)
         assert np.array_equal(by_cells.counts, whole.counts)
+
+
+def test_rescoring_changed_cells_needs_a_rigid_transform() -> None:
+    walls = np.zeros((20, 20), dtype=bool)
+    T = np.diag([2.0, 2.0, 1.0])  # a map at half the world's resolution
+    sample = nearest_sampling(T, (10, 10), walls.shape)
+    assert sample is not None
+    inc = IncrementalScore(MapScorer(walls), T, sample)
+    with pytest.raises(GridError, match="rigid"):
+        inc.update_cells(np.zeros((10, 10), dtype=np.int8), np.array([3]))

@@ -410,13 +410,12 @@ class Simulation:
         """
         if kernels.enabled():
             scan, newly, covered = self._sense_compiled(rng)
-            for i, (x, y, _) in enumerate(self.est_poses.tolist()):
-                self._trails[i].append(*self.maps[i].cell_of(x, y))
         else:
             scan, newly, covered = self.cast(rng)
             for i in range(self.n_robots):
-                x, y = self.integrate(i, scan)
-                self._trails[i].append(*self.maps[i].cell_of(x, y))
+                self.integrate(i, scan)
+        for i, (x, y, _) in enumerate(self.est_poses.tolist()):  # where each scan was mapped
+            self._trails[i].append(*self.maps[i].cell_of(x, y))
         self.last_scan = scan
         self._team_covered += covered
         return newly

@@ -25,6 +25,7 @@ import importlib
 import importlib.util
 import os
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 
@@ -65,84 +66,40 @@ def warm_up() -> None:
     table[5] = table[6] = table[9] = table[10] = False
     one = np.ones(1)
     zero = np.zeros(1)
-    sensing.cast_observe(
-        table,
-        4,
-        4,
-        np.array([[1.0, 1.0]]),
-        one,
-        zero,
-        one,
-        zero,
-        1.0,
-        1.0,
-        1.0,
-        np.zeros((0, 0)),
-        np.zeros((1, 1), dtype=np.float32),
-        np.zeros((1, 1), dtype=np.bool_),
-        True,
-        np.zeros((1, 4), dtype=np.bool_),
-        np.zeros(4, dtype=np.bool_),
-        np.zeros(4, dtype=np.bool_),
-        np.zeros(1, dtype=np.int64),
-    )
-    sensing.map_update(
-        np.zeros(25, dtype=np.float32),
-        np.full(25, -1, dtype=np.int8),
-        np.zeros(25, dtype=np.uint16),
-        1,
-        5,
-        5,
-        2.5,
-        2.5,
-        one,
-        zero,
-        one,
-        np.ones(1, dtype=np.bool_),
+    # one robot at (1, 1) of a 2 x 2 grid, one beam; its outputs; the map update's constants
+    corner = np.array([[1.0, 1.0]])
+    cast_in: tuple[Any, ...] = (table, 4, 4, corner, one, zero, one, zero, 1.0, 1.0, 1.0)
+    noise = np.zeros((0, 0))
+    ranges, hit = np.zeros((1, 1), dtype=np.float32), np.zeros((1, 1), dtype=np.bool_)
+    marks: tuple[Any, ...] = (np.zeros((1, 4), dtype=np.bool_), np.zeros(4, dtype=np.bool_))
+    team, newly = np.zeros(4, dtype=np.bool_), np.zeros(1, dtype=np.int64)
+    consts: tuple[Any, ...] = (
         24.0,
         np.array([-1.0, 1.0, -5.0, 5.0], dtype=np.float32),
         np.array([-1.0, 0.6], dtype=np.float32),
         np.array([0, 100, 26, 64], dtype=np.int64),
-        np.array([0, -1, 0, -1], dtype=np.int64),
-        np.array([0, -1, 0, -1], dtype=np.int64),
-        np.zeros(9, dtype=np.int64),
     )
-    sensing.sense_world(
-        table,
-        4,
-        4,
-        np.array([[1.0, 1.0]]),
-        one,
-        zero,
-        one,
-        zero,
-        1.0,
-        1.0,
-        1.0,
-        np.zeros((0, 0)),
-        np.zeros((1, 1), dtype=np.float32),
-        np.zeros((1, 1), dtype=np.bool_),
-        np.zeros((1, 4), dtype=np.bool_),
-        np.zeros(4, dtype=np.bool_),
-        np.zeros(4, dtype=np.bool_),
-        np.zeros(1, dtype=np.int64),
+    stack: tuple[Any, ...] = (  # one 5 x 5 map: logodds, int8, stamp
         np.zeros((1, 25), dtype=np.float32),
         np.full((1, 25), -1, dtype=np.int8),
         np.zeros((1, 25), dtype=np.uint16),
-        np.ones(1, dtype=np.int64),
-        5,
-        5,
-        np.array([[2.5, 2.5]]),
-        np.ones((1, 1)),
-        np.zeros((1, 1)),
-        24.0,
-        np.array([-1.0, 1.0, -5.0, 5.0], dtype=np.float32),
-        np.array([-1.0, 0.6], dtype=np.float32),
-        np.array([0, 100, 26, 64], dtype=np.int64),
-        np.array([[0, -1, 0, -1]], dtype=np.int64),
-        np.array([[0, -1, 0, -1]], dtype=np.int64),
-        np.zeros((1, 9), dtype=np.int64),
     )
+    none = np.array([[0, -1, 0, -1]], dtype=np.int64)
+    boxes: tuple[Any, ...] = (none, none.copy())  # known and changed boxes
+    cells = np.zeros((1, 9), dtype=np.int64)
+    # whole argument lists as tuples: each kernel's arguments in its order
+    cast: tuple[Any, ...] = (*cast_in, noise, ranges, hit, True, *marks, team, newly)
+    update: tuple[Any, ...] = (
+        *(a[0] for a in stack), 1, 5, 5, 2.5, 2.5, one, zero, one, hit[0], *consts,
+        *(b[0] for b in boxes), cells[0],
+    )  # fmt: skip
+    world: tuple[Any, ...] = (
+        *cast_in, noise, ranges, hit, *marks, team, newly, *stack, np.ones(1, dtype=np.int64),
+        5, 5, np.array([[2.5, 2.5]]), np.ones((1, 1)), np.zeros((1, 1)), *consts, *boxes, cells,
+    )  # fmt: skip
+    sensing.cast_observe(*cast)
+    sensing.map_update(*update)
+    sensing.sense_world(*world)
     views.view_shares(
         np.zeros((4, 4), dtype=np.int8),
         0,

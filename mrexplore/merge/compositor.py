@@ -113,8 +113,10 @@ class MapCompositor:
         # (None: all of it), for readers that follow the fused map incrementally
         self._fcount = [0] * self.n
         self._fchanged: list[Box | None] = [None] * self.n
-        # ... and the flat cells the last one changed (None: not listed)
+        # ... and the flat cells the last one changed (None: not listed), listed only once a
+        # reader has asked for them (the compare costs a copy of each recomposed box)
         self._fcells: list[NDArray[np.int64] | None] = [None] * self.n
+        self._list_cells = [False] * self.n
         # per robot: a box holding every known cell of the last composition
         self._fknown: list[Box] = [(0, 0, 0, 0)] * self.n
         # per robot: the MapChange.version last observed (None: observed without one)
@@ -269,7 +271,7 @@ class MapCompositor:
                 else:
                     regions.append(p.changed)
         changed: Box | None = None
-        moved: list[NDArray[np.int64]] = []
+        moved: list[NDArray[np.int64]] | None = [] if self._list_cells[i] else None
         if regions is None:  # rebuild the buffer
             buf = own.copy()
             for p in patches.values():
@@ -284,7 +286,7 @@ class MapCompositor:
                     continue
                 r0, r1, c0, c1 = cl
                 changed = cl if changed is None else _union(changed, cl)
-                before = buf[r0:r1, c0:c1].copy()
+                before = None if moved is None else buf[r0:r1, c0:c1].copy()
                 buf[r0:r1, c0:c1] = own[r0:r1, c0:c1]
                 for p in patches.values():
                     h, w = p.data.shape
@@ -294,10 +296,12 @@ class MapCompositor:
                     a0, a1, b0, b1 = sub
                     win = buf[p.r0 + a0 : p.r0 + a1, p.c0 + b0 : p.c0 + b1]
                     np.maximum(win, p.data[a0:a1, b0:b1], out=win)
-                # the cells this region's composition changed (an overlap recomposed by a later
-                # region gets the same values: each region's own compare lists it once)
-                rows, cols = np.divmod(np.flatnonzero(before != buf[r0:r1, c0:c1]), c1 - c0)
-                moved.append((rows + r0) * own.shape[1] + (cols + c0))
+                if moved is not None and before is not None:
+                    # the cells this region's composition changed (an overlap recomposed by a
+                    # later region gets the same values: each region's own compare lists it once)
+                    flat = np.flatnonzero(before != buf[r0:r1, c0:c1])
+                    rows, cols = np.divmod(flat, c1 - c0)
+                    moved.append((rows + r0) * own.shape[1] + (cols + c0))
         self._fbuf[i] = buf
         self._fbuf_ver[i] = (
             self._version[i],
@@ -307,7 +311,7 @@ class MapCompositor:
         self._fchanged[i] = None if regions is None else (changed or (0, 0, 0, 0))
         self._fcells[i] = (
             None
-            if regions is None
+            if regions is None or moved is None
             else (np.concatenate(moved) if moved else np.zeros(0, dtype=np.int64))
         )
         self._fknown[i] = self._known_box(i, own.shape, patches.values())
@@ -345,7 +349,9 @@ class MapCompositor:
     def fused_changed_cells(self, i: int) -> NDArray[np.int64] | None:
         """The flat cells of robot i's fused map whose value the last composition counted by
         :meth:`fused_change` changed (int64, inside its box; a cell may repeat), or None when
-        that composition rebuilt the map whole."""
+        that composition rebuilt the map whole or did not list them: the cells are listed from
+        the first composition after a reader first asked (readers that never ask pay nothing)."""
+        self._list_cells[i] = True
         return self._fcells[i]
 
     def _patch(

@@ -106,3 +106,21 @@ def test_fused_changed_cells_are_the_cells_a_composition_changed() -> None:
             assert set(cells.tolist()) == set(np.flatnonzero(now != before).tolist())
         before = now.copy()
     assert listed >= 4
+
+
+def test_changed_cells_are_listed_only_once_a_reader_asks() -> None:
+    comp = MapCompositor(2)
+    a, b = _map(), np.full((40, 50), UNKNOWN, dtype=np.int8)
+    comp.observe(0, a)
+    comp.observe(1, b)
+    comp.fused(0, {1: translation(5, 5)}, lambda i, j: True)
+    a[25:28, 5:9] = 0
+    comp.observe(0, a)
+    comp.fused(0, {1: translation(5, 5)}, lambda i, j: True)
+    assert comp.fused_change(0)[1] is not None  # an incremental composition ...
+    assert comp.fused_changed_cells(0) is None  # ... whose cells nobody had asked for
+    a[30:32, 5:9] = 0
+    comp.observe(0, a)
+    comp.fused(0, {1: translation(5, 5)}, lambda i, j: True)
+    cells = comp.fused_changed_cells(0)
+    assert cells is not None and len(cells) == 8

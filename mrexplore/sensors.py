@@ -27,6 +27,7 @@ from mrexplore import kernels
 from mrexplore.errors import ConfigError, GridError
 from mrexplore.traversal import (
     CORNER_EPS,
+    SNAP_CELLS,
     PaddedGrid,
     Traversal,
     prepare_walls,
@@ -252,6 +253,34 @@ class Lidar:
         if not (corner.min() >= 0.0 and (corner < np.array([w, h])).all()):
             raise GridError(f"sensor origins {org.tolist()} must lie inside the {h}x{w} grid")
         return corner, hd
+
+    def corners_of(
+        self,
+        grid: PaddedGrid,
+        poses_m: NDArray[np.float64],
+        origin_m: tuple[float, float],
+        resolution_m: float,
+    ) -> NDArray[np.float64]:
+        """:meth:`check_origins` of world poses ``poses_m`` (R, 3) (metres; the cells of
+        :meth:`mrexplore.world.World.cell_of` with ``origin_m``, ``resolution_m``): the snapped
+        corners (R, 2). The same IEEE operations in the same order on Python floats, since
+        numpy's per-call overhead on R-row arrays cost more than the arithmetic (the simulator
+        calls this every step); the same error for a sensor outside the grid."""
+        h, w = grid.shape
+        ox, oy = origin_m
+        out = np.empty((len(poses_m), 2))
+        for i, (x, y, _) in enumerate(poses_m.tolist()):
+            u = ((x - ox) / resolution_m - 0.5 + 0.5) / SNAP_CELLS
+            v = ((y - oy) / resolution_m - 0.5 + 0.5) / SNAP_CELLS
+            # np.round is Python's round (half to even); the int scales back exactly
+            inside = math.isfinite(u) and math.isfinite(v)
+            cx = round(u) * SNAP_CELLS if inside else -1.0
+            cy = round(v) * SNAP_CELLS if inside else -1.0
+            if not (0.0 <= cx < w and 0.0 <= cy < h):
+                cells = (np.asarray(poses_m)[:, :2] - np.asarray(origin_m)) / resolution_m - 0.5
+                raise GridError(f"sensor origins {cells.tolist()} must lie inside the {h}x{w} grid")
+            out[i, 0], out[i, 1] = cx, cy
+        return out
 
     def kernel_args(
         self,

@@ -426,10 +426,9 @@ class Simulation:
         the trig and the range noise are drawn here by numpy, in the same order."""
         assert _sensing is not None
         lidar, grid, n = self.lidar, self._grid, self.n_robots
-        corner, hd = lidar.check_origins(
-            grid, self.world.cell_of(self.true_poses[:, :2]), self.true_poses[:, 2]
-        )
-        cast_args = lidar.kernel_args(corner, hd, self.resolution_m, rng)
+        poses = self.true_poses
+        corner = lidar.corners_of(grid, poses, self.world.origin_m, self.resolution_m)
+        cast_args = lidar.kernel_args(corner, poses[:, 2], self.resolution_m, rng)
         n_b = lidar.angles.shape[0]
         sensors = np.empty((n, 2))
         dx = np.empty((n, n_b))

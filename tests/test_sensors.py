@@ -274,3 +274,28 @@ def test_beam_angles() -> None:
     assert np.allclose(full, [-math.pi, -math.pi / 2, 0.0, math.pi / 2])
     part = Lidar(LidarConfig(n_beams=3, fov_rad=math.pi)).angles
     assert np.allclose(part, [-math.pi / 2, 0.0, math.pi / 2])
+
+
+def test_corners_of_is_check_origins_of_the_world_cells_bit_for_bit() -> None:
+    from mrexplore.world import World
+
+    rng = np.random.default_rng(3)
+    lidar = Lidar(LidarConfig(n_beams=4))
+    for origin, res in (((0.0, 0.0), 0.05), ((-3.7, 12.25), 0.05), ((0.1, -0.3), 0.1)):
+        world = World(walls=np.zeros((40, 60), dtype=bool), resolution_m=res, origin_m=origin)
+        grid = lidar.prepare(world.walls)
+        # random poses, and poses on cell boundaries (where the snap decides the cell)
+        cells = rng.uniform(-0.49, 39.4, size=(64, 2))
+        cells[32:] = np.round(cells[32:] * 2.0) / 2.0 - 0.5 + rng.choice([0.0, 1e-12], (32, 2))
+        cells = np.clip(cells, -0.5, 39.49)
+        poses = np.concatenate([world.xy_of(cells), rng.uniform(-3, 3, (64, 1))], axis=1)
+        want, _ = lidar.check_origins(grid, world.cell_of(poses[:, :2]), poses[:, 2])
+        got = lidar.corners_of(grid, poses, world.origin_m, res)
+        assert got.tobytes() == want.tobytes()
+    # the second exactly on the grid's top edge (row corner 40.0, as check_origins finds)
+    for bad in ([6.5, 1.0], [1.15, 3.7], [float("nan"), 1.0], [1.0, float("inf")]):
+        pose = np.array([[bad[0], bad[1], 0.0]])
+        with pytest.raises(GridError, match="inside the 40x60 grid"):
+            lidar.corners_of(grid, pose, world.origin_m, 0.1)
+        with pytest.raises(GridError, match="inside the 40x60 grid"):
+            lidar.check_origins(grid, world.cell_of(pose[:, :2]), pose[:, 2])

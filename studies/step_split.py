@@ -13,12 +13,18 @@ Per world-step it prints the thread CPU of the whole step and of each compiled k
 it (the simulator's sensing call, the observation's view kernel, the map-accuracy scorers),
 timed by wrapping the kernels (each wrapper adds ~1 us); the rest is Python and numpy.
 
-    python studies/step_split.py --worlds 32 --rounds 6 --steps 25
+``--processes 2`` runs the same measurement in two processes at once (their own worlds, seeds
+apart; timed after both have warmed up), as the batched env's worker processes step their
+blocks of worlds, and prints the mean over the processes: what stepping on every core costs
+each world-step, part by part, against ``--processes 1``.
+
+    python studies/step_split.py --worlds 32 --rounds 6 --steps 25 [--processes 2]
 """
 
 from __future__ import annotations
 
 import argparse
+import multiprocessing
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -63,9 +69,16 @@ def timed_kernels(acc: dict[str, int]) -> Iterator[None]:
             setattr(module, name, saved[label])
 
 
-def measure(n_worlds: int, rounds: int = 6, steps: int = 25, seed: int = 0) -> dict[str, Any]:
+def measure(
+    n_worlds: int,
+    rounds: int = 6,
+    steps: int = 25,
+    seed: int = 0,
+    ready: Callable[[], Any] | None = None,
+) -> dict[str, Any]:
     """Per order, the thread CPU per world-step (us) of the whole step and of each kernel,
-    summed over ``rounds`` alternating rounds (the order that goes first alternates)."""
+    summed over ``rounds`` alternating rounds (the order that goes first alternates);
+    ``ready`` is called once the envs are warm, before the timed rounds."""
     envs = [
         mrexplore.parallel_env(
             world="symmetric_office", n_robots=2, merger=None, max_cycles=1_000_000
@@ -95,6 +108,8 @@ def measure(n_worlds: int, rounds: int = 6, steps: int = 25, seed: int = 0) -> d
     for env in envs:  # compile and warm every env first
         for _ in range(5):
             step(env)
+    if ready is not None:
+        ready()
     orders = {"alone": alone, "in turn": in_turn}
     totals = {name: dict.fromkeys(["step", *KERNELS], 0) for name in orders}
     for r in range(rounds):
@@ -118,18 +133,64 @@ def measure(n_worlds: int, rounds: int = 6, steps: int = 25, seed: int = 0) -> d
     }
 
 
+_barrier: Any = None
+
+
+def _init(barrier: Any) -> None:
+    global _barrier
+    _barrier = barrier
+
+
+def _measure_in_worker(n_worlds: int, rounds: int, steps: int, seed: int) -> dict[str, Any]:
+    return measure(n_worlds, rounds, steps, seed, ready=_barrier.wait)
+
+
+def measure_at_once(
+    n_processes: int, n_worlds: int, rounds: int = 6, steps: int = 25
+) -> dict[str, Any]:
+    """:func:`measure` in ``n_processes`` processes at once (process k seeded ``1000 k``; all
+    timed from the moment every one is warm), the parts' mean over the processes."""
+    if n_processes == 1:
+        return measure(n_worlds, rounds, steps)
+    ctx = multiprocessing.get_context("spawn")
+    barrier = ctx.Barrier(n_processes)
+    with ctx.Pool(n_processes, initializer=_init, initargs=(barrier,)) as pool:
+        runs = pool.starmap(
+            _measure_in_worker, [(n_worlds, rounds, steps, 1000 * k) for k in range(n_processes)]
+        )
+    return mean_of(runs)
+
+
+def mean_of(runs: list[dict[str, Any]]) -> dict[str, Any]:
+    """One result of several :func:`measure` results: each order's parts averaged over them,
+    ``processes`` their number."""
+    out = dict(runs[0])
+    out["us_per_world_step"] = {
+        order: {
+            part: sum(r["us_per_world_step"][order][part] for r in runs) / len(runs)
+            for part in parts
+        }
+        for order, parts in runs[0]["us_per_world_step"].items()
+    }
+    out["processes"] = len(runs)
+    return out
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--worlds", type=int, default=32)
     p.add_argument("--rounds", type=int, default=6)
     p.add_argument("--steps", type=int, default=25)
+    p.add_argument("--processes", type=int, default=1)
     a = p.parse_args()
-    if a.worlds < 1 or a.rounds < 1 or a.steps < 1:
-        p.error("--worlds, --rounds and --steps must be positive")
-    res = measure(a.worlds, a.rounds, a.steps)
+    if a.worlds < 1 or a.rounds < 1 or a.steps < 1 or a.processes < 1:
+        p.error("--worlds, --rounds, --steps and --processes must be positive")
+    res = measure_at_once(a.processes, a.worlds, a.rounds, a.steps)
+    at_once = f"; {a.processes} processes at once, their mean" if a.processes > 1 else ""
     print(
         f"{a.worlds} envs of symmetric_office, 2 robots, random actions, merging off; "
-        f"{a.rounds} alternating rounds of {a.steps} steps each; thread CPU per world-step, us"
+        f"{a.rounds} alternating rounds of {a.steps} steps each{at_once}; "
+        "thread CPU per world-step, us"
     )
     labels = ["step", *KERNELS]
     print(f"{'order':10s}" + "".join(f"{k:>13s}" for k in labels) + f"{'rest':>13s}")

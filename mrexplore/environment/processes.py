@@ -64,6 +64,24 @@ def check_num_workers(num_workers: Any, num_envs: int) -> int:
     return check_num_threads(num_workers, num_envs, "num_workers")
 
 
+#: What talking to a worker that has exited raises.
+_GONE = (EOFError, ConnectionResetError, BrokenPipeError)
+
+
+def _died(p: Any, cmd: str) -> MrexploreError:
+    """The error for worker ``p`` gone while answering ``cmd``; one that dies while starting
+    most often ran the parent's unguarded script again (the ``spawn`` start method)."""
+    p.join(timeout=5.0)
+    msg = f"a worker process died (exit code {p.exitcode})"
+    if cmd == "make":
+        msg += (
+            " while starting. Workers start with multiprocessing's 'spawn' method, which imports "
+            "the main module again: a script that makes vector_env(num_workers=...) must make it "
+            'under `if __name__ == "__main__":`. The worker\'s own error is printed above.'
+        )
+    return MrexploreError(msg)
+
+
 def _blocks(n: int, k: int) -> list[tuple[int, int]]:
     """``k`` contiguous blocks ``(start, size)`` of ``n`` worlds, sizes differing by at most 1
     (the larger first)."""
@@ -264,21 +282,22 @@ class ProcessBatchedEnv(BatchedExploreEnv):
         re-raise the first worker's error (with its traceback's text)."""
         if self.closed:
             raise RuntimeError("ProcessBatchedEnv is closed")
+        sent = []
         for conn, arg in zip(self._conns, args, strict=True):
-            conn.send((cmd, arg))
+            try:
+                conn.send((cmd, arg))
+                sent.append(True)
+            except _GONE:
+                sent.append(False)
         answers = []
         error: tuple[BaseException, str] | None = None
-        for conn, p in zip(self._conns, self._procs, strict=True):
+        for conn, p, ok in zip(self._conns, self._procs, sent, strict=True):
             try:
+                if not ok:
+                    raise EOFError
                 status, out = conn.recv()
-            except EOFError:
-                status, out = (
-                    "error",
-                    (
-                        MrexploreError(f"a worker process died (exit code {p.exitcode})"),
-                        "",
-                    ),
-                )
+            except _GONE:
+                status, out = "error", (_died(p, cmd), "")
             if status == "error" and error is None:
                 error = out
             answers.append(out)

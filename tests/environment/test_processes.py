@@ -3,6 +3,8 @@ batched env on one thread, bit for bit; bad input at the door; errors of a worke
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from typing import Any
 
 import numpy as np
@@ -120,3 +122,17 @@ def test_what_a_process_cannot_do_says_so() -> None:
         venv.close()
     with pytest.raises(RuntimeError, match="closed"):
         venv.reset(seed=0)
+
+
+def test_a_script_without_the_main_guard_is_told_what_to_do(tmp_path: Any) -> None:
+    script = tmp_path / "unguarded.py"
+    script.write_text(
+        "import mrexplore\n"
+        f"venv = mrexplore.vector_env(num_envs=2, world={WORLD!r}, max_cycles=3, num_workers=2)\n"
+        "venv.close()\n"
+    )
+    run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True)
+    assert run.returncode != 0
+    last = run.stderr.strip().splitlines()[-1]
+    assert last.startswith("mrexplore.errors.MrexploreError: a worker process died"), last
+    assert 'if __name__ == "__main__":' in last

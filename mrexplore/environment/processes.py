@@ -293,9 +293,7 @@ class ProcessBatchedEnv(BatchedExploreEnv):
         error: tuple[BaseException, str] | None = None
         for conn, p, ok in zip(self._conns, self._procs, sent, strict=True):
             try:
-                if not ok:
-                    raise EOFError
-                status, out = conn.recv()
+                status, out = conn.recv() if ok else ("error", (_died(p, cmd), ""))
             except _GONE:
                 status, out = "error", (_died(p, cmd), "")
             if status == "error" and error is None:

@@ -13,7 +13,7 @@ import pytest
 import mrexplore
 from mrexplore.environment.batched import BatchedExploreEnv
 from mrexplore.environment.processes import ProcessBatchedEnv, _blocks
-from mrexplore.errors import ConfigError
+from mrexplore.errors import ConfigError, MrexploreError
 from tests.helpers import assert_same
 
 WORLD = "small_office"
@@ -136,3 +136,15 @@ def test_a_script_without_the_main_guard_is_told_what_to_do(tmp_path: Any) -> No
     last = run.stderr.strip().splitlines()[-1]
     assert last.startswith("mrexplore.errors.MrexploreError: a worker process died"), last
     assert 'if __name__ == "__main__":' in last
+
+
+def test_a_worker_killed_mid_run_is_a_clear_error() -> None:
+    venv = mrexplore.vector_env(num_envs=2, world=WORLD, max_cycles=3, num_workers=2)
+    try:
+        venv.reset(seed=0)
+        venv._procs[0].kill()
+        venv._procs[0].join()
+        with pytest.raises(MrexploreError, match=r"a worker process died \(exit code -9\)$"):
+            venv.step(np.zeros((2, 2), dtype=np.int64))
+    finally:
+        venv.close()

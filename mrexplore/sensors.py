@@ -18,7 +18,7 @@ import sys
 import types
 import warnings
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,6 +34,9 @@ from mrexplore.traversal import (
     snap,
     traverse,
 )
+
+if TYPE_CHECKING:
+    from mrexplore.world import World
 
 # The compiled cast (None without numba); used while mrexplore.kernels.enabled().
 _sensing = kernels.load("sensing")
@@ -255,30 +258,24 @@ class Lidar:
         return corner, hd
 
     def corners_of(
-        self,
-        grid: PaddedGrid,
-        poses_m: NDArray[np.float64],
-        origin_m: tuple[float, float],
-        resolution_m: float,
+        self, grid: PaddedGrid, poses_m: NDArray[np.float64], world: World
     ) -> NDArray[np.float64]:
-        """:meth:`check_origins` of world poses ``poses_m`` (R, 3) (metres; the cells of
-        :meth:`mrexplore.world.World.cell_of` with ``origin_m``, ``resolution_m``): the snapped
-        corners (R, 2). The same IEEE operations in the same order on Python floats, since
-        numpy's per-call overhead on R-row arrays cost more than the arithmetic (the simulator
-        calls this every step); the same error for a sensor outside the grid."""
+        """:meth:`check_origins` of ``world.cell_of`` of the world poses ``poses_m`` (R, 3)
+        (metres): the snapped corners (R, 2). The same IEEE operations in the same order on
+        Python floats, since numpy's per-call overhead on R-row arrays cost more than the
+        arithmetic (the simulator calls this every step); the same error outside the grid."""
         h, w = grid.shape
-        ox, oy = origin_m
+        (ox, oy), res = world.origin_m, world.resolution_m
         out = np.empty((len(poses_m), 2))
         for i, (x, y, _) in enumerate(poses_m.tolist()):
-            u = ((x - ox) / resolution_m - 0.5 + 0.5) / SNAP_CELLS
-            v = ((y - oy) / resolution_m - 0.5 + 0.5) / SNAP_CELLS
+            u = ((x - ox) / res - 0.5 + 0.5) / SNAP_CELLS
+            v = ((y - oy) / res - 0.5 + 0.5) / SNAP_CELLS
             # np.round is Python's round (half to even); the int scales back exactly
             inside = math.isfinite(u) and math.isfinite(v)
             cx = round(u) * SNAP_CELLS if inside else -1.0
             cy = round(v) * SNAP_CELLS if inside else -1.0
             if not (0.0 <= cx < w and 0.0 <= cy < h):
-                cells = (np.asarray(poses_m)[:, :2] - np.asarray(origin_m)) / resolution_m - 0.5
-                raise GridError(f"sensor origins {cells.tolist()} must lie inside the {h}x{w} grid")
+                self.check_origins(grid, world.cell_of(poses_m[:, :2]), poses_m[:, 2])  # raises
             out[i, 0], out[i, 1] = cx, cy
         return out
 

@@ -427,7 +427,7 @@ class Simulation:
         assert _sensing is not None
         lidar, grid, n = self.lidar, self._grid, self.n_robots
         poses = self.true_poses
-        corner = lidar.corners_of(grid, poses, self.world.origin_m, self.resolution_m)
+        corner = lidar.corners_of(grid, poses, self.world)
         cast_args = lidar.kernel_args(corner, poses[:, 2], self.resolution_m, rng)
         n_b = lidar.angles.shape[0]
         sensors = np.empty((n, 2))

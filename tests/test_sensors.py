@@ -290,12 +290,12 @@ def test_corners_of_is_check_origins_of_the_world_cells_bit_for_bit() -> None:
         cells = np.clip(cells, -0.5, 39.49)
         poses = np.concatenate([world.xy_of(cells), rng.uniform(-3, 3, (64, 1))], axis=1)
         want, _ = lidar.check_origins(grid, world.cell_of(poses[:, :2]), poses[:, 2])
-        got = lidar.corners_of(grid, poses, world.origin_m, res)
+        got = lidar.corners_of(grid, poses, world)
         assert got.tobytes() == want.tobytes()
     # the second exactly on the grid's top edge (row corner 40.0, as check_origins finds)
     for bad in ([6.5, 1.0], [1.15, 3.7], [float("nan"), 1.0], [1.0, float("inf")]):
         pose = np.array([[bad[0], bad[1], 0.0]])
         with pytest.raises(GridError, match="inside the 40x60 grid"):
-            lidar.corners_of(grid, pose, world.origin_m, 0.1)
+            lidar.corners_of(grid, pose, world)
         with pytest.raises(GridError, match="inside the 40x60 grid"):
             lidar.check_origins(grid, world.cell_of(pose[:, :2]), pose[:, 2])

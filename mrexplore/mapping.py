@@ -263,6 +263,12 @@ class OccupancyMap:
         of :meth:`to_int8` needs to follow the map without comparing canvases."""
         return MapChange(self.version, self.known_bbox(), self._changed_box)
 
+    @property
+    def changed_box(self) -> Box | None:
+        """:meth:`change`'s ``changed_box`` (without its known box): the half-open box of the
+        cells the update that made :attr:`version` changed, None at version 0."""
+        return self._changed_box
+
     def changed_cells(self) -> NDArray[np.int64] | None:
         """The flat indices (read-only int64) of the cells whose int8 value the update that made
         :attr:`version` changed: the cells inside :meth:`change`'s ``changed_box`` that did
@@ -274,10 +280,10 @@ class OccupancyMap:
         """Bump :attr:`version` when the last update changed an int8 cell (its ``changed`` box):
         called after every update, also one made by a compiled call on the map's
         :class:`MapRows` (the simulator's :func:`~mrexplore.kernels.sensing.sense_world`)."""
-        q = self._changed_arr
-        if q[1] >= 0:
+        r0, r1, c0, c1 = self._changed_arr.tolist()
+        if r1 >= 0:
             self.version += 1
-            self._changed_box = (int(q[0]), int(q[1]) + 1, int(q[2]), int(q[3]) + 1)
+            self._changed_box = (r0, r1 + 1, c0, c1 + 1)
             n = int(self._cells_arr[0])
             cells = None if n < 0 else self._cells_arr[1 : n + 1].copy()
             if cells is not None:

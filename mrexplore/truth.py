@@ -406,7 +406,7 @@ class IncrementalScore:
                 OCCUPIED_THRESHOLD,
                 self.counts,
             )
-        n, bad, held = (int(v) for v in self.counts)
+        n, bad, held = self.counts.tolist()
         return (float("nan") if n == 0 else bad / n), held
 
     def update_cells(self, map_grid: Int8Grid, cells: NDArray[np.int64]) -> tuple[float, int]:
@@ -432,7 +432,7 @@ class IncrementalScore:
             OCCUPIED_THRESHOLD,
             self.counts,
         )
-        n, bad, held = (int(v) for v in self.counts)
+        n, bad, held = self.counts.tolist()
         return (float("nan") if n == 0 else bad / n), held
 
     def _world_box(self, box: Box) -> Box | None:

@@ -290,8 +290,7 @@ class TruthMonitor:
         cells = None
         if fc is None:
             own = self.sim.maps[i]
-            ch = own.change()
-            source, ver, box, cells = "own", ch.version, ch.changed_box, own.changed_cells()
+            source, ver, box, cells = "own", own.version, own.changed_box, own.changed_cells()
         else:
             source, (ver, box) = "fused", fc
             cells = self.fusion.fused_changed_cells(self.agents[i])

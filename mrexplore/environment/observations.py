@@ -32,7 +32,7 @@ Other layouts and dtypes for other clients (channels last, float in [0, 1]):
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import cv2
@@ -131,12 +131,13 @@ def _area_lut(factor: int, size: int) -> NDArray[np.uint8] | None:
     return lut
 
 
-def _known_array(view: RobotView) -> NDArray[np.int64]:
-    """``view.known_box`` as the int64 ``(r0, r1, c0, c1)`` the view kernel reads, the whole map
-    when the view does not give one."""
-    box = view.known_box
+def _known_array(
+    grid: NDArray[np.int8], box: tuple[int, int, int, int] | None
+) -> NDArray[np.int64]:
+    """A view's ``known_box`` as the int64 ``(r0, r1, c0, c1)`` the view kernel reads, the whole
+    ``grid`` when the view does not give one."""
     if box is None:
-        h, w = view.map.shape
+        h, w = grid.shape
         box = (0, h, 0, w)
     return np.array(box, dtype=np.int64)
 
@@ -170,23 +171,51 @@ class ObservationBuilder:
         big = 3 * self.size // 2
         self._big = (np.zeros((big, big), np.uint8), np.zeros((big, big), np.uint8))
         self._acc = np.zeros(big, dtype=np.int32)
+        # per view side: (stride, factor, lut) of the compiled pass, or None for OpenCV's
+        self._plans: dict[tuple[int, int], tuple[int, int, NDArray[np.uint8] | None]] = {}
+        # the robot's disk on channel 6, drawn once per radius and copied into each observation
+        self._disks: dict[int, NDArray[np.uint8]] = {}
 
     def build(
         self, view: RobotView, trail_cells: NDArray[np.float64] | None = None
     ) -> NDArray[np.uint8]:
         """Observation of one robot. ``trail_cells`` (T, 2): the robot's past (col, row) cells
         (default: ``view.trail``)."""
-        if trail_cells is None:
-            trail_cells = view.trail
+        return self.build_from(
+            view.map,
+            view.pose_cell,
+            view.known_box,
+            view.trail if trail_cells is None else trail_cells,
+            view.teammates,
+            view.goal_cell,
+            view.robot_radius_m,
+            view.resolution_m,
+        )
+
+    def build_from(
+        self,
+        grid: NDArray[np.int8],
+        pose_cell: tuple[float, float, float],
+        known_box: tuple[int, int, int, int] | None,
+        trail_cells: NDArray[np.float64],
+        teammates: Mapping[str, tuple[float, float]],
+        goal_cell: tuple[float, float] | None,
+        robot_radius_m: float,
+        resolution_m: float,
+    ) -> NDArray[np.uint8]:
+        """:meth:`build` from the parts of a :class:`RobotView` it reads (the env's step
+        passes them without making the view): ``grid`` (H, W) int8, ``pose_cell`` (col, row,
+        theta_rad), ``known_box`` as ``RobotView.known_box``, ``trail_cells`` (T, 2),
+        ``teammates`` name -> (col, row), ``goal_cell`` (col, row) or None; metres."""
         s = self.size
         obs = np.zeros(self.shape, dtype=np.uint8)
-        col, row, theta = view.pose_cell
+        col, row, theta = pose_cell
         # heading_up: turn the views so the robot's heading points along +row (the same way in
         # every observation), which spares a policy with turn/forward actions from learning to
         # rotate its input; otherwise the views keep the axes of the robot's own map frame.
         phi = math.pi / 2 - theta if self.heading_up else 0.0
-        known = _known_array(view)
-        self._shares_view(view.map, (col, row), self.global_cells, phi, obs[0], obs[1], known)
+        known = _known_array(grid, known_box)
+        self._shares_view(grid, (col, row), self.global_cells, phi, obs[0], obs[1], known)
         scale_g = s / self.global_cells
         if phi == 0.0 and _views is not None and kernels.enabled() and len(trail_cells):
             # one compiled pass over the trail instead of ~10 numpy calls on it
@@ -194,22 +223,33 @@ class ObservationBuilder:
             _views.trail_dots(obs[2], cells, float(col), float(row), scale_g)
         else:
             self._dots(obs[2], trail_cells, (col, row), scale_g, phi, radius=0)
-        if view.teammates:
-            self._dots(obs[3], list(view.teammates.values()), (col, row), scale_g, phi, radius=2)
+        if teammates:
+            self._dots(obs[3], list(teammates.values()), (col, row), scale_g, phi, radius=2)
 
-        self._shares_view(view.map, (col, row), self.local_cells, phi, obs[4], obs[5], known)
+        self._shares_view(grid, (col, row), self.local_cells, phi, obs[4], obs[5], known)
         scale_l = s / self.local_cells
         centre = (s // 2, s // 2)
-        radius_px = max(1, round(view.robot_radius_m / view.resolution_m * scale_l))
-        cv2.circle(obs[6], centre, radius_px, 255, -1)
+        radius_px = max(1, round(robot_radius_m / resolution_m * scale_l))
+        obs[6] = self._disk(radius_px)
         tip = (
             round(centre[0] + math.cos(theta + phi) * 2.5 * radius_px),
             round(centre[1] + math.sin(theta + phi) * 2.5 * radius_px),
         )
         cv2.line(obs[6], centre, tip, 255, 1)
-        if view.goal_cell is not None:
-            self._goal(obs[7], view.goal_cell, (col, row), scale_l, phi)
+        if goal_cell is not None:
+            self._goal(obs[7], goal_cell, (col, row), scale_l, phi)
         return obs
+
+    def _disk(self, radius_px: int) -> NDArray[np.uint8]:
+        """Channel 6's robot disk of ``radius_px`` at the centre on zeros (drawn by OpenCV
+        once per radius: the same pixels as drawing it into each observation)."""
+        disk = self._disks.get(radius_px)
+        if disk is None:
+            disk = np.zeros((self.size, self.size), dtype=np.uint8)
+            cv2.circle(disk, (self.size // 2, self.size // 2), radius_px, 255, -1)
+            disk.flags.writeable = False
+            self._disks[radius_px] = disk
+        return disk
 
     def _shares_view(
         self,
@@ -254,22 +294,11 @@ class ObservationBuilder:
         OpenCV values the lut reproduces (the defaults: 4 for the coarse view, 2 for the fine
         one), else by the OpenCV path. The same values either way (tested)."""
         size = out_free.shape[0]
-        stride = 2 if side >= 4 * size else 1  # as _shares: every second cell of a big window
-        cells = -(-side // stride)
-        factor = cells // size
-        lut = None
-        if (
-            _views is not None
-            and kernels.enabled()
-            and factor >= 1
-            and factor * factor < 1 << _views.SHARE_BITS
-            and factor * size == cells
-        ):
-            key = (factor, size)
-            if key not in self._luts:
-                self._luts[key] = _area_lut(factor, size)
-            lut = self._luts[key]
-        if lut is None:
+        plan = self._plans.get((side, size))
+        if plan is None:
+            plan = self._plans[(side, size)] = self._plan(side, size)
+        stride, factor, lut = plan
+        if lut is None or not kernels.enabled():
             out_free[:], out_occ[:] = _shares(_window(grid, centre, side), size)
             return
         assert _views is not None
@@ -288,6 +317,26 @@ class ObservationBuilder:
             out_occ,
             known,
         )
+
+    def _plan(self, side: int, size: int) -> tuple[int, int, NDArray[np.uint8] | None]:
+        """How :meth:`_shares_into` resamples a ``side``-cell window to ``size`` pixels: the
+        stride it reads the window at, the integer INTER_AREA factor and its lut (None: the
+        OpenCV path)."""
+        stride = 2 if side >= 4 * size else 1  # as _shares: every second cell of a big window
+        cells = -(-side // stride)
+        factor = cells // size
+        lut = None
+        if (
+            _views is not None
+            and factor >= 1
+            and factor * factor < 1 << _views.SHARE_BITS
+            and factor * size == cells
+        ):
+            key = (factor, size)
+            if key not in self._luts:
+                self._luts[key] = _area_lut(factor, size)
+            lut = self._luts[key]
+        return stride, factor, lut
 
     def _dots(
         self,

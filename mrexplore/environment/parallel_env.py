@@ -50,7 +50,7 @@ import math
 import time
 from collections.abc import Callable
 from concurrent.futures import Executor
-from typing import Any, ClassVar
+from typing import Any, ClassVar, NamedTuple
 
 import gymnasium
 import numpy as np
@@ -71,7 +71,7 @@ from mrexplore.render import FrameSnapshot, HumanWindow, render_frame
 from mrexplore.robot import Action, RobotConfig
 from mrexplore.sensors import LidarConfig
 from mrexplore.sim import SimConfig, Simulation
-from mrexplore.types import AgentID, RobotView
+from mrexplore.types import AgentID, Box, RobotView
 
 __all__ = ["STEP_STAGES", "MultiRobotExplorationEnv", "StageTimer"]
 from mrexplore.world import World, load_world
@@ -101,6 +101,17 @@ def one_opencv_thread() -> None:
 
 
 _OPENCV_SET = False
+
+
+class _Drawn(NamedTuple):
+    """The parts of a robot's view that its observation draws (``RobotView``'s fields)."""
+
+    map: NDArray[np.int8]
+    pose_cell: tuple[float, float, float]
+    known_box: Box | None
+    trail: NDArray[np.float64]
+    teammates: dict[AgentID, tuple[float, float]]
+    goal_cell: tuple[float, float] | None
 
 
 class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
@@ -299,7 +310,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         self._exchange_maps(ep, attempt=False)
         ep.coverage = self._coverage_now(ep)
         ep.obs = self._observe(ep)
-        return dict(ep.obs), {a: self._info(ep, a, truncated=False) for a in self.agents}
+        return dict(ep.obs), self._infos(ep, self.agents, truncated=False)
 
     def step(
         self, actions: dict[AgentID, int]
@@ -324,7 +335,7 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         ep.done = terminated or truncated
         agents = list(self.agents)
         obs = {a: ep.obs[a] for a in agents}
-        infos = {a: self._info(ep, a, truncated=truncated) for a in agents}
+        infos = self._infos(ep, agents, truncated=truncated)
         if ep.done:
             self.agents = []
         if self.render_mode == "human":
@@ -355,22 +366,41 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         i = self.possible_agents.index(agent)
         merged = self.fusion.merged(agent)
         transforms = ep.transforms[agent] if merged else {}
+        drawn = self._drawn(ep, i, agent, transforms)
         return RobotView(
             agent=agent,
-            map=self.fusion.fused(agent),
+            map=drawn.map,
             resolution_m=self._resolution_m,
-            pose_cell=ep.sim.pose_cell(i),
+            pose_cell=drawn.pose_cell,
             robot_radius_m=self.config.radius_m,
             merged=merged,
-            # positions travel over the radio with the maps: out of range, where last heard
-            teammates=self.radio.heard(agent, list(transforms)),
+            teammates=drawn.teammates,
             transforms=transforms,
             in_range=self.radio.in_range(agent),
-            goal_cell=self.task.goal_cell(i, ep.sim),
+            goal_cell=drawn.goal_cell,
             time_s=float(ep.sim.time_s),
-            trail=ep.sim.trail_cells(i),
+            trail=drawn.trail,
             hypotheses=self._hypotheses(agent) if with_hypotheses and not merged else {},
-            known_box=self.fusion.known_box(agent),
+            known_box=drawn.known_box,
+        )
+
+    def _drawn(
+        self,
+        ep: EpisodeState,
+        i: int,
+        agent: AgentID,
+        transforms: dict[AgentID, NDArray[np.float64]],
+    ) -> _Drawn:
+        """The parts of agent ``i``'s view that its observation draws; ``transforms``: its
+        merged teammates' (empty while not merged)."""
+        return _Drawn(
+            self.fusion.fused(agent),
+            ep.sim.pose_cell(i),
+            self.fusion.known_box(agent),
+            ep.sim.trail_cells(i),
+            # positions travel over the radio with the maps: out of range, where last heard
+            self.radio.heard(agent, list(transforms)),
+            self.task.goal_cell(i, ep.sim),
         )
 
     def _hypotheses(
@@ -564,9 +594,24 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         )
 
     def _observe(self, ep: EpisodeState) -> Observations:
+        """Every agent's observation, from the parts of its :meth:`robot_view` that are drawn
+        (the view itself is not made: its radio and merge fields are not drawn)."""
         out = {}
-        for a in self.possible_agents:
-            out[a] = self._obs_format.apply(self._obs_builder.build(self._robot_view(a)))
+        build = self._obs_builder.build_from
+        for i, a in enumerate(self.possible_agents):
+            mates = ep.transforms[a] if self.fusion.merged(a) else {}
+            d = self._drawn(ep, i, a, mates)
+            obs = build(
+                d.map,
+                d.pose_cell,
+                d.known_box,
+                d.trail,
+                d.teammates,
+                d.goal_cell,
+                self.config.radius_m,
+                self._resolution_m,
+            )
+            out[a] = self._obs_format.apply(obs)
         return out
 
     def _coverage_now(self, ep: EpisodeState) -> float:
@@ -580,40 +625,53 @@ class MultiRobotExplorationEnv(ParallelEnv[AgentID, NDArray[Any], int]):
         held = max(truth.held_free(i, ep.transforms[a]) for i, a in enumerate(self.possible_agents))
         return held / sim.reachable_cells
 
-    def _info(self, ep: EpisodeState, agent: AgentID, truncated: bool) -> dict[str, Any]:
-        """``agent``'s flat infos (:data:`~mrexplore.environment.infos.INFO_KEYS`, in order)."""
-        i = self.possible_agents.index(agent)
-        first = self.fusion.first_merge_step(agent)
-        truth = ep.truth
-        err = None if truth is None else truth.merge_error(agent, ep.transforms[agent])
-        accuracy = UNKNOWN_INFO if truth is None else truth.map_accuracy(i)[0]
-        given = self.task.given(ep.sim)
-        info: dict[str, Any] = {
-            "coverage": self.coverage,
-            "task_time_s": self.task.time_s(ep.sim),
-            "step": int(ep.sim.steps),
-            "merged": bool(self.fusion.merged(agent)),
-            "score": UNKNOWN_INFO if (score := self.fusion.score(agent)) is None else float(score),
-            "first_merge_time_s": known_or_unknown(
-                None if first is None else first * self.config.dt_s
-            ),
-            **merge_error_infos(err),
-            "collisions": int(ep.collisions[i]),
-            "collided": bool(ep.collided[i]),
-            "fused_contradiction": known_or_unknown(accuracy),
-            "merged_wrongly_s": UNKNOWN_INFO if truth is None else float(truth.wrong_s[i]),
-            "goal_given": given,
-            "goal_reached": given and self.task.reached(ep.sim),
-            "TimeLimit.truncated": bool(truncated),
-        }
-        if self.config.info_extra:
-            info["extra"] = {
-                "merge_error": err,
-                "merge_errors": {}
-                if truth is None
-                else truth.merge_errors(agent, ep.transforms[agent]),
+    def _infos(
+        self, ep: EpisodeState, agents: list[AgentID], truncated: bool
+    ) -> dict[AgentID, dict[str, Any]]:
+        """Each of ``agents``' flat infos (:data:`~mrexplore.environment.infos.INFO_KEYS`, in
+        order); the team's figures are read once for all of them."""
+        sim, fusion, truth = ep.sim, self.fusion, ep.truth
+        coverage = self.coverage
+        task_time_s = self.task.time_s(sim)
+        step = int(sim.steps)
+        given = self.task.given(sim)
+        reached = given and self.task.reached(sim)
+        collisions = ep.collisions.tolist()
+        collided = ep.collided.tolist()
+        out = {}
+        for agent in agents:
+            i = self.possible_agents.index(agent)
+            first = fusion.first_merge_step(agent)
+            err = None if truth is None else truth.merge_error(agent, ep.transforms[agent])
+            accuracy = UNKNOWN_INFO if truth is None else truth.map_accuracy(i)[0]
+            score = fusion.score(agent)
+            info: dict[str, Any] = {
+                "coverage": coverage,
+                "task_time_s": task_time_s,
+                "step": step,
+                "merged": bool(fusion.merged(agent)),
+                "score": UNKNOWN_INFO if score is None else float(score),
+                "first_merge_time_s": known_or_unknown(
+                    None if first is None else first * self.config.dt_s
+                ),
+                **merge_error_infos(err),
+                "collisions": int(collisions[i]),
+                "collided": bool(collided[i]),
+                "fused_contradiction": known_or_unknown(accuracy),
+                "merged_wrongly_s": UNKNOWN_INFO if truth is None else float(truth.wrong_s[i]),
+                "goal_given": given,
+                "goal_reached": reached,
+                "TimeLimit.truncated": bool(truncated),
             }
-        return info
+            if self.config.info_extra:
+                info["extra"] = {
+                    "merge_error": err,
+                    "merge_errors": {}
+                    if truth is None
+                    else truth.merge_errors(agent, ep.transforms[agent]),
+                }
+            out[agent] = info
+        return out
 
     def _started(self, what: str) -> EpisodeState:
         if self.episode is None:

@@ -77,62 +77,77 @@ def view_shares(
     h, w = grid.shape
     size = out_free.shape[0]
     mask = (1 << SHARE_BITS) - 1
-    span = stride * (factor * size - 1)
     free_lo, free_hi, occ_lo = bounds[0], bounds[1], bounds[2]
-    if r0 >= 0 and r0 + span < h and c0 >= 0 and c0 + span < w:
-        # The window lies inside the grid (the usual case): no bounds tests, and the block
-        # sums of the usual (stride, factor) pairs with literal steps (measured: several times
-        # faster than the generic loop with runtime steps, which LLVM does not vectorise).
-        # Only the rows and blocks that meet the known box are read; the blocks' slices start at
-        # index 0 so that LLVM sees no negative index and still vectorises.
-        step = stride * factor
-        kr0, kr1 = known[0], known[1]
-        x0 = min(max(0, -((c0 + stride * (factor - 1) - known[2]) // step)), size)
-        x1 = min(max(x0, (known[3] - 1 - c0) // step + 1), size)
-        n = x1 - x0
-        part = acc[x0:x1]
-        for y in range(size):
-            for x in range(size):
-                acc[x] = 0
-            for a in range(factor):
-                r = r0 + stride * (factor * y + a)
-                if r < kr0 or r >= kr1:
-                    continue
-                row = grid[r, c0 + step * x0 :]
-                # literal strides and factors, so that LLVM unrolls and vectorises each case
-                if stride == 2 and factor == 4:
-                    _add_blocks(row, part, 0, n, 2, 4, free_lo, free_hi, occ_lo)
-                elif stride == 1 and factor == 2:
-                    _add_blocks(row, part, 0, n, 1, 2, free_lo, free_hi, occ_lo)
-                elif stride == 2 and factor == 2:
-                    _add_blocks(row, part, 0, n, 2, 2, free_lo, free_hi, occ_lo)
-                elif stride == 1 and factor == 1:
-                    _add_blocks(row, part, 0, n, 1, 1, free_lo, free_hi, occ_lo)
-                else:
-                    c = c0 + step * x0
-                    for x in range(n):
-                        t = 0
-                        for _ in range(factor):
-                            t += code[grid[r, c] + 128]
-                            c += stride
-                        part[x] += t
-            for x in range(size):
-                out_free[y, x] = lut[acc[x] & mask]
-                out_occ[y, x] = lut[acc[x] >> SHARE_BITS]
-        return
+    step = stride * factor
+    reach = stride * (factor - 1)  # a block's last cell from its first
+    # Only the rows and blocks that meet the known box (clipped to the grid) are read: the rest
+    # of the window, inside the grid or not, is unknown and adds nothing to either share.
+    kr0, kr1 = max(known[0], 0), min(known[1], h)
+    kc0, kc1 = max(known[2], 0), min(known[3], w)
+    x0 = min(max(0, -((c0 + reach - kc0) // step)), size)
+    x1 = min(max(x0, (kc1 - 1 - c0) // step + 1), size)
+    # Of those blocks only the first and the last may cross the grid's side edges: they are
+    # summed cell by cell with bounds tests, the blocks between them by the fast sums below.
+    xa = x0 + 1 if x0 < x1 and c0 + step * x0 < 0 else x0
+    xb = x1 - 1 if x1 - 1 >= xa and c0 + step * (x1 - 1) + reach >= w else x1
+    n = xb - xa
+    part = acc[xa:xb]
     for y in range(size):
         for x in range(size):
-            t = 0
-            for a in range(factor):
-                r = r0 + stride * (factor * y + a)
-                if r < 0 or r >= h:
-                    continue
-                for b in range(factor):
-                    c = c0 + stride * (factor * x + b)
-                    if c >= 0 and c < w:
+            acc[x] = 0
+        for a in range(factor):
+            r = r0 + stride * (factor * y + a)
+            if r < kr0 or r >= kr1:
+                continue
+            for x in range(x0, xa):
+                acc[x] += _edge_block(grid, code, r, c0 + step * x, stride, factor, w)
+            for x in range(xb, x1):
+                acc[x] += _edge_block(grid, code, r, c0 + step * x, stride, factor, w)
+            if n <= 0:
+                continue
+            # The blocks' slices start at index 0 so that LLVM sees no negative index and
+            # vectorises; literal strides and factors, so that it unrolls each usual case
+            # (measured: several times faster than the generic loop with runtime steps).
+            row = grid[r, c0 + step * xa :]
+            if stride == 2 and factor == 4:
+                _add_blocks(row, part, 0, n, 2, 4, free_lo, free_hi, occ_lo)
+            elif stride == 1 and factor == 2:
+                _add_blocks(row, part, 0, n, 1, 2, free_lo, free_hi, occ_lo)
+            elif stride == 2 and factor == 2:
+                _add_blocks(row, part, 0, n, 2, 2, free_lo, free_hi, occ_lo)
+            elif stride == 1 and factor == 1:
+                _add_blocks(row, part, 0, n, 1, 1, free_lo, free_hi, occ_lo)
+            else:
+                c = c0 + step * xa
+                for x in range(n):
+                    t = 0
+                    for _ in range(factor):
                         t += code[grid[r, c] + 128]
-            out_free[y, x] = lut[t & mask]
-            out_occ[y, x] = lut[t >> SHARE_BITS]
+                        c += stride
+                    part[x] += t
+        for x in range(size):
+            out_free[y, x] = lut[acc[x] & mask]
+            out_occ[y, x] = lut[acc[x] >> SHARE_BITS]
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _edge_block(
+    grid: NDArray[np.int8],
+    code: NDArray[np.int32],
+    r: int,
+    c: int,
+    stride: int,
+    factor: int,
+    w: int,
+) -> int:
+    """The packed class codes of row ``r``'s block of ``factor`` cells from column ``c``,
+    ``stride`` apart, summed over those inside the grid's ``w`` columns."""
+    t = 0
+    for k in range(factor):
+        cc = c + k * stride
+        if cc >= 0 and cc < w:
+            t += code[grid[r, cc] + 128]
+    return t
 
 
 @numba.njit(cache=True, nogil=True)

@@ -82,6 +82,9 @@ def test_compiled_shares_equal_the_opencv_path(
         (inner, whole),
         (inner, np.array([201, 437, 117, 390], dtype=np.int64)),
         (inner, np.array([199, 440, 116, 391], dtype=np.int64)),
+        # the known box on the map's edges, and past them (read only inside the map)
+        (m, np.array([0, 700, 0, 650], dtype=np.int64) + np.array([-9, 9, -9, 9])),
+        (np.full_like(m, UNKNOWN), np.zeros(4, dtype=np.int64)),  # nothing known
     ]
     b = ObservationBuilder(resolution_m, global_m, local_m, size)
     for side in (b.global_cells, b.local_cells, 3 * b.global_cells // 2, 3 * b.local_cells // 2):
@@ -102,6 +105,27 @@ def test_compiled_shares_equal_the_opencv_path(
                 ref = _shares(_window(grid, centre, side), n)
                 np.testing.assert_array_equal(free, ref[0])
                 np.testing.assert_array_equal(occ, ref[1])
+
+
+def test_compiled_shares_on_small_maps_equal_the_opencv_path() -> None:
+    """Maps a few cells wide, smaller than the window and than one block: the blocks that cross
+    both side edges at once are summed as OpenCV's path does."""
+    from mrexplore.environment.observations import _shares, _window
+
+    rng = np.random.default_rng(3)
+    values = np.array([UNKNOWN, FREE, 25, 50, 65, OCCUPIED], dtype=np.int8)
+    b = ObservationBuilder(0.05, 12.8, 3.2, 32)
+    for _ in range(60):
+        h, w = (int(v) for v in rng.integers(1, 12, 2))
+        grid = rng.choice(values, (h, w))
+        for side in (b.global_cells, b.local_cells):
+            centre = (float(rng.uniform(-side, w + side)), float(rng.uniform(-side, h + side)))
+            free = np.zeros((32, 32), np.uint8)
+            occ = np.zeros((32, 32), np.uint8)
+            b._shares_into(grid, centre, side, free, occ, np.array([0, h, 0, w], np.int64))
+            ref = _shares(_window(grid, centre, side), 32)
+            np.testing.assert_array_equal(free, ref[0])
+            np.testing.assert_array_equal(occ, ref[1])
 
 
 def test_few_dots_mark_what_the_numpy_path_marks() -> None:

@@ -217,10 +217,14 @@ class ObservationBuilder:
         known = _known_array(grid, known_box)
         self._shares_view(grid, (col, row), self.global_cells, phi, obs[0], obs[1], known)
         scale_g = s / self.global_cells
-        if phi == 0.0 and _views is not None and kernels.enabled() and len(trail_cells):
+        if _views is not None and kernels.enabled() and len(trail_cells):
             # one compiled pass over the trail instead of ~10 numpy calls on it
             cells = np.ascontiguousarray(trail_cells, dtype=np.float64)
-            _views.trail_dots(obs[2], cells, float(col), float(row), scale_g)
+            if phi == 0.0:
+                _views.trail_dots(obs[2], cells, float(col), float(row), scale_g)
+            else:
+                cs, sn = math.cos(phi), math.sin(phi)  # as _turn
+                _views.turned_trail_dots(obs[2], cells, float(col), float(row), scale_g, cs, sn)
         else:
             self._dots(obs[2], trail_cells, (col, row), scale_g, phi, radius=0)
         if teammates:

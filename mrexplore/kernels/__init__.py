@@ -115,6 +115,9 @@ def warm_up() -> None:
         np.array([0, 4, 0, 4], dtype=np.int64),
     )
     views.trail_dots(np.zeros((2, 2), dtype=np.uint8), np.zeros((1, 2)), 0.0, 0.0, 1.0)
+    views.turned_trail_dots(
+        np.zeros((2, 2), dtype=np.uint8), np.zeros((1, 2)), 0.0, 0.0, 1.0, 1.0, 0.0
+    )
     no = np.zeros((1, 1), dtype=np.bool_)
     scoring.claim_counts(np.zeros((1, 1), dtype=np.int8), no, no, no, 25, 65, True)
     scoring.score_region(

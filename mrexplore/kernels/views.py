@@ -168,3 +168,27 @@ def trail_dots(
         py = math.floor((cells[k, 1] - cy) * scale + half)
         if px >= 0 and px < s and py >= 0 and py < s:
             channel[py, px] = 255
+
+
+@numba.njit(cache=True, nogil=True)
+def turned_trail_dots(
+    channel: NDArray[np.uint8],
+    cells: NDArray[np.float64],
+    cx: float,
+    cy: float,
+    scale: float,
+    cs: float,
+    sn: float,
+) -> None:
+    """:func:`trail_dots` of a view turned by the angle whose cosine and sine are ``cs``,
+    ``sn``: each offset ``(dx, dy)`` from the centre is turned to ``(dx cs - dy sn, dx sn +
+    dy cs)`` first (the same float64 operations, in the same order, as the numpy drawing)."""
+    s = channel.shape[0]
+    half = s / 2
+    for k in range(cells.shape[0]):
+        dx = cells[k, 0] - cx
+        dy = cells[k, 1] - cy
+        px = math.floor((dx * cs - dy * sn) * scale + half)
+        py = math.floor((dx * sn + dy * cs) * scale + half)
+        if px >= 0 and px < s and py >= 0 and py < s:
+            channel[py, px] = 255

@@ -164,3 +164,26 @@ def test_compiled_trail_equals_the_numpy_drawing() -> None:
         views.trail_dots(a, cells, centre[0], centre[1], 64 / 512)
         b._dots(ref, cells, centre, 64 / 512, 0.0, radius=0)
         np.testing.assert_array_equal(a, ref)
+
+
+def test_compiled_turned_trail_equals_the_numpy_drawing() -> None:
+    """Heading-up views: the trail turned with the view, pixel for pixel as numpy draws it,
+    cells on pixel boundaries too."""
+    import math
+
+    from mrexplore.kernels import views
+
+    rng = np.random.default_rng(4)
+    b = ObservationBuilder(0.05, 25.6, 6.4, 64)
+    cells = rng.uniform(-100.0, 900.0, (3000, 2))
+    cells[:50] = np.round(cells[:50] * 8.0) / 8.0
+    for phi in (math.pi / 2, -math.pi / 2, math.pi, 0.3, -2.9, 1e-9):
+        for centre in [(400.0, 400.0), (412.5, 398.75), (0.0, 0.0)]:
+            a = np.zeros((64, 64), np.uint8)
+            ref = np.zeros((64, 64), np.uint8)
+            views.turned_trail_dots(
+                a, cells, centre[0], centre[1], 64 / 512, math.cos(phi), math.sin(phi)
+            )
+            b._dots(ref, cells, centre, 64 / 512, phi, radius=0)
+            np.testing.assert_array_equal(a, ref)
+            assert ref.any()

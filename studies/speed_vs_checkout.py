@@ -113,12 +113,29 @@ def main() -> int:
         help="instead of random actions: a realistic rollout driven by this team policy "
         "(symmetric_office, 2 robots; measure_rollout), e.g. coordinated-frontier",
     )
+    p.add_argument(
+        "--env-options",
+        default=None,
+        metavar="K=V,K=V",
+        help="env options of every random-action row, e.g. the training setup of ppo.yaml: "
+        "'world=random:symmetric_office?width_m=10&height_m=8,obs_heading_up=true'",
+    )
     args = p.parse_args()
     sys.path.insert(0, str(HERE))
     from mrexplore.studies.env_bench import DEFAULT_WORLD, settings
+    from mrexplore.studies.merge_bench import parse_options
 
     merger = None if args.merger.lower() == "none" else args.merger
-    table = settings([int(v) for v in args.robots.split(",")], merger)
+    robots = [int(v) for v in args.robots.split(",")]
+    table = settings(robots, merger)
+    if args.env_options is not None:  # these options on the default world, per team size
+        extra = parse_options(args.env_options, flag="--env-options")
+        table = [
+            (f"{n} robots, {args.env_options}", {**DEFAULT_WORLD, **extra, "n_robots": n})
+            for n in robots
+        ]
+        for _, opts in table:
+            opts["merger"] = merger
     if args.rollout is not None:
         label = f"{args.rollout}, symmetric_office, 2 robots"
         table = [(label, {**DEFAULT_WORLD, "merger": merger, "team": args.rollout})]

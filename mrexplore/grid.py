@@ -77,11 +77,29 @@ class MapChange(NamedTuple):
         known_box: the box of the cells that are not unknown, None while all are unknown.
         changed_box: the box of the cells the update that made ``version`` changed (None at
             version 0).
+        cells: the flat indices (int64, read-only) of the cells inside ``changed_box`` that
+            did change, when the owner listed them (else None: the box tells).
     """
 
     version: int
     known_box: Box | None
     changed_box: Box | None
+    cells: NDArray[np.int64] | None = None
+
+    def __eq__(self, other: object) -> bool:
+        # a tuple's == would compare the cell arrays element-wise (an ambiguous truth value)
+        if not isinstance(other, MapChange):
+            return NotImplemented
+        a, b = self.cells, other.cells
+        same = a is b or (a is not None and b is not None and np.array_equal(a, b))
+        return self[:3] == other[:3] and same
+
+    def __ne__(self, other: object) -> bool:
+        eq = self.__eq__(other)
+        return eq if eq is NotImplemented else not eq
+
+    def __hash__(self) -> int:
+        return hash(self[:3])
 
 
 def validate_grid(grid: object, name: str = "grid") -> Int8Grid:

@@ -261,7 +261,7 @@ class OccupancyMap:
     def change(self) -> MapChange:
         """The map's version, known box and last changed box (half-open boxes): what a reader
         of :meth:`to_int8` needs to follow the map without comparing canvases."""
-        return MapChange(self.version, self.known_bbox(), self._changed_box)
+        return MapChange(self.version, self.known_bbox(), self._changed_box, self._changed_cells)
 
     @property
     def changed_box(self) -> Box | None:

@@ -119,3 +119,16 @@ def test_merge_common_still_exports_the_helpers() -> None:
     assert common.chain is chain
     assert common.rigid_inverse is rigid_inverse
     assert common.map_points is map_points
+
+
+def test_map_changes_compare_with_their_cells() -> None:
+    """``MapChange`` with listed cells compares (and hashes) as a value, arrays included."""
+    from mrexplore.grid import MapChange
+
+    box = (0, 2, 0, 3)
+    a = MapChange(3, box, box, np.array([1, 4], dtype=np.int64))
+    assert a == MapChange(3, box, box, np.array([1, 4], dtype=np.int64))
+    assert a != MapChange(3, box, box, np.array([1, 5], dtype=np.int64))
+    assert a != MapChange(3, box, box) and MapChange(3, box, box) == MapChange(3, box, box)
+    assert a != MapChange(4, box, box, a.cells)
+    assert len({a, MapChange(3, box, box, a.cells)}) == 1

@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
+    "cells_of",
     "count_both_ways",
     "count_shifted",
     "grow_labels",
@@ -26,8 +27,10 @@ __all__ = [
     "level_batches",
     "level_find",
     "level_stamp",
+    "max_at_cells",
     "pool_blocks",
     "ratio_scores",
+    "settle_cells",
     "wall_icp",
 ]
 
@@ -506,3 +509,53 @@ def grow_labels(markers: NDArray[np.int32], free: NDArray[np.uint8]) -> NDArray[
         front, nxt = nxt, front
         n_front = n_next
     return labels
+
+
+@numba.njit(cache=True, nogil=True)
+def cells_of(grid: NDArray[np.int8], cells: NDArray[np.int64]) -> NDArray[np.int8]:
+    """The values of ``grid`` (H, W) at the flat ``cells``."""
+    w = grid.shape[1]
+    out = np.empty(cells.shape[0], dtype=np.int8)
+    for k in range(cells.shape[0]):
+        r = cells[k] // w
+        out[k] = grid[r, cells[k] - r * w]
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def max_at_cells(
+    value: NDArray[np.int8],
+    cells: NDArray[np.int64],
+    w: int,
+    patch: NDArray[np.int8],
+    r0: int,
+    c0: int,
+) -> None:
+    """``value[k] = max(value[k], patch[r - r0, c - c0])`` for the flat ``cells`` (of a map
+    ``w`` cells wide) at ``(r, c)`` that ``patch``, placed with its cell (0, 0) at ``(r0, c0)``,
+    covers."""
+    h, pw = patch.shape
+    for k in range(cells.shape[0]):
+        r = cells[k] // w
+        pr, pc = r - r0, cells[k] - r * w - c0
+        if pr >= 0 and pr < h and pc >= 0 and pc < pw:
+            value[k] = max(value[k], patch[pr, pc])
+
+
+@numba.njit(cache=True, nogil=True)
+def settle_cells(
+    buf: NDArray[np.int8], cells: NDArray[np.int64], value: NDArray[np.int8]
+) -> NDArray[np.int64]:
+    """Write ``value`` into ``buf`` (H, W) at the flat ``cells``; returns the cells whose value
+    changed, in order."""
+    w = buf.shape[1]
+    out = np.empty(cells.shape[0], dtype=np.int64)
+    n = 0
+    for k in range(cells.shape[0]):
+        r = cells[k] // w
+        c = cells[k] - r * w
+        if buf[r, c] != value[k]:
+            buf[r, c] = value[k]
+            out[n] = cells[k]
+            n += 1
+    return out[:n]

@@ -25,10 +25,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from mrexplore import kernels
 from mrexplore.errors import GridError
 from mrexplore.grid import UNKNOWN, Int8Grid, MapChange, Transform, chain, invert_transform
 from mrexplore.merge.common import known_bbox, translation, warp_into
 from mrexplore.types import Box
+
+# The compiled recomposition of listed cells (None without numba); used while kernels.enabled().
+_merging = kernels.load("merging")
 
 
 @dataclass
@@ -56,6 +60,48 @@ def _clip(box: Box, shape: tuple[int, int]) -> Box | None:
 
 def _union(a: Box, b: Box) -> Box:
     return (min(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), max(a[3], b[3]))
+
+
+def _load_cells_kernels() -> None:
+    """Load :func:`_recompose_cells`' compiled loops now, with the argument types of the env's
+    use (read-only maps and cell lists): their first load from numba's cache (~12 ms) otherwise
+    fell in the step that applies a first merge."""
+    if _merging is None or not kernels.enabled():
+        return
+    grid = np.zeros((1, 1), dtype=np.int8)
+    grid.flags.writeable = False
+    cells = np.zeros(1, dtype=np.int64)
+    cells.flags.writeable = False
+    _recompose_cells(
+        np.zeros((1, 1), dtype=np.int8),
+        grid,
+        cells,
+        [_Patch(0, 0, grid.copy(), 0, np.eye(3), np.eye(3))],
+    )
+
+
+def _recompose_cells(
+    buf: Int8Grid, own: Int8Grid, cells: NDArray[np.int64], patches: Iterable[_Patch]
+) -> NDArray[np.int64]:
+    """Recompose the fused buffer at the flat ``cells`` of ``own`` (the cell-wise maximum of
+    ``own`` and of the ``patches`` covering each); returns those of them whose value changed,
+    in the order given. A scan changes tens of cells: compiled loops over them (numpy's
+    per-call overhead on arrays this small cost as much as recomposing their box)."""
+    if _merging is None or not kernels.enabled():
+        rows, cols = np.divmod(cells, own.shape[1])
+        value = own[rows, cols]
+        for p in patches:
+            h, w = p.data.shape
+            pr, pc = rows - p.r0, cols - p.c0
+            inside = (pr >= 0) & (pr < h) & (pc >= 0) & (pc < w)
+            value[inside] = np.maximum(value[inside], p.data[pr[inside], pc[inside]])
+        moved = value != buf[rows, cols]
+        buf[rows[moved], cols[moved]] = value[moved]
+        return cells[moved]
+    value = _merging.cells_of(own, cells)
+    for p in patches:
+        _merging.max_at_cells(value, cells, own.shape[1], p.data, p.r0, p.c0)
+    return np.asarray(_merging.settle_cells(buf, cells, value))
 
 
 def _map_box(T: Transform, box: Box) -> Box:
@@ -93,6 +139,8 @@ class MapCompositor:
     def __init__(self, n: int) -> None:
         self.n = int(n)
         self.reset()
+        if self.n > 1:
+            _load_cells_kernels()
 
     def reset(self) -> None:
         """Forget every map, patch and composition (a new episode)."""
@@ -103,6 +151,8 @@ class MapCompositor:
         self._patches: dict[tuple[int, int], _Patch] = {}
         # what changed in each robot's map at its last version: a box in its cells, None = all
         self._delta: list[Box | None] = [None] * self.n
+        # the cells of that box that changed, when the map's owner listed them
+        self._delta_cells: list[NDArray[np.int64] | None] = [None] * self.n
         self._fused: list[Int8Grid | None] = [None] * self.n
         self._fused_key: list[tuple[Any, ...] | None] = [None] * self.n
         # per robot: the fusion buffer and the versions it reflects (own, {j: patch version})
@@ -163,6 +213,7 @@ class MapCompositor:
         self._bbox[i] = change.known_box
         self._snap[i] = None  # only the scanning path needs it
         self._delta[i] = change.changed_box if consecutive else None
+        self._delta_cells[i] = change.cells if consecutive else None
         self._version[i] += 1
 
     def _observe_scan(self, i: int, m: Int8Grid) -> None:
@@ -205,6 +256,7 @@ class MapCompositor:
         self._bbox[i] = bb
         self._snap[i] = None if bb is None else m[bb[0] : bb[1], bb[2] : bb[3]].copy()
         self._delta[i] = delta
+        self._delta_cells[i] = None
         self._version[i] += 1
 
     def crop(self, i: int) -> tuple[Int8Grid, tuple[int, int]] | None:
@@ -249,6 +301,9 @@ class MapCompositor:
             return cached
         buf, ver = self._fbuf[i], self._fbuf_ver[i]
         regions: list[Box] | None = []
+        # the own map's changed cells, when listed: its region (the first) is recomposed cell by
+        # cell, the others box by box
+        own_cells: NDArray[np.int64] | None = None
         if buf is None or ver is None or buf.shape != own.shape or set(ver[1]) != set(patches):
             regions = None
         else:
@@ -258,6 +313,7 @@ class MapCompositor:
                     regions = None
                 elif regions is not None:
                     regions.append(d)
+                    own_cells = self._delta_cells[i]
             for j, p in patches.items():
                 serial, version = ver[1][j]
                 if serial != p.serial:
@@ -280,12 +336,19 @@ class MapCompositor:
                 np.maximum(win, p.data, out=win)
         else:
             assert buf is not None
-            for box in regions:
+            for k, box in enumerate(regions):
                 cl = _clip(box, own.shape)
                 if cl is None:
                     continue
                 r0, r1, c0, c1 = cl
                 changed = cl if changed is None else _union(changed, cl)
+                if k == 0 and own_cells is not None:
+                    # only these cells of the box changed in the own map: the rest of the box
+                    # would be recomposed to the values it holds
+                    listed = _recompose_cells(buf, own, own_cells, patches.values())
+                    if moved is not None:
+                        moved.append(listed)
+                    continue
                 before = None if moved is None else buf[r0:r1, c0:c1].copy()
                 buf[r0:r1, c0:c1] = own[r0:r1, c0:c1]
                 for p in patches.values():

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
-import numpy as np
+from typing import Any
 
-from mrexplore.grid import OCCUPIED, UNKNOWN, known_bbox
+import numpy as np
+import pytest
+
+from mrexplore.grid import OCCUPIED, UNKNOWN, MapChange, known_bbox
 from mrexplore.merge.common import translation
 from mrexplore.merge.compositor import MapCompositor
 
@@ -124,3 +127,60 @@ def test_changed_cells_are_listed_only_once_a_reader_asks() -> None:
     comp.fused(0, {1: translation(5, 5)}, lambda i, j: True)
     cells = comp.fused_changed_cells(0)
     assert cells is not None and len(cells) == 8
+
+
+def test_listed_own_cells_compose_as_the_changed_box(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A map change that lists its cells (``MapChange.cells``) is recomposed cell by cell: the
+    same fused maps and the same changed cells (as sets) as from its changed box alone."""
+    import mrexplore.merge.compositor as compositor
+
+    calls = []
+    recompose = compositor._recompose_cells
+
+    def counted(*args: Any) -> Any:
+        calls.append(1)
+        return recompose(*args)
+
+    monkeypatch.setattr(compositor, "_recompose_cells", counted)
+    rng = np.random.default_rng(4)
+    values = np.array([UNKNOWN, 0, 30, 70, OCCUPIED], dtype=np.int8)
+    maps = [_map() for _ in range(3)]
+    mates = {1: translation(12, 9), 2: translation(-6, 3)}
+    listed, boxed = MapCompositor(3), MapCompositor(3)
+    versions = [0, 0, 0]
+
+    def tell(i: int, before: np.ndarray | None) -> None:
+        m = maps[i]
+        if before is not None:
+            cells = np.flatnonzero(m != before)
+            if cells.size == 0:
+                return
+            rows, cols = np.divmod(cells, m.shape[1])
+            box = (int(rows.min()), int(rows.max()) + 1, int(cols.min()), int(cols.max()) + 1)
+        else:
+            cells, box = None, None
+        versions[i] += 1
+        for comp, with_cells in ((listed, True), (boxed, False)):
+            change = MapChange(versions[i], known_bbox(m), box, cells if with_cells else None)
+            comp.observe(i, m, change)
+
+    for i in range(3):
+        tell(i, None)
+    for comp in (listed, boxed):
+        comp.fused(0, mates, lambda i, j: True)
+        comp.fused_changed_cells(0)  # a reader asks: the next compositions list their cells
+    for k in range(40):
+        i = 0 if k % 3 else int(rng.integers(1, 3))  # mostly the own map
+        before = maps[i].copy()
+        r, c = int(rng.integers(0, 36)), int(rng.integers(0, 44))
+        maps[i][r : r + 4, c : c + 6] = rng.choice(values, (4, 6) if k % 2 else (1, 1))
+        tell(i, before)
+        a = listed.fused(0, mates, lambda i, j: True)
+        b = boxed.fused(0, mates, lambda i, j: True)
+        np.testing.assert_array_equal(a, b)
+        assert listed.fused_change(0) == boxed.fused_change(0)
+        ca, cb = listed.fused_changed_cells(0), boxed.fused_changed_cells(0)
+        assert (ca is None) == (cb is None)
+        if ca is not None and cb is not None:
+            assert set(ca.tolist()) == set(cb.tolist())
+    assert len(calls) >= 20  # the own map's changes, cell by cell

@@ -98,6 +98,23 @@ def _print_rollouts(
     return 0
 
 
+def rows(
+    robots: list[int], merger: str | None, env_options: str | None
+) -> list[tuple[str, dict[str, Any]]]:
+    """The random-action settings (label, env options): ``mrexplore bench env``'s table, or
+    with ``env_options`` (``"k=v,k=v"``) those options on the default world per team size."""
+    from mrexplore.studies.env_bench import DEFAULT_WORLD, settings
+    from mrexplore.studies.merge_bench import parse_options
+
+    if env_options is None:
+        return settings(robots, merger)
+    extra = parse_options(env_options, flag="--env-options")
+    return [
+        (f"{n} robots, {env_options}", {**DEFAULT_WORLD, **extra, "n_robots": n, "merger": merger})
+        for n in robots
+    ]
+
+
 def main() -> int:
     """Measure both trees in turn and print steps/s, p50/p99 and the ratio per setting."""
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
@@ -122,20 +139,11 @@ def main() -> int:
     )
     args = p.parse_args()
     sys.path.insert(0, str(HERE))
-    from mrexplore.studies.env_bench import DEFAULT_WORLD, settings
-    from mrexplore.studies.merge_bench import parse_options
+    from mrexplore.studies.env_bench import DEFAULT_WORLD
 
     merger = None if args.merger.lower() == "none" else args.merger
     robots = [int(v) for v in args.robots.split(",")]
-    table = settings(robots, merger)
-    if args.env_options is not None:  # these options on the default world, per team size
-        extra = parse_options(args.env_options, flag="--env-options")
-        table = [
-            (f"{n} robots, {args.env_options}", {**DEFAULT_WORLD, **extra, "n_robots": n})
-            for n in robots
-        ]
-        for _, opts in table:
-            opts["merger"] = merger
+    table = rows(robots, merger, args.env_options)
     if args.rollout is not None:
         label = f"{args.rollout}, symmetric_office, 2 robots"
         table = [(label, {**DEFAULT_WORLD, "merger": merger, "team": args.rollout})]

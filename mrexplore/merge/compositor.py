@@ -40,7 +40,8 @@ class _Patch:
     """Teammate j's map warped into robot i's canvas, restricted to a window.
 
     ``changed``: the region of i's canvas (r0, r1, c0, c1) rewritten by the last incremental
-    update, or None after a full rebuild.
+    update, or None after a full rebuild; ``changed_cells``: the flat cells of i's canvas in it
+    whose value that update changed (int64, read-only), None after a full rebuild.
     """
 
     r0: int
@@ -51,6 +52,7 @@ class _Patch:
     T_inv: Transform  # its inverse (cached: used every step)
     changed: Box | None = None
     serial: int = 0  # which patch this is (a replaced transform makes a new one)
+    changed_cells: NDArray[np.int64] | None = None
 
 
 def _clip(box: Box, shape: tuple[int, int]) -> Box | None:
@@ -301,9 +303,9 @@ class MapCompositor:
             return cached
         buf, ver = self._fbuf[i], self._fbuf_ver[i]
         regions: list[Box] | None = []
-        # the own map's changed cells, when listed: its region (the first) is recomposed cell by
-        # cell, the others box by box
-        own_cells: NDArray[np.int64] | None = None
+        # per region, the cells of it that changed when they are known (the own map's, listed by
+        # its owner; a patch's, found by its update): those regions are recomposed cell by cell
+        region_cells: list[NDArray[np.int64] | None] = []
         if buf is None or ver is None or buf.shape != own.shape or set(ver[1]) != set(patches):
             regions = None
         else:
@@ -313,7 +315,7 @@ class MapCompositor:
                     regions = None
                 elif regions is not None:
                     regions.append(d)
-                    own_cells = self._delta_cells[i]
+                    region_cells.append(self._delta_cells[i])
             for j, p in patches.items():
                 serial, version = ver[1][j]
                 if serial != p.serial:
@@ -326,6 +328,7 @@ class MapCompositor:
                     regions = None
                 else:
                     regions.append(p.changed)
+                    region_cells.append(p.changed_cells)
         changed: Box | None = None
         moved: list[NDArray[np.int64]] | None = [] if self._list_cells[i] else None
         if regions is None:  # rebuild the buffer
@@ -336,16 +339,16 @@ class MapCompositor:
                 np.maximum(win, p.data, out=win)
         else:
             assert buf is not None
-            for k, box in enumerate(regions):
+            for box, cells in zip(regions, region_cells, strict=True):
                 cl = _clip(box, own.shape)
                 if cl is None:
                     continue
                 r0, r1, c0, c1 = cl
                 changed = cl if changed is None else _union(changed, cl)
-                if k == 0 and own_cells is not None:
-                    # only these cells of the box changed in the own map: the rest of the box
+                if cells is not None:
+                    # only these cells of the box changed in their map: the rest of the box
                     # would be recomposed to the values it holds
-                    listed = _recompose_cells(buf, own, own_cells, patches.values())
+                    listed = _recompose_cells(buf, own, cells, patches.values())
                     if moved is not None:
                         moved.append(listed)
                     continue
@@ -459,11 +462,18 @@ class MapCompositor:
                         )
                     else:
                         piece = np.full((dst[1] - dst[0], dst[3] - dst[2]), UNKNOWN, np.int8)
-                    old.data[
+                    window = old.data[
                         dst[0] - old.r0 : dst[1] - old.r0, dst[2] - old.c0 : dst[3] - old.c0
-                    ] = piece
+                    ]
+                    rows, cols = np.divmod(np.flatnonzero(piece != window), piece.shape[1])
+                    cells = (rows + dst[0]) * own.shape[1] + (cols + dst[2])
+                    window[...] = piece
+                else:
+                    cells = np.zeros(0, dtype=np.int64)
+                cells.flags.writeable = False
                 old.version = self._version[j]
                 old.changed = dst if dst is not None else (0, 0, 0, 0)
+                old.changed_cells = cells
                 return old
         cj = self.crop(j)
         if cj is None:

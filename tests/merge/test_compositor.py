@@ -130,8 +130,9 @@ def test_changed_cells_are_listed_only_once_a_reader_asks() -> None:
 
 
 def test_listed_own_cells_compose_as_the_changed_box(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A map change that lists its cells (``MapChange.cells``) is recomposed cell by cell: the
-    same fused maps and the same changed cells (as sets) as from its changed box alone."""
+    """A map change that lists its cells (``MapChange.cells``) is recomposed cell by cell, and
+    so are the cells a teammate's patch update changed: the same fused maps as composed whole,
+    and the same changed cells (as sets) as from the own map's changed box."""
     import mrexplore.merge.compositor as compositor
 
     calls = []
@@ -178,9 +179,14 @@ def test_listed_own_cells_compose_as_the_changed_box(monkeypatch: pytest.MonkeyP
         a = listed.fused(0, mates, lambda i, j: True)
         b = boxed.fused(0, mates, lambda i, j: True)
         np.testing.assert_array_equal(a, b)
+        fresh = MapCompositor(3)  # composed whole: the reference
+        for j in range(3):
+            fresh.observe(j, maps[j])
+        np.testing.assert_array_equal(a, fresh.fused(0, mates, lambda i, j: True))
         assert listed.fused_change(0) == boxed.fused_change(0)
         ca, cb = listed.fused_changed_cells(0), boxed.fused_changed_cells(0)
         assert (ca is None) == (cb is None)
         if ca is not None and cb is not None:
             assert set(ca.tolist()) == set(cb.tolist())
-    assert len(calls) >= 20  # the own map's changes, cell by cell
+    # the own map's changes cell by cell in one compositor, the teammates' in both
+    assert len(calls) >= 20 + 2 * 10

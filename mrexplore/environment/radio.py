@@ -13,8 +13,6 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from mrexplore.grid import apply_transform
-
 
 class Radio:
     """Links between ``agents`` (robot i = ``agents[i]``) and the positions heard over them.
@@ -65,9 +63,11 @@ class Radio:
                 j = self.index[other]
                 if not self.linked(i, j):
                     continue
-                c, r, _ = pose_cell(j)
-                p = apply_transform(T, np.array([[c, r]]))[0]
-                self._heard[(a, other)] = (float(p[0]), float(p[1]))
+                c, r = (float(v) for v in pose_cell(j)[:2])
+                (a0, a1, a2), (b0, b1, b2) = np.asarray(T, dtype=np.float64)[:2].tolist()
+                # apply_transform's elementwise operations in its order, on Python floats
+                # (numpy's per-call overhead on one point was most of the step's radio)
+                self._heard[(a, other)] = (c * a0 + r * a1 + a2, c * b0 + r * b1 + b2)
 
     def heard(self, agent: str, others: Sequence[str]) -> dict[str, tuple[float, float]]:
         """Where ``agent`` last heard each of ``others`` (its own map cells); unheard ones are

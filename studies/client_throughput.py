@@ -66,6 +66,8 @@ def bench_sb3_ours() -> dict[str, Any]:
 
 def _bench_sb3_vec(venv: Any, ppo: Any, ppo_seed: int | None) -> dict[str, Any]:
     """Rollout and PPO-training figures of an SB3-style vector env (one copy, two robots)."""
+    from stable_baselines3.common.logger import Logger
+
     rng = np.random.default_rng(0)
 
     def roll() -> int:
@@ -77,6 +79,8 @@ def _bench_sb3_vec(venv: Any, ppo: Any, ppo_seed: int | None) -> dict[str, Any]:
     model = ppo(
         "CnnPolicy", venv, n_steps=128, batch_size=64, n_epochs=1, seed=ppo_seed, device="cpu"
     )
+    # SB3's default logger would make an empty SB3-<time> folder in the temp directory per run
+    model.set_logger(Logger(None, []))
     out["train"] = _cpu(lambda: model.learn(TRAIN_STEPS * 2).num_timesteps // 2)
     venv.close()
     return out

@@ -69,6 +69,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     import torch
     from stable_baselines3 import PPO
+    from stable_baselines3.common.logger import Logger
     from stable_baselines3.common.vec_env import VecMonitor
 
     from mrexplore.experiments.train import load_hyperparams, training_world
@@ -100,6 +101,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         policy_kwargs=dict(cfg.get("policy_kwargs") or {}),
         **hyper,
     )
+    # SB3's default logger would make an empty SB3-<time> folder in the temp directory per run
+    model.set_logger(Logger(None, []))
     model.collect_rollouts = _timed(model.collect_rollouts, acc, "collect")  # type: ignore[method-assign]
     model.train = _timed(model.train, acc, "train")  # type: ignore[method-assign]
     w0, t0, p0 = time.perf_counter(), time.thread_time(), time.process_time()

@@ -95,6 +95,7 @@ class MapChange(NamedTuple):
         return self[:3] == other[:3] and same
 
     def __ne__(self, other: object) -> bool:
+        # tuple's own != would be used otherwise, with the same element-wise compare
         eq = self.__eq__(other)
         return eq if eq is NotImplemented else not eq
 

@@ -42,7 +42,7 @@ from numpy.typing import NDArray
 
 from mrexplore import kernels
 from mrexplore.grid import FREE, FREE_THRESHOLD, OCCUPIED_THRESHOLD, UNKNOWN
-from mrexplore.types import RobotView
+from mrexplore.types import Box, RobotView
 
 # The compiled shares and trail (None without numba); used while mrexplore.kernels.enabled(),
 # else every view is drawn by the OpenCV path below.
@@ -131,9 +131,7 @@ def _area_lut(factor: int, size: int) -> NDArray[np.uint8] | None:
     return lut
 
 
-def _known_array(
-    grid: NDArray[np.int8], box: tuple[int, int, int, int] | None
-) -> NDArray[np.int64]:
+def _known_array(grid: NDArray[np.int8], box: Box | None) -> NDArray[np.int64]:
     """A view's ``known_box`` as the int64 ``(r0, r1, c0, c1)`` the view kernel reads, the whole
     ``grid`` when the view does not give one."""
     if box is None:
@@ -165,8 +163,6 @@ class ObservationBuilder:
         self.local_cells = max(2, round(local_view_m / resolution_m))
         self.heading_up = bool(heading_up)
         self.shape = (N_CHANNELS, self.size, self.size)
-        # (factor, size) -> the INTER_AREA lut of that resize, None where OpenCV is kept
-        self._luts: dict[tuple[int, int], NDArray[np.uint8] | None] = {}
         # heading-up scratch: the shares of the wider window, before they are turned
         big = 3 * self.size // 2
         self._big = (np.zeros((big, big), np.uint8), np.zeros((big, big), np.uint8))
@@ -196,7 +192,7 @@ class ObservationBuilder:
         self,
         grid: NDArray[np.int8],
         pose_cell: tuple[float, float, float],
-        known_box: tuple[int, int, int, int] | None,
+        known_box: Box | None,
         trail_cells: NDArray[np.float64],
         teammates: Mapping[str, tuple[float, float]],
         goal_cell: tuple[float, float] | None,
@@ -329,18 +325,13 @@ class ObservationBuilder:
         stride = 2 if side >= 4 * size else 1  # as _shares: every second cell of a big window
         cells = -(-side // stride)
         factor = cells // size
-        lut = None
-        if (
+        fits = (
             _views is not None
             and factor >= 1
             and factor * factor < 1 << _views.SHARE_BITS
             and factor * size == cells
-        ):
-            key = (factor, size)
-            if key not in self._luts:
-                self._luts[key] = _area_lut(factor, size)
-            lut = self._luts[key]
-        return stride, factor, lut
+        )
+        return stride, factor, _area_lut(factor, size) if fits else None
 
     def _dots(
         self,

@@ -6,7 +6,8 @@
     python studies/ppo_split.py --workers 2           # the batched env in 2 worker processes
 
 Trains stable-baselines3 PPO exactly as ``mrexplore train --algo ppo`` sets it up (the
-``mrexplore/configs/ppo.yaml`` policy, env options and hyperparameters, one torch thread), but
+``mrexplore/configs/ppo.yaml`` policy, env options and hyperparameters, one torch thread while
+collecting and ``update_threads`` while updating), but
 through the batched env (``make_vec_env(..., batched=True)``), and times, on this instance:
 
 * ``collect_rollouts`` (env stepping + policy forward + buffer), and inside it the VecEnv's
@@ -61,6 +62,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         "instead of threads",
     )
     p.add_argument(
+        "--update-threads",
+        type=int,
+        default=None,
+        help="PyTorch threads during the PPO update (ppo.yaml's update_threads); collection "
+        "keeps torch_threads",
+    )
+    p.add_argument(
         "--unbatched",
         action="store_true",
         help="through make_vec_env's default adapter (separate copies) instead, for comparison",
@@ -72,11 +80,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     from stable_baselines3.common.logger import Logger
     from stable_baselines3.common.vec_env import VecMonitor
 
+    from mrexplore.experiments.threads import PhaseThreads, phase_threads
     from mrexplore.experiments.train import load_hyperparams, training_world
     from mrexplore.wrappers.sb3_vec import make_vec_env
 
     cfg = load_hyperparams("ppo")
-    torch.set_num_threads(int(cfg.get("torch_threads", 1)))
+    if args.update_threads is not None:
+        cfg["update_threads"] = args.update_threads
+    collect_threads, update_threads = phase_threads(cfg, "ppo_split")
+    torch.set_num_threads(collect_threads)
     env_opts = dict(cfg["env"])
     env_opts["world"] = training_world(None, env_opts["world"])
     env_opts["n_robots"] = args.robots
@@ -106,7 +118,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     model.collect_rollouts = _timed(model.collect_rollouts, acc, "collect")  # type: ignore[method-assign]
     model.train = _timed(model.train, acc, "train")  # type: ignore[method-assign]
     w0, t0, p0 = time.perf_counter(), time.thread_time(), time.process_time()
-    model.learn(args.timesteps)
+    model.learn(args.timesteps, callback=PhaseThreads(collect_threads, update_threads))
     wall, cpu, proc = (
         time.perf_counter() - w0,
         time.thread_time() - t0,
@@ -124,7 +136,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"{'' if args.workers is None else f' in {args.workers} worker processes'}: "
         f"{args.copies} worlds x "
         f"{args.robots} robots, world {env_opts['world']}; {model.num_timesteps} robot-steps; "
-        f"torch threads {torch.get_num_threads()}; load average {load[0]:.2f} {load[1]:.2f}"
+        f"torch threads {collect_threads} collecting, {update_threads} updating; "
+        f"load average {load[0]:.2f} {load[1]:.2f}"
     )
     print(f"{'part':<44} {'wall s':>8} {'share':>6} {'CPU s':>8} {'share':>6} {'proc CPU s':>10}")
 

@@ -171,6 +171,7 @@ def train(
     from stable_baselines3.common.vec_env import VecMonitor
     from tqdm import tqdm
 
+    from mrexplore.experiments.threads import PhaseThreads, phase_threads
     from mrexplore.policies import make_team_policy
     from mrexplore.wrappers.sb3_vec import make_vec_env
 
@@ -185,6 +186,7 @@ def train(
     )
     init_file = None if init_from is None else _init_file(init_from)
     cfg = load_hyperparams(algo, hyperparams_file)
+    collect_threads, update_threads = phase_threads(cfg)
     env_opts = dict(cfg["env"])
     env_opts["world"] = training_world(world, env_opts.get("world", "random:symmetric_office"))
     # ``worlds`` in the YAML: copy k trains on worlds[k % len] (several families per batch);
@@ -224,6 +226,9 @@ def train(
         "n_copies": copies,
         "use_subprocess": use_subprocess,
         "batched": batched,
+        # a reduction's rounding follows its thread count: the run's bits follow these
+        "torch_threads": collect_threads,
+        "update_threads": update_threads,
         "env": env_opts,
         **({"worlds": worlds} if worlds else {}),
         "hyperparams": cfg["hyperparams"],
@@ -242,8 +247,9 @@ def train(
 
     import torch
 
-    # One thread: on 2 cores, PyTorch's intra-op threads fight the env for the CPU.
-    torch.set_num_threads(int(cfg.get("torch_threads", 1)))
+    # collection on torch_threads (on 2 cores, more would fight the env for the CPU); the
+    # updates on update_threads, set by PhaseThreads around each rollout
+    torch.set_num_threads(collect_threads)
     if worlds:
         import functools
 
@@ -363,7 +369,11 @@ def train(
 
     ckpt_every = max(1, eval_every // max(1, venv.num_envs))
     callbacks = CallbackList(
-        [_Progress(), CheckpointCallback(ckpt_every, str(out / "checkpoints"), name_prefix=algo)]
+        [
+            PhaseThreads(collect_threads, update_threads),
+            _Progress(),
+            CheckpointCallback(ckpt_every, str(out / "checkpoints"), name_prefix=algo),
+        ]
     )
     if tb is None:
         # Without TensorBoard, SB3 would make an empty SB3-<time> folder in the system's temp

@@ -205,6 +205,16 @@ def train(
             "train: batched: true takes one world spec for every copy, in this process "
             "(not with use_subprocess or a worlds list)"
         )
+    # ``num_workers`` (with ``batched: true``): the batched copies stepped in that many worker
+    # processes, each with its own GIL (the same slots, seeds and results)
+    workers = cfg.get("num_workers")
+    if workers is not None:
+        workers = integer_argument("train", "num_workers", workers, 1)
+        if not batched:
+            raise ConfigError(
+                "train: num_workers steps a batched env's copies in worker processes: it needs "
+                "batched: true"
+            )
     out = check_out_dir(out, force=force, what="mrexplore train")
     from mrexplore.environment.config import EnvConfig
     from mrexplore.environment.goal_actions import split_options
@@ -226,6 +236,7 @@ def train(
         "n_copies": copies,
         "use_subprocess": use_subprocess,
         "batched": batched,
+        **({"num_workers": workers} if workers is not None else {}),
         # a reduction's rounding follows its thread count: the run's bits follow these
         "torch_threads": collect_threads,
         "update_threads": update_threads,
@@ -270,7 +281,7 @@ def train(
             use_subprocess=use_subprocess,
             seed=seed,
             batched=batched,
-            **env_opts,
+            **(env_opts if workers is None else {**env_opts, "num_workers": workers}),
         )
     if algo == "maskable_ppo":
         from mrexplore.wrappers.action_masks import VecActionMasks

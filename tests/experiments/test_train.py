@@ -331,6 +331,8 @@ def test_goal_level_maskable_ppo_trains_loads_evaluates_and_runs_task_time(
         ({"use_subprocess": True}, "not with use_subprocess"),
         ({"worlds": ["small_office", "tb3_office"]}, "worlds list"),
         ({"env": {**TINY_ENV, "action_mode": "goal"}}, "not action_mode='goal'"),
+        ({"batched": False, "num_workers": 2}, "it needs batched: true"),
+        ({"num_workers": 0}, "num_workers must be an integer >= 1, got 0"),
     ],
 )
 def test_batched_training_refuses_what_it_cannot_batch_before_any_work(
@@ -342,6 +344,51 @@ def test_batched_training_refuses_what_it_cannot_batch_before_any_work(
     with pytest.raises(ConfigError, match=words):
         train(algo="ppo", timesteps=32, out=tmp_path / "run", hyperparams_file=path)
     assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.expensive
+def test_batched_training_learns_the_same_weights_on_threads_and_in_processes(
+    tmp_path: Path, monkeypatch
+) -> None:  # type: ignore[no-untyped-def]
+    import torch
+    from stable_baselines3 import PPO
+
+    from mrexplore.environment.processes import ProcessBatchedEnv
+
+    started: list[int] = []
+    start = ProcessBatchedEnv.__init__
+
+    def counted(self, *args, **kwargs):  # type: ignore[no-untyped-def]
+        started.append(kwargs["num_workers"])
+        start(self, *args, **kwargs)
+
+    monkeypatch.setattr(ProcessBatchedEnv, "__init__", counted)
+    weights = {}
+    runs = {
+        "copies": {},
+        "batched": {"batched": True},
+        "workers": {"batched": True, "num_workers": 2},
+    }
+    for name, extra in runs.items():
+        path = _tiny_yaml(tmp_path, "ppo")
+        path.write_text(
+            yaml.safe_dump({**yaml.safe_load(path.read_text()), "n_copies": 2, **extra})
+        )
+        config = train(
+            algo="ppo",
+            timesteps=128,
+            out=tmp_path / name,
+            hyperparams_file=path,
+            eval_every=10**6,
+            final_eval_seeds=0,
+            progress=False,
+        )
+        assert config.get("num_workers") == extra.get("num_workers")
+        weights[name] = PPO.load(tmp_path / name / "model.zip", device="cpu").policy.state_dict()
+    assert started == [2]  # the last run stepped its copies in 2 worker processes
+    a = weights["copies"]
+    for b in (weights["batched"], weights["workers"]):
+        assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
 
 
 def _goal_yaml(tmp_path: Path, name: str, net: list[int], lr: float = 3e-4) -> Path:

@@ -80,6 +80,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from stable_baselines3.common.logger import Logger
     from stable_baselines3.common.vec_env import VecMonitor
 
+    from mrexplore.errors import ConfigError
     from mrexplore.experiments.threads import PhaseThreads, phase_threads
     from mrexplore.experiments.train import load_hyperparams, training_world
     from mrexplore.wrappers.sb3_vec import make_vec_env
@@ -87,7 +88,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     cfg = load_hyperparams("ppo")
     if args.update_threads is not None:
         cfg["update_threads"] = args.update_threads
-    collect_threads, update_threads = phase_threads(cfg, "ppo_split")
+    try:
+        collect_threads, update_threads = phase_threads(cfg, "ppo_split")
+    except ConfigError as err:
+        p.error(str(err))
     torch.set_num_threads(collect_threads)
     env_opts = dict(cfg["env"])
     env_opts["world"] = training_world(None, env_opts["world"])

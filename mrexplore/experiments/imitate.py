@@ -266,7 +266,11 @@ def imitate(
     """
     for name, value, lo in (("decisions", decisions, 1), ("epochs", epochs, 1), ("seed", seed, 0)):
         integer_argument("imitate", name, value, lo)
+    from mrexplore.experiments.threads import phase_threads
+
     cfg = load_hyperparams(ALGO, hyperparams_file)
+    # the cloning's gradient steps are this command's update: update_threads, as in train
+    collect_threads, update_threads = phase_threads(cfg, "imitate")
     env_opts = dict(cfg["env"])
     if env_opts.get("action_mode") != "goal":
         raise ConfigError(
@@ -280,7 +284,7 @@ def imitate(
 
     import torch
 
-    torch.set_num_threads(int(cfg.get("torch_threads", 1)))
+    torch.set_num_threads(collect_threads)
     t0 = time.perf_counter()
     demos = collect(env_opts, worlds, decisions, seed, gamma, **weights)
     collect_s = time.perf_counter() - t0
@@ -301,6 +305,7 @@ def imitate(
         **cfg["hyperparams"],
     )
     venv.close()
+    torch.set_num_threads(update_threads)
     t1 = time.perf_counter()
     history = clone(
         model.policy,
@@ -310,6 +315,7 @@ def imitate(
         vf_coef=float(cfg["hyperparams"].get("vf_coef", 0.5)),
     )
     clone_s = time.perf_counter() - t1
+    torch.set_num_threads(collect_threads)
     out.mkdir(parents=True, exist_ok=True)
     with atomic_path(out / "model.zip") as tmp:
         save_for_inference(model, tmp)
@@ -331,6 +337,8 @@ def imitate(
         "worlds": worlds,
         "hyperparams": cfg["hyperparams"],
         "policy_kwargs": cfg.get("policy_kwargs", {}),
+        "torch_threads": collect_threads,
+        "update_threads": update_threads,
         "imitation": record,
         "versions": versions(),
     }

@@ -141,6 +141,10 @@ def test_bad_input_is_refused_before_any_work(tmp_path: Path) -> None:
     assert not (tmp_path / "a").exists()
     with pytest.raises(ConfigError, match="decisions must be an integer >= 1"):
         imitate(tmp_path / "b", decisions=0, progress=False)
+    threads = _yaml(tmp_path, GOAL_ENV, update_threads=0)
+    with pytest.raises(ConfigError, match="imitate: argument update_threads must be"):
+        imitate(tmp_path / "c", hyperparams_file=threads, decisions=8, progress=False)
+    assert not (tmp_path / "c").exists()
     full = tmp_path / "full"
     full.mkdir()
     (full / "keep.txt").write_text("mine")
@@ -176,3 +180,28 @@ def test_the_folder_loads_evaluates_and_continues_with_ppo(tmp_path: Path) -> No
         progress=False,
     )
     assert cont["init_from"]["path"] == str(out / "model.zip")
+
+
+def test_cloning_runs_on_update_threads(tmp_path: Path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    import torch
+
+    from mrexplore.experiments import imitate as module
+
+    before = torch.get_num_threads()
+    seen: list[int] = []
+    fit = module.clone
+
+    def probed(*args: Any, **kwargs: Any) -> Any:
+        seen.append(torch.get_num_threads())
+        return fit(*args, **kwargs)
+
+    monkeypatch.setattr(module, "clone", probed)
+    path = _yaml(tmp_path, GOAL_ENV, torch_threads=1, update_threads=2)
+    try:
+        config = imitate(
+            tmp_path / "a", hyperparams_file=path, decisions=16, epochs=1, progress=False
+        )
+        assert seen == [2] and torch.get_num_threads() == 1
+        assert (config["torch_threads"], config["update_threads"]) == (1, 2)
+    finally:
+        torch.set_num_threads(before)

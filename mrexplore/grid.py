@@ -210,6 +210,22 @@ def chain(*transforms: Transform) -> Transform:
     return out
 
 
+def chain_each(A: NDArray[np.float64], B: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The products ``A[k] @ B[k]`` (K, 3, 3) of stacks of 3x3 transforms (either may be one
+    3x3, used for every k): :func:`chain`'s IEEE operations in its order, the same bits.
+
+    >>> shifts = np.stack([make_transform(0.0, d, 0) for d in (1, 2)])
+    >>> chain_each(shifts, make_transform(0.0, 3, 4))[:, :2, 2].tolist()
+    [[4.0, 4.0], [5.0, 4.0]]
+    """
+    A = np.asarray(A, dtype=np.float64)
+    B = np.asarray(B, dtype=np.float64)
+    # out[k, i, j] = (A[k, i, 0] B[k, 0, j] + A[k, i, 1] B[k, 1, j]) + A[k, i, 2] B[k, 2, j]
+    a = [A[..., :, m, None] for m in range(3)]
+    b = [B[..., m, None, :] for m in range(3)]
+    return np.asarray(a[0] * b[0] + a[1] * b[1] + a[2] * b[2])
+
+
 def affine_inverse(T: Transform) -> Transform:
     """The inverse (3x3 float64) of a 2-D affine 3x3 transform (last row ``0 0 1``: rotation,
     scale, shear and shift, e.g. a map -> world transform with its resolutions), by the closed

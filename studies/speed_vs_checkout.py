@@ -78,7 +78,14 @@ def _print_rollouts(
     for k in range(rounds):
         for name in ("base", "this"):
             print(rollout_row(f"round {k + 1}, {name}", runs[name][k][label]))
-    keys = ("process_ms", "thread_ms", "policy_ms", "env_ms", "policy_share", "p50_ms")
+    keys: tuple[str, ...] = (
+        "process_ms",
+        "thread_ms",
+        "policy_ms",
+        "env_ms",
+        "policy_share",
+        "p50_ms",
+    )
     keys += ("p99_ms", "max_ms", "max_over_p50")
     med = {
         name: {key: statistics.median(r[label][key] for r in runs[name]) for key in keys}
@@ -86,15 +93,15 @@ def _print_rollouts(
     }
     for name in ("base", "this"):
         print(rollout_row(f"median over rounds, {name}", med[name]))
-    ratio = statistics.median(
-        t[label]["process_ms"] / b[label]["process_ms"]
-        for b, t in zip(runs["base"], runs["this"], strict=True)
-    )
-    pol = statistics.median(
-        t[label]["policy_ms"] / b[label]["policy_ms"]
-        for b, t in zip(runs["base"], runs["this"], strict=True)
-    )
-    print(f"this / base, median of the rounds' ratios: process CPU {ratio:.2f}x, policy {pol:.2f}x")
+    pairs = list(zip(runs["base"], runs["this"], strict=True))
+
+    def ratio(key: str) -> float:
+        return statistics.median(t[label][key] / b[label][key] for b, t in pairs)
+
+    line = f"process CPU {ratio('process_ms'):.2f}x, policy {ratio('policy_ms'):.2f}x"
+    if all(b[label].get("merge_ms", 0) > 0 for b, _ in pairs):  # a tree that reports it
+        line += f", merge worker {ratio('merge_ms'):.2f}x"
+    print(f"this / base, median of the rounds' ratios: {line}")
     return 0
 
 
@@ -128,25 +135,32 @@ def main() -> int:
         default=None,
         metavar="TEAM",
         help="instead of random actions: a realistic rollout driven by this team policy "
-        "(symmetric_office, 2 robots; measure_rollout), e.g. coordinated-frontier",
+        "(symmetric_office, 2 robots unless --env-options say n_robots; measure_rollout), "
+        "e.g. coordinated-frontier",
     )
     p.add_argument(
         "--env-options",
         default=None,
         metavar="K=V,K=V",
-        help="env options of every random-action row, e.g. the training setup of ppo.yaml: "
+        help="env options of every random-action row (or of the rollout), e.g. the training "
+        "setup of ppo.yaml: "
         "'world=random:symmetric_office?width_m=10&height_m=8,obs_heading_up=true'",
     )
     args = p.parse_args()
     sys.path.insert(0, str(HERE))
     from mrexplore.studies.env_bench import DEFAULT_WORLD
+    from mrexplore.studies.merge_bench import parse_options
 
     merger = None if args.merger.lower() == "none" else args.merger
     robots = [int(v) for v in args.robots.split(",")]
     table = rows(robots, merger, args.env_options)
     if args.rollout is not None:
-        label = f"{args.rollout}, symmetric_office, 2 robots"
-        table = [(label, {**DEFAULT_WORLD, "merger": merger, "team": args.rollout})]
+        extra = {} if args.env_options is None else parse_options(args.env_options, "--env-options")
+        label = f"{args.rollout}, symmetric_office, {extra.get('n_robots', 2)} robots"
+        if args.env_options is not None:
+            label += f", {args.env_options}"
+        opts = {**DEFAULT_WORLD, "merger": merger, **extra, "team": args.rollout}
+        table = [(label, opts)]
     base, this = Path(args.base).resolve(), HERE
     runs: dict[str, list[dict[str, Any]]] = {"base": [], "this": []}
     for k in range(args.rounds):

@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 __all__ = [
     "cells_of",
     "count_both_ways",
+    "count_poses",
     "count_shifted",
     "grow_labels",
     "level_add",
@@ -67,6 +68,26 @@ def _count(
     return agree, disagree, agree + disagree
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _both_ways(
+    points_b: NDArray[np.float64],
+    points_a: NDArray[np.float64],
+    T: NDArray[np.float64],
+    codes_a: NDArray[np.uint8],
+    codes_b: NDArray[np.uint8],
+) -> tuple[int, int, int, int, int]:
+    """:func:`count_both_ways`' counts (one place for the arithmetic of both kernels)."""
+    a, b, tx = T[0, 0], T[0, 1], T[0, 2]
+    c, d, ty = T[1, 0], T[1, 1], T[1, 2]
+    det = a * d - b * c
+    ia, ib, ic, id_ = d / det, -b / det, -c / det, a / det
+    itx = -(ia * tx + ib * ty)
+    ity = -(ic * tx + id_ * ty)
+    ab, db, nb = _count(points_b, a, b, tx, c, d, ty, codes_a)
+    aa, da, _ = _count(points_a, ia, ib, itx, ic, id_, ity, codes_b)
+    return ab, db, nb, aa, da
+
+
 @numba.njit(cache=True, nogil=True)
 def count_both_ways(
     points_b: NDArray[np.float64],
@@ -78,15 +99,29 @@ def count_both_ways(
     """Counts of b's wall points moved by ``T`` (3x3 affine, b cells -> a cells) on a's codes and
     of a's wall points moved by its inverse on b's codes: ``(agree_b, disagree_b, landed_b,
     agree_a, disagree_a)``. ``T``'s 2x2 part must be invertible (the caller checks)."""
-    a, b, tx = T[0, 0], T[0, 1], T[0, 2]
-    c, d, ty = T[1, 0], T[1, 1], T[1, 2]
-    det = a * d - b * c
-    ia, ib, ic, id_ = d / det, -b / det, -c / det, a / det
-    itx = -(ia * tx + ib * ty)
-    ity = -(ic * tx + id_ * ty)
-    ab, db, nb = _count(points_b, a, b, tx, c, d, ty, codes_a)
-    aa, da, _ = _count(points_a, ia, ib, itx, ic, id_, ity, codes_b)
-    return ab, db, nb, aa, da
+    return _both_ways(points_b, points_a, T, codes_a, codes_b)
+
+
+@numba.njit(cache=True, nogil=True)
+def count_poses(
+    points_b: NDArray[np.float64],
+    points_a: NDArray[np.float64],
+    Ts: NDArray[np.float64],
+    codes_a: NDArray[np.uint8],
+    codes_b: NDArray[np.uint8],
+) -> NDArray[np.int64]:
+    """:func:`count_both_ways` of each of the K poses ``Ts`` (K, 3, 3), in one call: (K, 5)
+    ``(agree_b, disagree_b, landed_b, agree_a, disagree_a)`` per pose, the same counts. Every
+    pose's 2x2 part must be invertible (the caller checks)."""
+    out = np.zeros((Ts.shape[0], 5), dtype=np.int64)
+    for k in range(Ts.shape[0]):
+        ab, db, nb, aa, da = _both_ways(points_b, points_a, Ts[k], codes_a, codes_b)
+        out[k, 0] = ab
+        out[k, 1] = db
+        out[k, 2] = nb
+        out[k, 3] = aa
+        out[k, 4] = da
+    return out
 
 
 @numba.njit(cache=True, nogil=True)

@@ -586,6 +586,25 @@ class Verifier:
         share = nb / self.points_b.shape[0] if self.points_b.shape[0] else 0.0
         return Agreement(ab + aa, db + da, share)
 
+    def many(self, Ts: NDArray[np.float64]) -> list[Agreement]:
+        """:meth:`__call__` of each of the K poses ``Ts`` (K, 3, 3): the same agreements, the
+        kernel called once for all of them (a merge verifies thousands of poses; per call, the
+        Python around the kernel cost as much as its count)."""
+        Ts = np.ascontiguousarray(Ts, dtype=np.float64).reshape(-1, 3, 3)
+        if not kernels.enabled() or Ts.shape[0] == 0:
+            return [self(T) for T in Ts]
+        assert _merging is not None
+        det = Ts[:, 0, 0] * Ts[:, 1, 1] - Ts[:, 0, 1] * Ts[:, 1, 0]
+        ok = np.isfinite(Ts).all(axis=(1, 2)) & (np.abs(det) >= 1e-9)
+        counts = _merging.count_poses(
+            self.points_b, self.points_a, Ts[ok], self.codes_a, self.codes_b
+        ).tolist()
+        n_b = self.points_b.shape[0]
+        out = [Agreement(0, 0, 0.0)] * Ts.shape[0]  # a degenerate pose agrees with nothing
+        for k, (ab, db, nb, aa, da) in zip(np.flatnonzero(ok).tolist(), counts, strict=True):
+            out[k] = Agreement(ab + aa, db + da, nb / n_b if n_b else 0.0)
+        return out
+
 
 def agreeing_cells(
     cells: tuple[NDArray[np.intp], NDArray[np.intp]], T: Transform, codes: NDArray[np.uint8]

@@ -61,6 +61,7 @@ from mrexplore.grid import (
     UNKNOWN,
     Int8Grid,
     Transform,
+    chain_each,
 )
 from mrexplore.merge.coarse import CoarseMatcher
 from mrexplore.merge.common import (
@@ -359,6 +360,10 @@ def _rotation_polish(
             hyp.T, hyp.agreement = T, ag
 
 
+#: The shifts of :func:`_consistency_polish`'s grid, (25, 3, 3): rows, then columns, -2..2 cells.
+_POLISH_SHIFTS = np.stack([translation(dc, dr) for dr in range(-2, 3) for dc in range(-2, 3)])
+
+
 def _consistency_polish(
     T: Transform,
     slack_verify: Verifier,
@@ -378,19 +383,16 @@ def _consistency_polish(
     consistency of ``T`` when the caller has it already (not computed again).
     """
     cx, cy = centre
-    grid: list[tuple[float, int, Transform]] = []
-    for d in (-1.0, -0.5, 0.0, 0.5, 1.0):
-        turn = _turn_about(d, cx, cy)
-        for dr in (-2, -1, 0, 1, 2):
-            for dc in (-2, -1, 0, 1, 2):
-                Tn = chain(translation(dc, dr), T, turn)
-                grid.append((slack_verify(Tn).score, len(grid), Tn))
-    grid.sort(key=lambda g: (-g[0], g[1]))  # ties in grid order: the same answer everywhere
+    turns = np.stack([_turn_about(d, cx, cy) for d in (-1.0, -0.5, 0.0, 0.5, 1.0)])
+    # chain(translation(dc, dr), T, turn) for every turn, then dr, then dc (the grid's order)
+    poses = chain_each(chain_each(_POLISH_SHIFTS, T)[None], turns[:, None]).reshape(-1, 3, 3)
+    scores = [ag.score for ag in slack_verify.many(poses)]
+    order = sorted(range(len(scores)), key=lambda k: (-scores[k], k))  # ties in grid order
     best_T, best_c = T, consistency(T) if start is None else start
-    for _, _, Tn in grid[:keep]:
-        c = consistency(Tn)
+    for k in order[:keep]:
+        c = consistency(poses[k])
         if c > best_c:
-            best_T, best_c = Tn, c
+            best_T, best_c = poses[k], c
     return best_T, best_c
 
 
@@ -895,9 +897,11 @@ def _coarse_hypotheses(pair: _Pair, o: SemanticOptions, info: dict[str, Any]) ->
     hyps: list[_Hypothesis] = []
     for T_rot, shape in rots:
         b_rot = warp_into(pair.bc, T_rot, shape)
-        for dc, dr, _ in coarse.peaks(b_rot, PEAKS_PER_ROTATION):
+        peaks = coarse.peaks(b_rot, PEAKS_PER_ROTATION)
+        if peaks:
             # pooled blocks are anchored at the corner: half a block of ambiguity, which ICP removes
-            hyps.append(_Hypothesis(chain(translation(dc, dr), T_rot), "coarse"))
+            shifts = np.stack([translation(dc, dr) for dc, dr, _ in peaks])
+            hyps += [_Hypothesis(T, "coarse") for T in chain_each(shifts, T_rot)]
         if o.paper_candidates:
             hyps += [
                 _Hypothesis(T, "paper")
@@ -925,8 +929,8 @@ def _search(
 
     # --- 3. screen the raw hypotheses with a wide tolerance (they are up to ~scale/2 cells off),
     # polish the best few with a short ICP, re-verify; 4. refine the best fully ---
-    for hyp in hyps:
-        hyp.agreement = pair.screen(hyp.T)
+    for hyp, ag in zip(hyps, pair.screen.many(np.array([h.T for h in hyps])), strict=True):
+        hyp.agreement = ag
     hyps.sort(key=lambda h: -(h.agreement.agree - h.agreement.disagree if h.agreement else 0))
 
     region: _Region | None = None
@@ -943,8 +947,9 @@ def _search(
     hyps = [
         _Hypothesis(pair.to_crops(np.asarray(T, dtype=np.float64)), "given") for T in given
     ] + hyps
-    for hyp in hyps[: len(given)]:
-        hyp.agreement = pair.screen(hyp.T)
+    handed = hyps[: len(given)]
+    for hyp, ag in zip(handed, pair.screen.many(np.array([h.T for h in handed])), strict=True):
+        hyp.agreement = ag
     icp, quick, verify = pair.icp, pair.quick, pair.verify
     for hyp in hyps[:N_POLISH]:
         hyp.T = icp(hyp.T, iters=4, max_dist=1.5 * SCALE, n_points=400)

@@ -56,6 +56,30 @@ def test_chain_of_3x3_has_the_bits_of_the_elementwise_formula() -> None:
             assert chain(*Ts).tobytes() == reference(*Ts).tobytes()
 
 
+def test_chain_each_has_the_bits_of_chain() -> None:
+    # stacks against one, one against stacks and stacks against stacks (broadcast, as the
+    # consistency polish's grid of shifts x turns is made), with -0.0, inf and NaN entries
+    from mrexplore.grid import chain_each
+
+    rng = np.random.default_rng(8)
+    specials = [-0.0, 0.0, np.inf, -np.inf, np.nan, 1e-300, 1e300]
+    A = rng.normal(size=(40, 3, 3)) * 10 ** rng.uniform(-4, 5, (40, 3, 3))
+    B = rng.normal(size=(40, 3, 3)) * 10 ** rng.uniform(-4, 5, (40, 3, 3))
+    for k in range(0, 40, 3):
+        A[k, k % 3, (k // 3) % 3] = specials[k % len(specials)]
+    C = np.stack(_random_transforms(5, seed=3))
+    with np.errstate(all="ignore"):
+        for k in range(40):
+            assert chain_each(A, B)[k].tobytes() == chain(A[k], B[k]).tobytes()
+            assert chain_each(A, B[0])[k].tobytes() == chain(A[k], B[0]).tobytes()
+            assert chain_each(A[0], B)[k].tobytes() == chain(A[0], B[k]).tobytes()
+        grid = chain_each(A[None], C[:, None])
+        assert grid.shape == (5, 40, 3, 3)
+        for t in range(5):
+            for k in range(40):
+                assert grid[t, k].tobytes() == chain(A[k], C[t]).tobytes()
+
+
 def test_rigid_inverse_inverts() -> None:
     for T in _random_transforms(20, seed=1):
         np.testing.assert_allclose(chain(T, rigid_inverse(T)), np.eye(3), rtol=0, atol=1e-12)

@@ -687,3 +687,42 @@ def test_in_the_loop_a_thing_one_map_shows_and_the_other_saw_as_floor_refuses() 
     assert old.matched and merge_error(old.transform, T_ab, b)[0] > 200
     # a single call (no place test) does not ask it
     assert "ruled_out_cells" not in merge_maps(a, b, resolution_m=0.05).info
+
+
+def test_the_consistency_polish_ranks_its_grid_as_pose_by_pose(
+    office_pair: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    """The polish scores its 125 nearby poses in one verifier call; the poses, their ranking
+    (ties in grid order) and the ones it asks the consistency of are those of the loop over
+    turns, rows and columns that it replaced."""
+    from mrexplore.merge.common import Verifier
+    from mrexplore.merge.semantic import _consistency_polish, _turn_about
+
+    a, b, T_true = office_pair
+    slack = Verifier(a, b, slack=1)
+    centre = tuple(slack.points_b.mean(axis=0))
+
+    def reference(T: np.ndarray, keep: int = 5) -> list[bytes]:
+        grid = []
+        for d in (-1.0, -0.5, 0.0, 0.5, 1.0):
+            turn = _turn_about(d, *centre)
+            for dr in (-2, -1, 0, 1, 2):
+                for dc in (-2, -1, 0, 1, 2):
+                    Tn = chain(translation(dc, dr), T, turn)
+                    grid.append((slack(Tn).score, len(grid), Tn))
+        grid.sort(key=lambda g: (-g[0], g[1]))
+        return [Tn.tobytes() for _, _, Tn in grid[:keep]]
+
+    rng = np.random.default_rng(3)
+    for k in range(6):
+        T = chain(translation(*rng.uniform(-3, 3, 2)), T_true) if k else T_true
+        asked: list[bytes] = []
+
+        def consistency(Tn: np.ndarray, asked: list[bytes] = asked) -> float:
+            asked.append(np.asarray(Tn, dtype=np.float64).tobytes())
+            return slack.structured(Tn, 3).score
+
+        best, c = _consistency_polish(T, slack, consistency, centre)
+        assert asked[0] == T.tobytes() and asked[1:] == reference(T)
+        assert c == max(slack.structured(np.frombuffer(p).reshape(3, 3), 3).score for p in asked)
+        assert np.asarray(best, dtype=np.float64).tobytes() in asked

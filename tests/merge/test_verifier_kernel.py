@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from mrexplore.kernels.merging import count_both_ways
-from mrexplore.merge.common import Verifier, translation
+from mrexplore.merge.common import Agreement, Verifier, translation
 
 
 def _rotation(theta: float) -> np.ndarray:
@@ -53,3 +54,25 @@ def test_compiled_shifted_count_equals_numpy_reference(
         np.testing.assert_array_equal(got[0], want[0])
         np.testing.assert_array_equal(got[1], want[1])
         assert got[0].sum() > 0 and got[1].sum() > 0
+
+
+def test_many_poses_at_once_equal_one_at_a_time(
+    office_pair: tuple[np.ndarray, np.ndarray, np.ndarray], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``Verifier.many`` (one kernel call for all poses) gives each pose's own agreement, a
+    degenerate or non-finite pose included, with the kernels on and off."""
+    from mrexplore import kernels
+
+    a, b, T_true = office_pair
+    rng = np.random.default_rng(2)
+    ver = Verifier(a, b, slack=1)
+    poses = [T_true, np.eye(3), np.zeros((3, 3)), np.full((3, 3), np.nan)] + [
+        translation(*rng.uniform(-40, 40, 2)) @ T_true @ _rotation(rng.uniform(-0.3, 0.3))
+        for _ in range(40)
+    ]
+    one_by_one = [ver(T) for T in poses]
+    assert one_by_one[0].agree > 0 and one_by_one[2] == one_by_one[3] == Agreement(0, 0, 0.0)
+    assert ver.many(np.stack(poses)) == one_by_one
+    assert ver.many(np.zeros((0, 3, 3))) == []
+    monkeypatch.setattr(kernels, "USE_NUMBA", False)
+    assert ver.many(np.stack(poses)) == one_by_one

@@ -501,9 +501,13 @@ class Verifier:
         """How many of the cells ``flat`` belong to 8-connected groups of >= ``min_run`` cells."""
         if flat.size < min_run:
             return 0
-        img = np.zeros(shape[0] * shape[1], dtype=np.uint8)
-        img[flat] = 1
-        _, _, stats, _ = cv2.connectedComponentsWithStats(img.reshape(shape), connectivity=8)
+        # only the box around the cells: every group lies in it, so the groups are those of the
+        # whole map (the map can be a hundred times larger than the box)
+        rows, cols = np.divmod(flat, shape[1])
+        r0, c0 = int(rows.min()), int(cols.min())
+        img = np.zeros((int(rows.max()) - r0 + 1, int(cols.max()) - c0 + 1), dtype=np.uint8)
+        img[rows - r0, cols - c0] = 1
+        _, _, stats, _ = cv2.connectedComponentsWithStats(img, connectivity=8)
         big = stats[1:, cv2.CC_STAT_AREA] >= min_run
         return int(stats[1:, cv2.CC_STAT_AREA][big].sum())
 
@@ -517,8 +521,15 @@ class Verifier:
         if not np.isfinite(T).all() or abs(det) < 1e-9:
             return Agreement(0, 0, 0.0)
         Ti = rigid_inverse(T)
-        ab, db, nb = self._count(self.points_b, T, self.codes_a)
-        aa, da, _ = self._count(self.points_a, Ti, self.codes_b)
+        if kernels.enabled():  # the same counts (tests/merge/test_verifier_kernel.py)
+            assert _merging is not None
+            T = np.ascontiguousarray(T)
+            ab, db, nb, aa, da = _merging.count_both_ways(
+                self.points_b, self.points_a, T, self.codes_a, self.codes_b
+            )
+        else:
+            ab, db, nb = self._count(self.points_b, T, self.codes_a)
+            aa, da, _ = self._count(self.points_a, Ti, self.codes_b)
         runs = self._in_runs(
             self._contradictions(self.points_b, T, self.codes_a), self.codes_a.shape, min_run
         ) + self._in_runs(

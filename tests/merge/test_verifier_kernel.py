@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from mrexplore import kernels
 from mrexplore.kernels.merging import count_both_ways
 from mrexplore.merge.common import Agreement, Verifier, translation
 
@@ -61,8 +62,6 @@ def test_many_poses_at_once_equal_one_at_a_time(
 ) -> None:
     """``Verifier.many`` (one kernel call for all poses) gives each pose's own agreement, a
     degenerate or non-finite pose included, with the kernels on and off."""
-    from mrexplore import kernels
-
     a, b, T_true = office_pair
     rng = np.random.default_rng(2)
     ver = Verifier(a, b, slack=1)
@@ -76,3 +75,51 @@ def test_many_poses_at_once_equal_one_at_a_time(
     assert ver.many(np.zeros((0, 3, 3))) == []
     monkeypatch.setattr(kernels, "USE_NUMBA", False)
     assert ver.many(np.stack(poses)) == one_by_one
+
+
+def test_structured_counts_equal_the_whole_map_reference(
+    office_pair: tuple[np.ndarray, np.ndarray, np.ndarray], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``Verifier.structured`` (its counts from the kernel, its groups of contradictions found
+    in the box around them) against the reference: numpy counts and groups labelled on the
+    whole map, on poses from right to far off and group sizes from 1 to 40 cells."""
+    import cv2
+
+    from mrexplore.grid import rigid_inverse
+
+    def runs(flat: np.ndarray, shape: tuple[int, int], min_run: int) -> int:
+        if flat.size < min_run:
+            return 0
+        img = np.zeros(shape[0] * shape[1], dtype=np.uint8)
+        img[flat] = 1
+        _, _, stats, _ = cv2.connectedComponentsWithStats(img.reshape(shape), connectivity=8)
+        areas = stats[1:, cv2.CC_STAT_AREA]
+        return int(areas[areas >= min_run].sum())
+
+    def reference(ver: Verifier, T: np.ndarray, min_run: int) -> Agreement:
+        Ti = rigid_inverse(T)
+        ab, db, nb = Verifier._count(ver.points_b, T, ver.codes_a)
+        aa, da, _ = Verifier._count(ver.points_a, Ti, ver.codes_b)
+        on_a = Verifier._contradictions(ver.points_b, T, ver.codes_a)
+        on_b = Verifier._contradictions(ver.points_a, Ti, ver.codes_b)
+        held = runs(on_a, ver.codes_a.shape, min_run) + runs(on_b, ver.codes_b.shape, min_run)
+        return Agreement(ab + aa, min(db + da, held), nb / ver.points_b.shape[0])
+
+    a, b, T_true = office_pair
+    rng = np.random.default_rng(4)
+    poses = [T_true] + [
+        translation(*rng.uniform(-s, s, 2)) @ T_true @ _rotation(rng.uniform(-0.1, 0.1))
+        for s in (1, 3, 10, 40)
+        for _ in range(6)
+    ]
+    seen_runs = set()
+    for use in (True, False):
+        monkeypatch.setattr(kernels, "USE_NUMBA", use)
+        for slack in (0, 2):
+            ver = Verifier(a, b, slack=slack)
+            for T in poses:
+                for min_run in (1, 5, 40):
+                    got = ver.structured(T, min_run)
+                    assert got == reference(ver, T, min_run)
+                    seen_runs.add(got.disagree > 0)
+    assert seen_runs == {True, False}  # some poses had groups counted, some none

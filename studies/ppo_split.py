@@ -69,6 +69,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         "keeps torch_threads",
     )
     p.add_argument(
+        "--torch-threads",
+        type=int,
+        default=None,
+        help="PyTorch threads while collecting (ppo.yaml's torch_threads)",
+    )
+    p.add_argument(
         "--unbatched",
         action="store_true",
         help="through make_vec_env's default adapter (separate copies) instead, for comparison",
@@ -88,6 +94,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     cfg = load_hyperparams("ppo")
     if args.update_threads is not None:
         cfg["update_threads"] = args.update_threads
+    if args.torch_threads is not None:
+        cfg["torch_threads"] = args.torch_threads
     try:
         collect_threads, update_threads = phase_threads(cfg, "ppo_split")
     except ConfigError as err:

@@ -122,6 +122,21 @@ def rows(
     ]
 
 
+def rollout_setting(
+    team: str, merger: str | None, env_options: str | None
+) -> tuple[str, dict[str, Any]]:
+    """The realistic rollout's setting (label, env options with ``team``): the default world,
+    2 robots, with ``env_options`` (``"k=v,k=v"``, e.g. ``n_robots=8``) over it."""
+    from mrexplore.studies.env_bench import DEFAULT_WORLD
+    from mrexplore.studies.merge_bench import parse_options
+
+    extra = {} if env_options is None else parse_options(env_options, flag="--env-options")
+    label = f"{team}, symmetric_office, {extra.get('n_robots', 2)} robots"
+    if env_options is not None:
+        label += f", {env_options}"
+    return label, {**DEFAULT_WORLD, "merger": merger, **extra, "team": team}
+
+
 def main() -> int:
     """Measure both trees in turn and print steps/s, p50/p99 and the ratio per setting."""
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
@@ -148,19 +163,11 @@ def main() -> int:
     )
     args = p.parse_args()
     sys.path.insert(0, str(HERE))
-    from mrexplore.studies.env_bench import DEFAULT_WORLD
-    from mrexplore.studies.merge_bench import parse_options
-
     merger = None if args.merger.lower() == "none" else args.merger
     robots = [int(v) for v in args.robots.split(",")]
     table = rows(robots, merger, args.env_options)
     if args.rollout is not None:
-        extra = {} if args.env_options is None else parse_options(args.env_options, "--env-options")
-        label = f"{args.rollout}, symmetric_office, {extra.get('n_robots', 2)} robots"
-        if args.env_options is not None:
-            label += f", {args.env_options}"
-        opts = {**DEFAULT_WORLD, "merger": merger, **extra, "team": args.rollout}
-        table = [(label, opts)]
+        table = [rollout_setting(args.rollout, merger, args.env_options)]
     base, this = Path(args.base).resolve(), HERE
     runs: dict[str, list[dict[str, Any]]] = {"base": [], "this": []}
     for k in range(args.rounds):
